@@ -1,0 +1,249 @@
+"""The mission document (CONVENTIONS §3), validated at the boundary.
+
+One document describes a formation mission: the geodetic origin of the local ENU frame
+(the paper's ICS), the performance envelope (Table 1 of the paper as defaults), the planner
+settings, the leader's target and the vehicles with their formation slots, and spherical
+obstacles that may move at constant velocity.  All coordinates are ICS metres relative to
+``origin``; all angles radians; all speeds m/s.
+
+Every error names the field it is about, e.g. ``vehicles[2].slot``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    model_validator,
+)
+
+Vec3 = tuple[float, float, float]
+PositiveFloat = Annotated[float, Field(gt=0.0)]
+
+
+class _Strict(BaseModel):
+    """Base of every mission model: unknown keys and non-finite numbers are errors."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+
+
+class Origin(_Strict):
+    """Geodetic origin of the local ENU frame (WGS-84, degrees and metres AMSL)."""
+
+    lat: float = Field(ge=-90.0, le=90.0)
+    lon: float = Field(ge=-180.0, le=180.0)
+    alt: float = 0.0
+
+
+class Limits(_Strict):
+    """Performance envelope of the vehicles; the defaults are Table 1 of the paper.
+
+    ``max_pitch_rate`` and ``max_yaw_rate`` are the maximum angular velocities ω_max
+    (Table 1 prints them under a_θ, a_ψ: CONVENTIONS §2 erratum 5).
+    """
+
+    collision_radius: PositiveFloat = 25.0
+    v_init: PositiveFloat = 100.0
+    v_min: PositiveFloat = 100.0
+    v_max: PositiveFloat = 300.0
+    accel: PositiveFloat = 10.0
+    decel: PositiveFloat = 40.0
+    max_pitch_rate: PositiveFloat = math.pi / 6
+    max_yaw_rate: PositiveFloat = math.pi / 6
+    target_accuracy: PositiveFloat = 10.0
+    safe_distance_uav: PositiveFloat = 50.0
+    safe_distance_obstacle: PositiveFloat = 25.0
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Limits:
+        if self.v_min > self.v_max:
+            raise ValueError("limits.v_min: must not exceed limits.v_max")
+        if not self.v_min <= self.v_init <= self.v_max:
+            raise ValueError("limits.v_init: must lie in [limits.v_min, limits.v_max]")
+        if self.safe_distance_uav < 2 * self.collision_radius:
+            raise ValueError(
+                "limits.safe_distance_uav: must be at least 2 × limits.collision_radius"
+            )
+        if self.safe_distance_obstacle < self.collision_radius:
+            raise ValueError(
+                "limits.safe_distance_obstacle: must be at least limits.collision_radius"
+            )
+        return self
+
+
+class PlannerSettings(_Strict):
+    """Which method plans, with which time step Δt, for at most how long (seconds)."""
+
+    method: Literal["ppf", "apf"] = "ppf"
+    dt: float = Field(default=0.01, gt=0.0, le=1.0)
+    max_time: float = Field(default=300.0, gt=0.0, le=36_000.0)
+
+
+class Vehicle(_Strict):
+    """One fixed-wing vehicle; ``id`` is also its MAVLink system id (1–254)."""
+
+    id: int = Field(ge=1, le=254)
+    role: Literal["leader", "wingman"]
+    position: Vec3
+    pitch: float = Field(default=0.0, ge=-math.pi / 2, le=math.pi / 2)
+    yaw: float = Field(default=0.0, ge=-math.pi, le=math.pi)
+    speed: float | None = Field(default=None, gt=0.0)
+    slot: Vec3 | None = None
+    priority: int | None = None
+
+
+class Obstacle(_Strict):
+    """A spherical obstacle (no-fly volume), optionally moving at constant velocity."""
+
+    center: Vec3
+    radius: PositiveFloat
+    velocity: Vec3 = (0.0, 0.0, 0.0)
+
+
+def _distance(a: Sequence[float], b: Sequence[float]) -> float:
+    return math.dist(a, b)
+
+
+class Mission(_Strict):
+    """A formation mission (CONVENTIONS §3)."""
+
+    name: str = Field(default="mission", min_length=1, max_length=200)
+    origin: Origin = Origin(lat=47.397742, lon=8.545594, alt=488.0)
+    limits: Limits = Limits()
+    planner: PlannerSettings = PlannerSettings()
+    target: Vec3
+    vehicles: list[Vehicle] = Field(min_length=1, max_length=1000)
+    obstacles: list[Obstacle] = Field(default_factory=list, max_length=10_000)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Mission:
+        for problem in mission_problems(self):
+            raise ValueError(problem)
+        return self
+
+    @property
+    def leader(self) -> Vehicle:
+        return next(v for v in self.vehicles if v.role == "leader")
+
+    @property
+    def wingmen(self) -> list[Vehicle]:
+        return [v for v in self.vehicles if v.role == "wingman"]
+
+
+def mission_problems(mission: Mission) -> list[str]:
+    """Cross-field checks; each problem starts with the field it names."""
+    problems: list[str] = []
+    lim = mission.limits
+    seen: dict[int, int] = {}
+    for k, v in enumerate(mission.vehicles):
+        if v.id in seen:
+            problems.append(f"vehicles[{k}].id: duplicate id {v.id} (also vehicles[{seen[v.id]}])")
+        seen.setdefault(v.id, k)
+        if v.role == "wingman" and v.slot is None:
+            problems.append(f"vehicles[{k}].slot: a wingman needs a slot")
+        if v.role == "leader" and v.slot is not None:
+            problems.append(f"vehicles[{k}].slot: the leader has no slot")
+        if v.speed is not None and not lim.v_min <= v.speed <= lim.v_max:
+            problems.append(f"vehicles[{k}].speed: must lie in [limits.v_min, limits.v_max]")
+    leaders = [k for k, v in enumerate(mission.vehicles) if v.role == "leader"]
+    if len(leaders) != 1:
+        where = ", ".join(f"vehicles[{k}]" for k in leaders) or "none"
+        problems.append(f"vehicles: exactly one leader is needed, found {len(leaders)} ({where})")
+
+    for j, o in enumerate(mission.obstacles):
+        keep_out = o.radius + lim.collision_radius
+        for k, v in enumerate(mission.vehicles):
+            if _distance(v.position, o.center) < keep_out:
+                problems.append(
+                    f"vehicles[{k}].position: inside obstacles[{j}] "
+                    f"(closer than radius + collision_radius = {keep_out:g} m)"
+                )
+        if _distance(mission.target, o.center) < o.radius + lim.target_accuracy:
+            problems.append(f"target: inside obstacles[{j}]")
+
+    # Slots are places in the leader's VCS; the leader itself sits at the VCS origin.
+    slots = [((0.0, 0.0, 0.0), "the leader")] + [
+        (v.slot, f"vehicles[{k}].slot")
+        for k, v in enumerate(mission.vehicles)
+        if v.role == "wingman" and v.slot is not None
+    ]
+    for a in range(1, len(slots)):
+        for b in range(a):
+            gap = _distance(slots[a][0], slots[b][0])
+            if gap < lim.safe_distance_uav:
+                problems.append(
+                    f"{slots[a][1]}: {gap:g} m from {slots[b][1]}, closer than "
+                    f"limits.safe_distance_uav = {lim.safe_distance_uav:g} m"
+                )
+    for k, v in enumerate(mission.vehicles):
+        for m in range(k):
+            gap = _distance(v.position, mission.vehicles[m].position)
+            if gap < lim.safe_distance_uav:
+                problems.append(
+                    f"vehicles[{k}].position: {gap:g} m from vehicles[{m}], closer than "
+                    f"limits.safe_distance_uav"
+                )
+    return problems
+
+
+class MissionError(ValueError):
+    """A mission document that cannot be used; ``field`` names the offending field."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(f"{field}: {message}")
+        self.field = field
+        self.message = message
+
+
+def _field_path(loc: Sequence[int | str]) -> str:
+    path = ""
+    for part in loc:
+        path += f"[{part}]" if isinstance(part, int) else (f".{part}" if path else str(part))
+    return path
+
+
+def describe_validation_error(error: ValidationError) -> list[MissionError]:
+    """Turn pydantic's errors into ``MissionError`` s that name their field."""
+    out: list[MissionError] = []
+    for e in error.errors():
+        msg = str(e["msg"]).removeprefix("Value error, ")
+        field = _field_path(e["loc"])
+        if not field and ": " in msg:  # cross-field checks carry the field in the message
+            field, msg = msg.split(": ", 1)
+        if e["type"] == "extra_forbidden":
+            msg = "unknown key"
+        out.append(MissionError(field or "mission", msg))
+    return out
+
+
+def load_mission(text: str) -> Mission:
+    """Parse and validate a mission document; raise ``MissionError`` naming the field.
+
+    NaN and infinities are rejected even though Python's json module would read them.
+    """
+    try:
+        raw = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise MissionError("mission", f"not valid JSON: {exc}") from None
+    if not isinstance(raw, dict):
+        raise MissionError("mission", "must be a JSON object")
+    try:
+        return Mission.model_validate(raw)
+    except ValidationError as exc:
+        raise describe_validation_error(exc)[0] from None
+
+
+def load_mission_file(path: str | Path) -> Mission:
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise MissionError("mission", f"cannot read {path}: {exc}") from None
+    return load_mission(text)
