@@ -1,0 +1,357 @@
+"""The PPF formation planner's compiled kernel: one time step of the whole fleet.
+
+Plain arrays in, plain arrays out; no I/O, no clock.  One numba function per equation
+group of the paper, so the equations stay visible:
+
+* ``influence_radius``      Eq. 10–11, corrected (CONVENTIONS §2 erratum 4)
+* ``to_vcs``                Eq. 16–18 (ICS → VCS)
+* ``slot_to_ics``           Eq. 6–8 (VCS → ICS, erratum 1: the pitch matrix transposed)
+* ``trend``                 Eq. 19 (velocity change trend matrix f, erratum 2)
+* ``braking_speed``         Eq. 21–23 (wingman deceleration ahead of its local target)
+* ``fleet_step``            Eq. 9, 12–15, 20, 24 and the kinematics of Eq. 3–5
+
+Fleet layout (structure of arrays, N vehicles, M obstacles):
+``pos[N,3]`` ICS metres, ``pitch[N]``, ``yaw[N]`` radians, ``speed[N]`` m/s,
+``slot[N,3]`` the wingman's place in the leader's VCS (zeros for the leader, index 0),
+``rank[N]`` avoidance priority (a vehicle avoids every active vehicle of lower rank),
+``active[N]`` (inactive vehicles are neither moved nor avoided),
+``obs_center[M,3]``, ``obs_radius[M]``, ``obs_velocity[M,3]``.
+
+Design choices where the paper is silent or cannot be used as printed are documented
+next to the code that makes them; the README summarises them.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+
+S1_FOLLOW = 1  # target following and obstacle avoidance
+S2_LOCAL_MINIMUM = 2  # local-minimum escape (Eq. 20)
+S3_FORMATION = 3  # formation forming: leader waits, wingman brakes (Eq. 21–24)
+
+EPSILON_1 = 1.0e6  # |F_j| inside an influence radius, ε₁ ≫ 1 (Eq. 13)
+EPSILON_3 = 1.0e9  # braking vector of s3, ε₃ ≫ |F_v^sx| (Eq. 24)
+LOCAL_MINIMUM_ANGLE = math.radians(1.0)  # repulsion this close to antiparallel → s2
+AVOIDANCE_TURN_ANGLE = math.pi / 2  # a moving obstacle is out-turned in a quarter turn
+
+
+class KernelLimits(NamedTuple):
+    """The performance envelope and safety distances the kernel needs (SI units)."""
+
+    v_min: float
+    v_max: float
+    accel: float
+    decel: float
+    max_pitch_rate: float
+    max_yaw_rate: float
+    target_accuracy: float
+    safe_distance_uav: float
+    safe_distance_obstacle: float
+
+
+@njit(cache=True)
+def influence_radius(speed: float, turn_rate: float, keep_out: float) -> float:
+    """Distance from an obstacle's centre at which avoidance must begin (Eq. 10–11, erratum 4).
+
+    A vehicle flying straight at the centre turns at full rate ω on a circle of radius
+    ρ = v/ω (Fig. 2).  The circle's centre is ρ to the side of the vehicle, so its closest
+    approach to the obstacle centre is √(d² + ρ²) − ρ.  Clearing the keep-out sphere
+    (``keep_out`` = R_o + safe distance) needs √(d² + ρ²) − ρ ≥ keep_out, hence
+
+        R = √((keep_out + ρ)² − ρ²).
+
+    The printed Eq. 10, √((R_o + R_v)² − R_o²), swaps the roles of R_o and ρ and gives
+    R < R_o for Table 3's 650 m and 850 m obstacles at 100 m/s.
+    """
+    rho = speed / turn_rate
+    return math.sqrt((keep_out + rho) ** 2 - rho**2)
+
+
+@njit(cache=True)
+def to_vcs(
+    fx: float, fy: float, fz: float, cp: float, sp: float, cy: float, sy: float
+) -> tuple[float, float, float]:
+    """ICS vector → VCS of a vehicle with cos/sin of pitch (cp, sp) and yaw (cy, sy):
+    A_fv(θ) · B_fv(ψ) · F (Eq. 16–18)."""
+    bx = cy * fx + sy * fy  # B_fv(ψ), Eq. 18
+    by = -sy * fx + cy * fy
+    return cp * bx + sp * fz, by, -sp * bx + cp * fz  # A_fv(θ), Eq. 17
+
+
+@njit(cache=True)
+def slot_to_ics(
+    sx: float, sy_: float, sz: float, cp: float, sp: float, cy: float, sy: float
+) -> tuple[float, float, float]:
+    """Leader-VCS vector → ICS: A_vf(ψ₀) · B_vf(θ₀) · s (Eq. 6–8, erratum 1)."""
+    px = cp * sx - sp * sz  # corrected B_vf(θ), erratum 1
+    pz = sp * sx + cp * sz
+    return cy * px - sy * sy_, sy * px + cy * sy_, pz  # A_vf(ψ), Eq. 7
+
+
+@njit(cache=True)
+def trend(angle: float, max_rate: float, dt: float) -> float:
+    """One entry of the trend matrix f (Eq. 19), saturated: ``sign(angle)`` when the turn
+    needed is at least one full step ω·Δt, proportional below it.
+
+    A pure sign law turns by ±ω·Δt every step and chatters about the wanted direction;
+    turning exactly the remaining angle keeps |Δ| ≤ ω·Δt (Table 1) without the chatter.
+    """
+    step = max_rate * dt
+    if angle >= step:
+        return 1.0
+    if angle <= -step:
+        return -1.0
+    return angle / step
+
+
+@njit(cache=True)
+def braking_speed(leader_speed: float, distance: float, accel: float) -> float:
+    """Speed from which a wingman can just match the leader's speed within ``distance``.
+
+    Eq. 21–22 give the distance needed to slow from v_i to v_0 at a_i:
+    Δt' = (v_i − v_0)/a_i and Δd' = v_i Δt' − a_i Δt'²/2, i.e. v_i² − v_0² = 2 a_i Δd'.
+    Eq. 23 brakes (s3) once d_i ≤ Δd'; so the wingman's speed limit at distance d_i is
+    √(v_0² + 2 a_i d_i).  A negative distance (slot behind) asks for the speed that gives
+    the lost ground back at ``accel``.
+    """
+    v2 = leader_speed * leader_speed + 2.0 * accel * distance
+    return math.sqrt(v2) if v2 > 0.0 else 0.0
+
+
+@njit(cache=True)
+def _closing_speed(
+    dx: float, dy: float, dz: float, d: float, ux: float, uy: float, uz: float
+) -> float:
+    """Speed at which a point moving at u approaches a vehicle at offset (dx, dy, dz)."""
+    if d <= 0.0:
+        return 0.0
+    c = (ux * dx + uy * dy + uz * dz) / d
+    return c if c > 0.0 else 0.0
+
+
+@njit(cache=True)
+def fleet_step(
+    pos: np.ndarray,
+    pitch: np.ndarray,
+    yaw: np.ndarray,
+    speed: np.ndarray,
+    slot: np.ndarray,
+    rank: np.ndarray,
+    active: np.ndarray,
+    obs_center: np.ndarray,
+    obs_radius: np.ndarray,
+    obs_velocity: np.ndarray,
+    target: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+    state: np.ndarray,
+    avoiding: np.ndarray,
+    formed: np.ndarray,
+    direction: np.ndarray,
+    local_target: np.ndarray,
+    next_motion: np.ndarray,
+) -> None:
+    """Advance the fleet one step Δt in place (Eq. 3–5, 9–24).
+
+    ``state[N]`` receives each vehicle's PPF state (1, 2, 3), ``avoiding[N]`` whether an
+    obstacle or teammate repels it, ``formed[N]`` whether a wingman is within the target
+    accuracy of its local target point, ``local_target[N,3]`` the wingmen's local target
+    points G_i (Eq. 6).  ``direction[N,3]`` and ``next_motion[N,3]`` are scratch space.
+    Every vehicle decides from the fleet's state at the start of the step.
+    Obstacles are moved by their velocity at the end of the step.
+    """
+    n = pos.shape[0]
+    m = obs_center.shape[0]
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+
+    # Unit velocity directions at the start of the step (Eq. 5 divided by v).
+    for i in range(n):
+        cp = math.cos(pitch[i])
+        direction[i, 0] = cp * math.cos(yaw[i])
+        direction[i, 1] = cp * math.sin(yaw[i])
+        direction[i, 2] = math.sin(pitch[i])
+
+    # Local target points of the wingmen (Eq. 6) and whether the formation is formed.
+    lcp, lsp = math.cos(pitch[0]), math.sin(pitch[0])
+    lcy, lsy = math.cos(yaw[0]), math.sin(yaw[0])
+    v0 = speed[0]
+    lead = v0 / omega  # horizon of the wingman's estimate of its moving target point
+    all_formed = True
+    for i in range(n):
+        formed[i] = False
+        gx, gy, gz = slot_to_ics(slot[i, 0], slot[i, 1], slot[i, 2], lcp, lsp, lcy, lsy)
+        local_target[i, 0] = pos[0, 0] + gx
+        local_target[i, 1] = pos[0, 1] + gy
+        local_target[i, 2] = pos[0, 2] + gz
+        if i == 0 or not active[i]:
+            continue
+        gx = local_target[i, 0] - pos[i, 0]
+        gy = local_target[i, 1] - pos[i, 1]
+        gz = local_target[i, 2] - pos[i, 2]
+        formed[i] = gx * gx + gy * gy + gz * gz <= lim.target_accuracy**2
+        all_formed = all_formed and formed[i]
+
+    for i in range(n):
+        if not active[i]:
+            continue
+        vi = speed[i]
+        px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
+        cp, sp = math.cos(pitch[i]), math.sin(pitch[i])
+        cy, sy = math.cos(yaw[i]), math.sin(yaw[i])
+
+        # Repulsion (Eq. 12–13): ε₁ from every obstacle whose influence radius we are in.
+        rx = 0.0
+        ry = 0.0
+        rz = 0.0
+        rho = vi / omega
+        for j in range(m):
+            dx = px - obs_center[j, 0]
+            dy = py - obs_center[j, 1]
+            dz = pz - obs_center[j, 2]
+            d2 = dx * dx + dy * dy + dz * dz
+            keep_out = obs_radius[j] + lim.safe_distance_obstacle
+            u_max = math.sqrt(
+                obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2
+            )
+            reach = keep_out + rho + vi * dt + u_max * AVOIDANCE_TURN_ANGLE / omega
+            if d2 > reach * reach:  # cheap rejection: R ≤ keep_out + ρ
+                continue
+            d = math.sqrt(d2)
+            closing = _closing_speed(
+                dx, dy, dz, d, obs_velocity[j, 0], obs_velocity[j, 1], obs_velocity[j, 2]
+            )
+            radius = influence_radius(vi, omega, keep_out) + vi * dt
+            radius += closing * AVOIDANCE_TURN_ANGLE / omega
+            if d <= radius and d > 0.0:
+                rx += EPSILON_1 * dx / d
+                ry += EPSILON_1 * dy / d
+                rz += EPSILON_1 * dz / d
+
+        # Teammates of higher priority are moving obstacles (formation model): a mate
+        # repels only while the two close on each other and would pass nearer than the
+        # safe distance (closest point of approach); mates flying alongside do not.
+        for k in range(n):
+            if k == i or not active[k] or rank[k] >= rank[i]:
+                continue
+            dx = px - pos[k, 0]
+            dy = py - pos[k, 1]
+            dz = pz - pos[k, 2]
+            wx = speed[k] * direction[k, 0] - vi * direction[i, 0]  # mate relative to us
+            wy = speed[k] * direction[k, 1] - vi * direction[i, 1]
+            wz = speed[k] * direction[k, 2] - vi * direction[i, 2]
+            approach = wx * dx + wy * dy + wz * dz  # > 0: the gap is shrinking
+            if approach <= 0.0:
+                continue
+            d2 = dx * dx + dy * dy + dz * dz
+            w2 = wx * wx + wy * wy + wz * wz
+            t_cpa = approach / w2
+            miss2 = d2 - approach * t_cpa
+            if miss2 >= (lim.safe_distance_uav + 2.0 * vi * dt) ** 2:
+                continue
+            d = math.sqrt(d2)
+            radius = influence_radius(vi, omega, lim.safe_distance_uav) + vi * dt
+            radius += speed[k] * AVOIDANCE_TURN_ANGLE / omega
+            if d <= radius and d > 0.0:
+                rx += EPSILON_1 * dx / d
+                ry += EPSILON_1 * dy / d
+                rz += EPSILON_1 * dz / d
+
+        repelled = rx != 0.0 or ry != 0.0 or rz != 0.0
+        avoiding[i] = repelled
+
+        # Attraction (Eq. 14): unit vector to the target point, zero while repelled.
+        if repelled:
+            fx, fy, fz = rx, ry, rz  # Eq. 15 with |F_g| = 0
+        else:
+            if i == 0:
+                gx = target[0] - px
+                gy = target[1] - py
+                gz = target[2] - pz
+            else:
+                # The wingman aims where its local target point will be one turn time
+                # (1/ω) ahead: its estimate of the leader's motion.
+                gx = local_target[i, 0] + lead * direction[0, 0] - px
+                gy = local_target[i, 1] + lead * direction[0, 1] - py
+                gz = local_target[i, 2] + lead * direction[0, 2] - pz
+            g = math.sqrt(gx * gx + gy * gy + gz * gz)
+            if g > 0.0:
+                fx, fy, fz = gx / g, gy / g, gz / g
+            else:
+                fx, fy, fz = direction[i, 0], direction[i, 1], direction[i, 2]
+
+        # Into the VCS (Eq. 16–18).
+        fvx, fvy, fvz = to_vcs(fx, fy, fz, cp, sp, cy, sy)
+        s = S1_FOLLOW
+
+        # s2: repulsion (anti)parallel to the velocity leaves no turn to take; add F_add
+        # along +z_v so the vehicle pulls up (Eq. 20).
+        f_norm = math.sqrt(fvx * fvx + fvy * fvy + fvz * fvz)
+        lateral = math.sqrt(fvy * fvy + fvz * fvz)
+        if repelled and fvx < 0.0 and lateral <= f_norm * math.sin(LOCAL_MINIMUM_ANGLE):
+            fvz += EPSILON_1
+            s = S2_LOCAL_MINIMUM
+
+        # Trend matrix f (Eq. 19, erratum 2): pitch follows F_v^z, yaw follows F_v^y.
+        elevation = math.atan2(fvz, math.sqrt(fvx * fvx + fvy * fvy))
+        azimuth = math.atan2(fvy, fvx) if fvy != 0.0 else 0.0
+        f_pitch = trend(elevation, lim.max_pitch_rate, dt)
+        f_yaw = trend(azimuth, lim.max_yaw_rate, dt)
+
+        # Speed trend f_l.
+        if fvx > 0.0:
+            f_speed = 1.0
+        elif fvx < 0.0:
+            f_speed = -1.0
+        else:
+            f_speed = 0.0
+        if i == 0:
+            if not all_formed:  # Eq. 24: the leader waits at low speed (s3)
+                f_speed = -1.0
+                s = S3_FORMATION
+        elif not repelled and fvx > 0.0:
+            # Eq. 21–23: the wingman brakes so as to arrive at the leader's speed.
+            ex = local_target[i, 0] - px
+            ey = local_target[i, 1] - py
+            ez = local_target[i, 2] - pz
+            along = ex * direction[0, 0] + ey * direction[0, 1] + ez * direction[0, 2]
+            if along >= 0.0:
+                v_cmd = braking_speed(v0, math.sqrt(ex * ex + ey * ey + ez * ez), lim.decel)
+                if not formed[i] and vi >= v_cmd:
+                    s = S3_FORMATION  # Eq. 23: d_i ≤ Δd'_i
+            else:
+                v_cmd = braking_speed(v0, along, lim.accel)
+            a_cmd = lim.accel if v_cmd >= vi else lim.decel
+            f_speed = trend(v_cmd - vi, a_cmd, dt)
+        state[i] = s
+
+        # Kinematics (Eq. 3–5): V(t) = V(t') + f · Δt · a, within the limits.
+        a_l = lim.accel if f_speed > 0.0 else lim.decel
+        v_new = min(max(vi + f_speed * a_l * dt, lim.v_min), lim.v_max)
+        th = pitch[i] + f_pitch * lim.max_pitch_rate * dt
+        th = min(max(th, -0.5 * math.pi), 0.5 * math.pi)
+        ps = yaw[i] + f_yaw * lim.max_yaw_rate * dt
+        if ps > math.pi:
+            ps -= 2.0 * math.pi
+        elif ps <= -math.pi:
+            ps += 2.0 * math.pi
+        next_motion[i, 0] = v_new
+        next_motion[i, 1] = th
+        next_motion[i, 2] = ps
+
+    for i in range(n):
+        if not active[i]:
+            continue
+        speed[i] = next_motion[i, 0]
+        pitch[i] = next_motion[i, 1]
+        yaw[i] = next_motion[i, 2]
+        cp = math.cos(pitch[i])
+        pos[i, 0] += speed[i] * cp * math.cos(yaw[i]) * dt
+        pos[i, 1] += speed[i] * cp * math.sin(yaw[i]) * dt
+        pos[i, 2] += speed[i] * math.sin(pitch[i]) * dt
+    for j in range(m):
+        for c in range(3):
+            obs_center[j, c] += obs_velocity[j, c] * dt
