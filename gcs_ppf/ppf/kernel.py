@@ -207,6 +207,7 @@ def fleet_step(
         rx = 0.0
         ry = 0.0
         rz = 0.0
+        moving_threat = False  # a repelling obstacle or teammate that moves
         rho = vi / omega
         for j in range(m):
             dx = px - obs_center[j, 0]
@@ -230,6 +231,7 @@ def fleet_step(
                 rx += EPSILON_1 * dx / d
                 ry += EPSILON_1 * dy / d
                 rz += EPSILON_1 * dz / d
+                moving_threat = moving_threat or u_max > 0.0
 
         # Teammates of higher priority are moving obstacles (formation model): a mate
         # repels only while the two close on each other and would pass nearer than the
@@ -259,6 +261,7 @@ def fleet_step(
                 rx += EPSILON_1 * dx / d
                 ry += EPSILON_1 * dy / d
                 rz += EPSILON_1 * dz / d
+                moving_threat = True
 
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0
         avoiding[i] = repelled
@@ -285,6 +288,7 @@ def fleet_step(
 
         # Into the VCS (Eq. 16–18).
         fvx, fvy, fvz = to_vcs(fx, fy, fz, cp, sp, cy, sy)
+        along_field = fvx  # F_v^x, which sets the speed trend f_l
         s = S1_FOLLOW
 
         # s2: repulsion (anti)parallel to the velocity leaves no turn to take; add F_add
@@ -294,6 +298,20 @@ def fleet_step(
         if repelled and fvx < 0.0 and lateral <= f_norm * math.sin(LOCAL_MINIMUM_ANGLE):
             fvz += EPSILON_1
             s = S2_LOCAL_MINIMUM
+            f_norm = math.sqrt(fvx * fvx + fvy * fvy + fvz * fvz)
+
+        # Eq. 19 turns towards F_v; around static obstacles the turn is needed only until
+        # the vehicle no longer closes on them.  So the wanted direction is the velocity
+        # projected onto the plane normal to the repulsion, x − (x·F̂)F̂, while F_v^x < 0,
+        # and straight ahead once F_v^x ≥ 0.  The turn's sense is still that of F_v^y and
+        # F_v^z; a full turn towards F_v would end flying straight away from the obstacle
+        # and then zigzag along its influence sphere.  Moving threats keep the full turn.
+        if repelled and not moving_threat:
+            if fvx >= 0.0:
+                fvx, fvy, fvz = 1.0, 0.0, 0.0
+            else:
+                k_proj = fvx / (f_norm * f_norm)
+                fvx, fvy, fvz = 1.0 - k_proj * fvx, -k_proj * fvy, -k_proj * fvz
 
         # Trend matrix f (Eq. 19, erratum 2): pitch follows F_v^z, yaw follows F_v^y.
         elevation = math.atan2(fvz, math.sqrt(fvx * fvx + fvy * fvy))
@@ -301,10 +319,10 @@ def fleet_step(
         f_pitch = trend(elevation, lim.max_pitch_rate, dt)
         f_yaw = trend(azimuth, lim.max_yaw_rate, dt)
 
-        # Speed trend f_l.
-        if fvx > 0.0:
+        # Speed trend f_l (Eq. 19).
+        if along_field > 0.0:
             f_speed = 1.0
-        elif fvx < 0.0:
+        elif along_field < 0.0:
             f_speed = -1.0
         else:
             f_speed = 0.0
@@ -312,7 +330,7 @@ def fleet_step(
             if not all_formed:  # Eq. 24: the leader waits at low speed (s3)
                 f_speed = -1.0
                 s = S3_FORMATION
-        elif not repelled and fvx > 0.0:
+        elif not repelled and along_field > 0.0:
             # Eq. 21–23: the wingman brakes so as to arrive at the leader's speed.
             ex = local_target[i, 0] - px
             ey = local_target[i, 1] - py
