@@ -9,8 +9,9 @@ Speeds stay within [v_min, v_max] and the acceleration limits, so that the two m
 differ where the paper says they differ.
 
 * the leader flies at its initial speed towards the target;
-* a wingman is attracted to its local target point G_i (Eq. 6), at a speed proportional
-  to its distance from it (``SPEED_GAIN``), so that it catches up and then follows.
+* a wingman is attracted to its local target point G_i (Eq. 6), at the leader's speed
+  plus a speed proportional to its distance from G_i (``SPEED_GAIN``), so that it catches
+  up and then follows.
 
 Same array layout and signature as ``gcs_ppf.ppf.kernel.fleet_step``.
 """
@@ -24,7 +25,7 @@ from numba import njit
 
 from gcs_ppf.ppf.kernel import S1_FOLLOW, KernelLimits, influence_radius, slot_to_ics
 
-SPEED_GAIN = 1.0  # 1/s: commanded speed = gain × distance to the local target point
+SPEED_GAIN = 1.0  # 1/s: wingman speed = leader speed + gain × distance to G_i
 
 
 @njit(cache=True)
@@ -136,9 +137,10 @@ def apf_fleet_step(
             next_motion[i, 1] = pitch[i]
             next_motion[i, 2] = yaw[i]
 
-        # Speed: the leader cruises at its initial speed; a wingman in proportion to its
-        # distance from its local target point.  Speed and acceleration limits hold.
-        v_cmd = vi if i == 0 else SPEED_GAIN * dist
+        # Speed: the leader cruises at its initial speed; a wingman at the leader's speed
+        # plus a term in proportion to its distance from G_i.  Speed and acceleration
+        # limits hold.
+        v_cmd = vi if i == 0 else speed[0] + SPEED_GAIN * dist
         v_cmd = min(max(v_cmd, lim.v_min), lim.v_max)
         if v_cmd > vi:
             v_new = min(v_cmd, vi + lim.accel * dt)
