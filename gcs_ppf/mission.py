@@ -216,8 +216,9 @@ def describe_validation_error(error: ValidationError) -> list[MissionError]:
     for e in error.errors():
         msg = str(e["msg"]).removeprefix("Value error, ")
         field = _field_path(e["loc"])
-        if not field and ": " in msg:  # cross-field checks carry the field in the message
-            field, msg = msg.split(": ", 1)
+        named, _, rest = msg.partition(": ")
+        if rest and named.startswith(field) and " " not in named:
+            field, msg = named, rest  # cross-field checks carry the field in the message
         if e["type"] == "extra_forbidden":
             msg = "unknown key"
         out.append(MissionError(field or "mission", msg))

@@ -180,7 +180,11 @@ def fleet_step(
     lcy, lsy = math.cos(yaw[0]), math.sin(yaw[0])
     v0 = speed[0]
     lead = v0 / omega  # horizon of the wingman's estimate of its moving target point
-    all_formed = True
+    # The leader waits (s3) while a wingman is out of formation and has to catch up: its
+    # local target point is not behind it, or it does not yet fly the leader's way.  A
+    # wingman that flies the leader's way ahead of its slot cannot fall back while the
+    # leader flies at v_min: then the leader leads on (s1) and the slot comes to it.
+    leader_waits = False
     for i in range(n):
         formed[i] = False
         gx, gy, gz = slot_to_ics(slot[i, 0], slot[i, 1], slot[i, 2], lcp, lsp, lcy, lsy)
@@ -193,7 +197,13 @@ def fleet_step(
         gy = local_target[i, 1] - pos[i, 1]
         gz = local_target[i, 2] - pos[i, 2]
         formed[i] = gx * gx + gy * gy + gz * gz <= lim.target_accuracy**2
-        all_formed = all_formed and formed[i]
+        along = gx * direction[0, 0] + gy * direction[0, 1] + gz * direction[0, 2]
+        same_way = (
+            direction[i, 0] * direction[0, 0]
+            + direction[i, 1] * direction[0, 1]
+            + direction[i, 2] * direction[0, 2]
+        ) > 0.0
+        leader_waits = leader_waits or (not formed[i] and (along >= 0.0 or not same_way))
 
     for i in range(n):
         if not active[i]:
@@ -327,7 +337,7 @@ def fleet_step(
         else:
             f_speed = 0.0
         if i == 0:
-            if not all_formed:  # Eq. 24: the leader waits at low speed (s3)
+            if leader_waits:  # Eq. 24: the leader waits at low speed (s3)
                 f_speed = -1.0
                 s = S3_FORMATION
         elif not repelled and along_field > 0.0:
