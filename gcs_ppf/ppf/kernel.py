@@ -256,10 +256,10 @@ def fleet_step(
             wy = speed[k] * direction[k, 1] - vi * direction[i, 1]
             wz = speed[k] * direction[k, 2] - vi * direction[i, 2]
             approach = wx * dx + wy * dy + wz * dz  # > 0: the gap is shrinking
-            if approach <= 0.0:
+            w2 = wx * wx + wy * wy + wz * wz
+            if approach <= 0.0 or w2 == 0.0:  # (w2 can underflow while approach does not)
                 continue
             d2 = dx * dx + dy * dy + dz * dz
-            w2 = wx * wx + wy * wy + wz * wz
             t_cpa = approach / w2
             miss2 = d2 - approach * t_cpa
             if miss2 >= (lim.safe_distance_uav + 2.0 * vi * dt) ** 2:

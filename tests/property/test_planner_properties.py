@@ -1,0 +1,38 @@
+"""Properties of PPF plans over random feasible scenes (see scenes.py for 'feasible')."""
+
+from __future__ import annotations
+
+from hypothesis import given
+
+from gcs_ppf.mission import Mission
+from gcs_ppf.offline import plan_mission
+from tests.property.scenes import feasible_missions
+
+TOL = 1e-9
+
+
+@given(feasible_missions())
+def test_no_step_exceeds_a_kinematic_limit(mission: Mission) -> None:
+    m = plan_mission(mission).metrics
+    lim = mission.limits
+    assert m["max_pitch_rate_rad_s"] <= lim.max_pitch_rate + TOL
+    assert m["max_yaw_rate_rad_s"] <= lim.max_yaw_rate + TOL
+    assert m["min_speed_m_s"] >= lim.v_min - TOL
+    assert m["max_speed_m_s"] <= lim.v_max + TOL
+    assert m["max_accel_m_s2"] <= lim.accel + 1e-6
+    assert m["max_decel_m_s2"] <= lim.decel + 1e-6
+
+
+@given(feasible_missions())
+def test_safety_distances_hold(mission: Mission) -> None:
+    m = plan_mission(mission).metrics
+    if m["min_obstacle_clearance_m"] is not None:
+        assert m["min_obstacle_clearance_m"] >= mission.limits.safe_distance_obstacle
+    if m["min_separation_m"] is not None:
+        assert m["min_separation_m"] >= mission.limits.safe_distance_uav
+    assert m["collisions"] == 0
+
+
+@given(feasible_missions(max_wingmen=0))
+def test_a_lone_leader_reaches_its_target(mission: Mission) -> None:
+    assert plan_mission(mission).metrics["reached"]
