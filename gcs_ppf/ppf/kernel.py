@@ -37,6 +37,7 @@ EPSILON_1 = 1.0e6  # |F_j| inside an influence radius, ε₁ ≫ 1 (Eq. 13)
 EPSILON_3 = 1.0e9  # braking vector of s3, ε₃ ≫ |F_v^sx| (Eq. 24)
 LOCAL_MINIMUM_ANGLE = math.radians(1.0)  # repulsion this close to antiparallel → s2
 AVOIDANCE_TURN_ANGLE = math.pi / 2  # a moving obstacle is out-turned in a quarter turn
+CONFLICT_HORIZON_TURNS = 1.0  # teammate conflicts are looked for this many quarter turns ahead
 
 
 class KernelLimits(NamedTuple):
@@ -168,16 +169,24 @@ def fleet_step(
     m = obs_center.shape[0]
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
 
-    # Unit velocity directions at the start of the step (Eq. 5 divided by v).
+    # Unit velocity directions at the start of the step (Eq. 5 divided by v), the cosines
+    # and sines of pitch and yaw, and the obstacles' speeds.
+    trig = np.empty((n, 4))
     for i in range(n):
-        cp = math.cos(pitch[i])
-        direction[i, 0] = cp * math.cos(yaw[i])
-        direction[i, 1] = cp * math.sin(yaw[i])
-        direction[i, 2] = math.sin(pitch[i])
+        cp, sp = math.cos(pitch[i]), math.sin(pitch[i])
+        cy, sy = math.cos(yaw[i]), math.sin(yaw[i])
+        trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3] = cp, sp, cy, sy
+        direction[i, 0] = cp * cy
+        direction[i, 1] = cp * sy
+        direction[i, 2] = sp
+    obs_speed = np.empty(m)
+    for j in range(m):
+        obs_speed[j] = math.sqrt(
+            obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2
+        )
 
     # Local target points of the wingmen (Eq. 6) and whether the formation is formed.
-    lcp, lsp = math.cos(pitch[0]), math.sin(pitch[0])
-    lcy, lsy = math.cos(yaw[0]), math.sin(yaw[0])
+    lcp, lsp, lcy, lsy = trig[0, 0], trig[0, 1], trig[0, 2], trig[0, 3]
     v0 = speed[0]
     lead = v0 / omega  # horizon of the wingman's estimate of its moving target point
     # The leader waits (s3) while a wingman is out of formation and has to catch up: its
@@ -210,8 +219,7 @@ def fleet_step(
             continue
         vi = speed[i]
         px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
-        cp, sp = math.cos(pitch[i]), math.sin(pitch[i])
-        cy, sy = math.cos(yaw[i]), math.sin(yaw[i])
+        cp, sp, cy, sy = trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3]
 
         # Repulsion (Eq. 12–13): ε₁ from every obstacle whose influence radius we are in.
         rx = 0.0
@@ -225,9 +233,7 @@ def fleet_step(
             dz = pz - obs_center[j, 2]
             d2 = dx * dx + dy * dy + dz * dz
             keep_out = obs_radius[j] + lim.safe_distance_obstacle
-            u_max = math.sqrt(
-                obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2
-            )
+            u_max = obs_speed[j]
             reach = keep_out + rho + vi * dt + u_max * AVOIDANCE_TURN_ANGLE / omega
             if d2 > reach * reach:  # cheap rejection: R ≤ keep_out + ρ
                 continue
@@ -244,8 +250,9 @@ def fleet_step(
                 moving_threat = moving_threat or u_max > 0.0
 
         # Teammates of higher priority are moving obstacles (formation model): a mate
-        # repels only while the two close on each other and would pass nearer than the
-        # safe distance (closest point of approach); mates flying alongside do not.
+        # repels only while the two close on each other and, within a quarter turn's time,
+        # would pass nearer than the safe distance plus what turning at full rate could
+        # take off it (closest point of approach); mates flying alongside do not.
         for k in range(n):
             if k == i or not active[k] or rank[k] >= rank[i]:
                 continue
@@ -261,16 +268,32 @@ def fleet_step(
                 continue
             d2 = dx * dx + dy * dy + dz * dz
             t_cpa = approach / w2
+            if t_cpa > CONFLICT_HORIZON_TURNS * AVOIDANCE_TURN_ANGLE / omega:
+                continue
             miss2 = d2 - approach * t_cpa
-            if miss2 >= (lim.safe_distance_uav + 2.0 * vi * dt) ** 2:
+            # Either vehicle may be turning at full rate meanwhile: ½ v ω t² each.
+            margin = 2.0 * vi * dt + 0.5 * (vi + speed[k]) * omega * t_cpa * t_cpa
+            if miss2 >= (lim.safe_distance_uav + margin) ** 2:
                 continue
             d = math.sqrt(d2)
             radius = influence_radius(vi, omega, lim.safe_distance_uav) + vi * dt
             radius += speed[k] * AVOIDANCE_TURN_ANGLE / omega
             if d <= radius and d > 0.0:
-                rx += EPSILON_1 * dx / d
-                ry += EPSILON_1 * dy / d
-                rz += EPSILON_1 * dz / d
+                # A moving obstacle repels from where it will be at the closest approach:
+                # along the miss vector, which is what widens the miss; radially when the
+                # two would meet head-on (then s2 decides the way out).
+                mx = dx - wx * t_cpa
+                my = dy - wy * t_cpa
+                mz = dz - wz * t_cpa
+                miss = math.sqrt(mx * mx + my * my + mz * mz)
+                if miss > 1e-6 * d:
+                    rx += EPSILON_1 * mx / miss
+                    ry += EPSILON_1 * my / miss
+                    rz += EPSILON_1 * mz / miss
+                else:
+                    rx += EPSILON_1 * dx / d
+                    ry += EPSILON_1 * dy / d
+                    rz += EPSILON_1 * dz / d
                 moving_threat = True
 
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0
