@@ -13,10 +13,11 @@ import numpy as np
 from numba import njit
 
 from gcs_ppf.apf import apf_fleet_step
-from gcs_ppf.ppf.kernel import KernelLimits, fleet_step
+from gcs_ppf.ppf.kernel import KernelLimits, fleet_step, nearby_obstacles
 
 PPF = 0
 APF = 1
+NEIGHBOUR_LIST_STEPS = 25  # PPF refreshes each vehicle's nearby obstacles this often
 
 
 @njit(cache=True)
@@ -90,6 +91,8 @@ def run_fleet(
     next_motion = np.empty((n, 3))
     prev_pos = np.empty((n, 3))
     prev_motion = np.empty((n, 3))
+    near_start = np.zeros(n + 1, dtype=np.int64)
+    near_obstacles = np.empty(n * obs_center.shape[0], dtype=np.int64)
     elapsed = 0.0
     records = 0
     for step in range(n_steps):
@@ -98,10 +101,15 @@ def run_fleet(
         prev_motion[:, 1] = pitch
         prev_motion[:, 2] = yaw
         if method == PPF:
+            if step % NEIGHBOUR_LIST_STEPS == 0:
+                nearby_obstacles(
+                    pos, obs_center, obs_radius, obs_velocity, lim, dt, NEIGHBOUR_LIST_STEPS,
+                    near_start, near_obstacles,
+                )  # fmt: skip
             fleet_step(
                 pos, pitch, yaw, speed, slot, rank, active, obs_center, obs_radius,
                 obs_velocity, target, lim, dt, state, avoiding, formed, direction,
-                local_target, next_motion,
+                local_target, next_motion, near_start, near_obstacles,
             )  # fmt: skip
         else:
             apf_fleet_step(

@@ -135,6 +135,45 @@ def _closing_speed(
 
 
 @njit(cache=True)
+def nearby_obstacles(
+    pos: np.ndarray,
+    obs_center: np.ndarray,
+    obs_radius: np.ndarray,
+    obs_velocity: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+    horizon_steps: int,
+    near_start: np.ndarray,
+    near_obstacles: np.ndarray,
+) -> None:
+    """The obstacles each vehicle could come under the influence of within the next
+    ``horizon_steps`` steps (a neighbour list, so that a step need not look at all M).
+
+    A vehicle is influenced from at most keep_out + v_max/ω + v_max·Δt + u·T (the cheap
+    bound in ``fleet_step``); over the horizon the two close by at most (v_max + u)·steps·Δt.
+    Fills ``near_obstacles`` in CSR form: vehicle i's are ``near_start[i]:near_start[i+1]``.
+    """
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    count = 0
+    for i in range(pos.shape[0]):
+        near_start[i] = count
+        for j in range(obs_center.shape[0]):
+            u = math.sqrt(
+                obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2
+            )
+            reach = obs_radius[j] + lim.safe_distance_obstacle + lim.v_max / omega
+            reach += lim.v_max * dt + u * AVOIDANCE_TURN_ANGLE / omega
+            reach += (lim.v_max + u) * horizon_steps * dt
+            dx = pos[i, 0] - obs_center[j, 0]
+            dy = pos[i, 1] - obs_center[j, 1]
+            dz = pos[i, 2] - obs_center[j, 2]
+            if dx * dx + dy * dy + dz * dz <= reach * reach:
+                near_obstacles[count] = j
+                count += 1
+    near_start[pos.shape[0]] = count
+
+
+@njit(cache=True)
 def fleet_step(
     pos: np.ndarray,
     pitch: np.ndarray,
@@ -155,6 +194,8 @@ def fleet_step(
     direction: np.ndarray,
     local_target: np.ndarray,
     next_motion: np.ndarray,
+    near_start: np.ndarray,
+    near_obstacles: np.ndarray,
 ) -> None:
     """Advance the fleet one step Δt in place (Eq. 3–5, 9–24).
 
@@ -162,6 +203,8 @@ def fleet_step(
     obstacle or teammate repels it, ``formed[N]`` whether a wingman is within the target
     accuracy of its local target point, ``local_target[N,3]`` the wingmen's local target
     points G_i (Eq. 6).  ``direction[N,3]`` and ``next_motion[N,3]`` are scratch space.
+    Vehicle i considers only the obstacles ``near_obstacles[near_start[i]:near_start[i+1]]``
+    (see ``nearby_obstacles``).
     Every vehicle decides from the fleet's state at the start of the step.
     Obstacles are moved by their velocity at the end of the step.
     """
@@ -227,7 +270,8 @@ def fleet_step(
         rz = 0.0
         moving_threat = False  # a repelling obstacle or teammate that moves
         rho = vi / omega
-        for j in range(m):
+        for c in range(near_start[i], near_start[i + 1]):
+            j = near_obstacles[c]
             dx = px - obs_center[j, 0]
             dy = py - obs_center[j, 1]
             dz = pz - obs_center[j, 2]
