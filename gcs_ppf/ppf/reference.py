@@ -29,7 +29,8 @@ Step = tuple[FloatArray, FloatArray, FloatArray, FloatArray, IntArray]
 
 def _unit(v: FloatArray) -> FloatArray:
     norm = np.linalg.norm(v, axis=-1, keepdims=True)
-    return np.divide(v, norm, out=np.zeros_like(v), where=norm > 0)
+    unit: FloatArray = np.divide(v, norm, out=np.zeros_like(v), where=norm > 0)
+    return unit
 
 
 def reference_step(
