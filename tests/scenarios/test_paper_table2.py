@@ -51,11 +51,12 @@ def test_leader_leaves_the_start_along_its_initial_heading(
     """Fig. 5b: PPF respects the initial heading (yaw 0, east); APF jumps to the target."""
     omega = math.pi / 6
 
-    def first_turn(run: PlanRun, seconds: float) -> float:
+    def first_turn(run: PlanRun, seconds: float) -> tuple[float, float]:
+        """Heading of the leader's first step, and its yaw after ``seconds``."""
         tr = run.trajectory
         k = int(np.searchsorted(tr.t, seconds))
         step = tr.pos[1, 0] - tr.pos[0, 0]
-        return abs(math.atan2(step[1], step[0])), abs(float(tr.yaw[k, 0]))  # type: ignore[return-value]
+        return abs(math.atan2(step[1], step[0])), abs(float(tr.yaw[k, 0]))
 
     ppf_first_step, ppf_yaw_1s = first_turn(table2_ppf, 1.0)
     apf_first_step, _ = first_turn(table2_apf, 1.0)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -21,7 +22,9 @@ from gcs_ppf.scene import scene_from_mission
 OMEGA = math.pi / 6
 
 
-def solo(position: list[float], yaw: float, target: list[float], obstacles: list[dict]) -> Mission:  # type: ignore[type-arg]
+def solo(
+    position: list[float], yaw: float, target: list[float], obstacles: list[dict[str, Any]]
+) -> Mission:
     return Mission.model_validate(
         {
             "target": target,
@@ -83,7 +86,7 @@ def test_to_vcs_is_eq16_to_18() -> None:
     b_fv = np.array(
         [[math.cos(yaw), math.sin(yaw), 0], [-math.sin(yaw), math.cos(yaw), 0], [0, 0, 1]]
     )
-    got = to_vcs(*f, math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw))
+    got = to_vcs(f[0], f[1], f[2], math.cos(pitch), math.sin(pitch), math.cos(yaw), math.sin(yaw))
     assert np.allclose(got, a_fv @ b_fv @ f)
 
 
