@@ -269,6 +269,7 @@ def fleet_step(
         ry = 0.0
         rz = 0.0
         moving_threat = False  # a repelling obstacle or teammate that moves
+        hold_course = False  # a teammate conflict was only just avoided
         rho = vi / omega
         for c in range(near_start[i], near_start[i + 1]):
             j = near_obstacles[c]
@@ -295,7 +296,7 @@ def fleet_step(
 
         # Teammates of higher priority are moving obstacles (formation model): a mate
         # repels only while the two close on each other and, within a quarter turn's time,
-        # would pass nearer than the safe distance plus what turning at full rate could
+        # would come nearer than the safe distance plus what turning at full rate could
         # take off it (closest point of approach); mates flying alongside do not.
         for k in range(n):
             if k == i or not active[k] or rank[k] >= rank[i]:
@@ -311,18 +312,26 @@ def fleet_step(
             if approach <= 0.0 or w2 == 0.0:  # (w2 can underflow while approach does not)
                 continue
             d2 = dx * dx + dy * dy + dz * dz
-            t_cpa = approach / w2
-            if t_cpa > CONFLICT_HORIZON_TURNS * AVOIDANCE_TURN_ANGLE / omega:
-                continue
-            miss2 = d2 - approach * t_cpa
-            # Either vehicle may be turning at full rate meanwhile: ½ v ω t² each.
-            margin = 2.0 * vi * dt + 0.5 * (vi + speed[k]) * omega * t_cpa * t_cpa
-            if miss2 >= (lim.safe_distance_uav + margin) ** 2:
+            # Closest approach within the horizon (straight flight), and its time.
+            t_cpa = min(approach / w2, CONFLICT_HORIZON_TURNS * AVOIDANCE_TURN_ANGLE / omega)
+            miss2 = d2 - 2.0 * approach * t_cpa + w2 * t_cpa * t_cpa
+            # Either vehicle may be turning at full rate meanwhile (½ v ω t² each, at most
+            # one more safe distance).
+            turning = min(0.5 * (vi + speed[k]) * omega * t_cpa * t_cpa, lim.safe_distance_uav)
+            margin = 2.0 * vi * dt + turning
+            threshold = lim.safe_distance_uav + margin
+            if miss2 >= (threshold + lim.safe_distance_uav) ** 2:
                 continue
             d = math.sqrt(d2)
             radius = influence_radius(vi, omega, lim.safe_distance_uav) + vi * dt
             radius += speed[k] * AVOIDANCE_TURN_ANGLE / omega
-            if d <= radius and d > 0.0:
+            if d > radius or d == 0.0:
+                continue
+            if miss2 >= threshold * threshold:
+                # Just clear of a conflict: hold course rather than turn back into it
+                # (otherwise the turn flips every step along the conflict's edge).
+                hold_course = True
+            else:
                 # A moving obstacle repels from where it will be at the closest approach:
                 # along the miss vector, which is what widens the miss; radially when the
                 # two would meet head-on (then s2 decides the way out).
@@ -346,6 +355,8 @@ def fleet_step(
         # Attraction (Eq. 14): unit vector to the target point, zero while repelled.
         if repelled:
             fx, fy, fz = rx, ry, rz  # Eq. 15 with |F_g| = 0
+        elif hold_course:
+            fx, fy, fz = direction[i, 0], direction[i, 1], direction[i, 2]
         else:
             if i == 0:
                 gx = target[0] - px

@@ -76,19 +76,23 @@ def reference_step(
     w = vel[None] - vel[:, None]  # mate k relative to vehicle i
     approach = (w * d_m).sum(-1)
     w2 = (w**2).sum(-1)
-    t_cpa = np.divide(approach, w2, out=np.zeros_like(approach), where=w2 > 0)
-    miss2 = (d_m**2).sum(-1) - approach * t_cpa
-    margin = 2 * speed[:, None] * dt + 0.5 * (speed[:, None] + speed[None]) * omega * t_cpa**2
+    horizon = CONFLICT_HORIZON_TURNS * AVOIDANCE_TURN_ANGLE / omega
+    t_cpa = np.minimum(np.divide(approach, w2, out=np.zeros_like(approach), where=w2 > 0), horizon)
+    miss2 = (d_m**2).sum(-1) - 2 * approach * t_cpa + w2 * t_cpa**2
+    turning = 0.5 * (speed[:, None] + speed[None]) * omega * t_cpa**2
+    margin = 2 * speed[:, None] * dt + np.minimum(turning, lim.safe_distance_uav)
     d2 = (d_m**2).sum(-1)
     mate_radius = (
         np.sqrt((lim.safe_distance_uav + speed / omega) ** 2 - (speed / omega) ** 2) + speed * dt
     )[:, None] + speed[None] * AVOIDANCE_TURN_ANGLE / omega
-    threat = (
+    threshold = lim.safe_distance_uav + margin
+    near = (
         (rank[None] < rank[:, None]) & active[None] & (approach > 0) & (w2 > 0)
-        & (t_cpa <= CONFLICT_HORIZON_TURNS * AVOIDANCE_TURN_ANGLE / omega)
-        & (miss2 < (lim.safe_distance_uav + margin) ** 2)
+        & (miss2 < (threshold + lim.safe_distance_uav) ** 2)
         & (d2 <= mate_radius**2) & (d2 > 0)
     )  # fmt: skip
+    threat = near & (miss2 < threshold**2)
+    hold_course = (near & ~threat).any(1)
     miss_vec = d_m - w * t_cpa[..., None]
     miss = np.linalg.norm(miss_vec, axis=-1)
     push = np.where((miss > 1e-6 * np.sqrt(d2))[..., None], _unit(miss_vec), _unit(d_m))
@@ -99,7 +103,7 @@ def reference_step(
     # Eq. 14–15: attraction (unit) unless repelled.
     aim = g + (speed[0] / omega) * u[0]
     aim[0] = target
-    field = np.where(repelled[:, None], rep, _unit(aim - pos))
+    field = np.where(repelled[:, None], rep, np.where(hold_course[:, None], u, _unit(aim - pos)))
     field = np.where((np.linalg.norm(field, axis=1) > 0)[:, None], field, u)
 
     # Eq. 16–18 into the VCS.
