@@ -23,7 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
-from gcs_ppf.ppf.kernel import S1_FOLLOW, KernelLimits, influence_radius, slot_to_ics
+from gcs_ppf.ppf.kernel import S1_FOLLOW, KernelLimits, influence_radius, move, slot_to_ics
 
 SPEED_GAIN = 1.0  # 1/s: wingman speed = leader speed + gain × distance to G_i
 
@@ -148,16 +148,4 @@ def apf_fleet_step(
             v_new = max(v_cmd, vi - lim.decel * dt)
         next_motion[i, 0] = v_new
 
-    for i in range(n):
-        if not active[i]:
-            continue
-        speed[i] = next_motion[i, 0]
-        pitch[i] = next_motion[i, 1]
-        yaw[i] = next_motion[i, 2]
-        cp = math.cos(pitch[i])
-        pos[i, 0] += speed[i] * cp * math.cos(yaw[i]) * dt
-        pos[i, 1] += speed[i] * cp * math.sin(yaw[i]) * dt
-        pos[i, 2] += speed[i] * math.sin(pitch[i]) * dt
-    for j in range(m):
-        for c in range(3):
-            obs_center[j, c] += obs_velocity[j, c] * dt
+    move(pos, pitch, yaw, speed, active, next_motion, obs_center, obs_velocity, dt)

@@ -188,7 +188,7 @@ def plan_command(args: argparse.Namespace) -> int:
     log.info(
         "leader reached target: %s, flight time %s", m["reached"], fmt(m["flight_time_s"], "s")
     )
-    log.info("formation formed at %s", fmt(m["formation_time_s"], "s"))
+    log.info("all wingmen in formation at once: %s", fmt(m["formation_time_s"], "s"))
     log.info(
         "min vehicle separation %s (safe %g m), min obstacle clearance %s (safe %g m), "
         "collisions %d",

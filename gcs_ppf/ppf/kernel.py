@@ -135,6 +135,35 @@ def _closing_speed(
 
 
 @njit(cache=True)
+def move(
+    pos: np.ndarray,
+    pitch: np.ndarray,
+    yaw: np.ndarray,
+    speed: np.ndarray,
+    active: np.ndarray,
+    next_motion: np.ndarray,
+    obs_center: np.ndarray,
+    obs_velocity: np.ndarray,
+    dt: float,
+) -> None:
+    """Take the new (speed, pitch, yaw) of ``next_motion`` and fly one step (Eq. 5);
+    move the obstacles at their constant velocity."""
+    for i in range(pos.shape[0]):
+        if not active[i]:
+            continue
+        speed[i] = next_motion[i, 0]
+        pitch[i] = next_motion[i, 1]
+        yaw[i] = next_motion[i, 2]
+        cp = math.cos(pitch[i])
+        pos[i, 0] += speed[i] * cp * math.cos(yaw[i]) * dt
+        pos[i, 1] += speed[i] * cp * math.sin(yaw[i]) * dt
+        pos[i, 2] += speed[i] * math.sin(pitch[i]) * dt
+    for j in range(obs_center.shape[0]):
+        for c in range(3):
+            obs_center[j, c] += obs_velocity[j, c] * dt
+
+
+@njit(cache=True)
 def nearby_obstacles(
     pos: np.ndarray,
     obs_center: np.ndarray,
@@ -448,16 +477,4 @@ def fleet_step(
         next_motion[i, 1] = th
         next_motion[i, 2] = ps
 
-    for i in range(n):
-        if not active[i]:
-            continue
-        speed[i] = next_motion[i, 0]
-        pitch[i] = next_motion[i, 1]
-        yaw[i] = next_motion[i, 2]
-        cp = math.cos(pitch[i])
-        pos[i, 0] += speed[i] * cp * math.cos(yaw[i]) * dt
-        pos[i, 1] += speed[i] * cp * math.sin(yaw[i]) * dt
-        pos[i, 2] += speed[i] * math.sin(pitch[i]) * dt
-    for j in range(m):
-        for c in range(3):
-            obs_center[j, c] += obs_velocity[j, c] * dt
+    move(pos, pitch, yaw, speed, active, next_motion, obs_center, obs_velocity, dt)

@@ -6,21 +6,13 @@ from hypothesis import given
 
 from gcs_ppf.mission import Mission
 from gcs_ppf.offline import plan_mission
+from tests.checks import assert_within_kinematic_limits
 from tests.property.scenes import feasible_missions
-
-TOL = 1e-9
 
 
 @given(feasible_missions())
 def test_no_step_exceeds_a_kinematic_limit(mission: Mission) -> None:
-    m = plan_mission(mission).metrics
-    lim = mission.limits
-    assert m["max_pitch_rate_rad_s"] <= lim.max_pitch_rate + TOL
-    assert m["max_yaw_rate_rad_s"] <= lim.max_yaw_rate + TOL
-    assert m["min_speed_m_s"] >= lim.v_min - TOL
-    assert m["max_speed_m_s"] <= lim.v_max + TOL
-    assert m["max_accel_m_s2"] <= lim.accel + 1e-6
-    assert m["max_decel_m_s2"] <= lim.decel + 1e-6
+    assert_within_kinematic_limits(plan_mission(mission).metrics, mission.limits)
 
 
 @given(feasible_missions())

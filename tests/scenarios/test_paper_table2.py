@@ -9,6 +9,7 @@ import numpy as np
 from gcs_ppf.metrics import local_target_points
 from gcs_ppf.mission import Mission
 from gcs_ppf.offline import PlanRun
+from tests.checks import assert_within_kinematic_limits
 
 PAPER_FORMATION_TIME_S = 22.0
 
@@ -34,15 +35,7 @@ def test_wingmen_form_near_the_papers_time_and_stay_formed(
 
 
 def test_every_step_respects_the_kinematic_limits(table2: Mission, table2_ppf: PlanRun) -> None:
-    lim = table2.limits
-    m = table2_ppf.metrics
-    tol = 1e-9
-    assert m["max_pitch_rate_rad_s"] <= lim.max_pitch_rate + tol
-    assert m["max_yaw_rate_rad_s"] <= lim.max_yaw_rate + tol
-    assert m["min_speed_m_s"] >= lim.v_min - tol
-    assert m["max_speed_m_s"] <= lim.v_max + tol
-    assert m["max_accel_m_s2"] <= lim.accel + 1e-6
-    assert m["max_decel_m_s2"] <= lim.decel + 1e-6
+    assert_within_kinematic_limits(table2_ppf.metrics, table2.limits)
 
 
 def test_leader_leaves_the_start_along_its_initial_heading(

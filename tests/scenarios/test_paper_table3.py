@@ -6,6 +6,7 @@ import numpy as np
 
 from gcs_ppf.mission import Mission
 from gcs_ppf.offline import PlanRun
+from tests.checks import assert_within_kinematic_limits
 
 PAPER_FLIGHT_TIME_S = 68.5
 
@@ -24,13 +25,7 @@ def test_safety_distances_hold(table3: Mission, table3_ppf: PlanRun) -> None:
 
 
 def test_kinematic_limits_hold(table3: Mission, table3_ppf: PlanRun) -> None:
-    lim = table3.limits
-    m = table3_ppf.metrics
-    assert m["max_yaw_rate_rad_s"] <= lim.max_yaw_rate + 1e-9
-    assert m["max_pitch_rate_rad_s"] <= lim.max_pitch_rate + 1e-9
-    assert lim.v_min - 1e-9 <= m["min_speed_m_s"] <= m["max_speed_m_s"] <= lim.v_max + 1e-9
-    assert m["max_accel_m_s2"] <= lim.accel + 1e-6
-    assert m["max_decel_m_s2"] <= lim.decel + 1e-6
+    assert_within_kinematic_limits(table3_ppf.metrics, table3.limits)
 
 
 def test_formation_breaks_around_obstacles(table3_ppf: PlanRun) -> None:
