@@ -1,0 +1,29 @@
+"""Service settings: command-line options over environment variables (``GCS_PPF_*``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import Field
+from pydantic_settings import BaseSettings, SettingsConfigDict
+
+
+class Settings(BaseSettings):
+    """How the ground-station service runs; every field can be set as ``GCS_PPF_<NAME>``
+    (``GCS_PPF_LINKS='["tcp:127.0.0.1:5760"]'``)."""
+
+    model_config = SettingsConfigDict(env_prefix="GCS_PPF_", extra="forbid")
+
+    host: str = "127.0.0.1"
+    port: int = Field(default=8000, ge=1, le=65535)
+    db: Path = Path("gcs_ppf.db")
+    links: list[str] = Field(default_factory=list)
+    system_id: int = Field(default=255, ge=1, le=255, description="the GCS's MAVLink id")
+    tick_hz: float = Field(default=10.0, gt=0.0, le=100.0, description="per vehicle second")
+    lookahead_s: float = Field(default=3.0, gt=0.0, le=30.0)
+    planner_dt_s: float = Field(default=0.02, gt=0.0, le=0.5)
+    vehicle_timeout_s: float = Field(default=5.0, gt=0.0)
+    heartbeat_hz: float = Field(default=1.0, gt=0.0)
+    telemetry_sample_hz: float = Field(default=2.0, gt=0.0)
+    stream_rate_hz: float = Field(default=10.0, gt=0.0)
+    tlog_dir: Path | None = Path("tlogs")

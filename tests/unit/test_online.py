@@ -1,0 +1,68 @@
+"""Online planning from telemetry: guided points ahead on the planned path."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from gcs_ppf.mission import Mission
+from gcs_ppf.online import (
+    VehicleState,
+    clearance,
+    guidance,
+    scene_now,
+    separations,
+    state_from_velocity,
+)
+from gcs_ppf.scene import obstacles_from_mission
+
+
+def test_state_from_ned_velocity() -> None:
+    s = state_from_velocity((1.0, 2.0, 3.0), vn_m_s=100.0, ve_m_s=0.0, vd_m_s=-10.0)
+    assert s.yaw_rad == pytest.approx(math.pi / 2)  # north is +90° from east
+    assert s.pitch_rad == pytest.approx(math.atan2(10.0, 100.0))  # climbing
+    assert s.speed_m_s == pytest.approx(math.hypot(100.0, 10.0))
+
+
+def _states_at_start(mission: Mission) -> dict[int, VehicleState]:
+    out = {}
+    for v in mission.vehicles:
+        speed = v.speed or mission.limits.v_init
+        vn = speed * math.sin(v.yaw) * math.cos(v.pitch)
+        ve = speed * math.cos(v.yaw) * math.cos(v.pitch)
+        vd = -speed * math.sin(v.pitch)
+        out[v.id] = state_from_velocity(v.position, vn, ve, vd)
+    return out
+
+
+def test_guided_points_lie_ahead_on_the_plan(table3: Mission) -> None:
+    states = _states_at_start(table3)
+    ids = {v.id for v in table3.vehicles}
+    scene = scene_now(table3, states, ids, obstacles_from_mission(table3))
+    g = guidance(scene, lookahead_s=3.0, dt=0.02)
+    assert g.ids == [1, 2, 3, 4, 5]
+    start = scene.fleet.pos
+    ahead = np.linalg.norm(g.guided_point_m - start, axis=1)
+    assert np.all(ahead > 3.0 * 100.0 * 0.8)  # about 3 s of flight at ≥ 100 m/s
+    assert np.all(ahead <= 3.0 * 300.0 + 1e-6)
+    assert g.state[0] == "s3"  # the leader waits for its wingmen
+    assert np.all(g.speed_m_s >= 100.0 - 1e-9)
+    assert g.local_target_distance_m[0] is None
+
+
+def test_a_lost_wingman_is_left_out(table3: Mission) -> None:
+    states = _states_at_start(table3)
+    scene = scene_now(table3, states, {1, 2, 3, 4}, obstacles_from_mission(table3))
+    assert scene.fleet.active.tolist() == [True, True, True, True, False]
+    g = guidance(scene, lookahead_s=1.0, dt=0.02)
+    assert np.allclose(g.guided_point_m[4], scene.fleet.pos[4])
+
+
+def test_separation_and_clearance(table3: Mission) -> None:
+    pos = np.array([[0.0, 0.0, 0.0], [30.0, 40.0, 0.0], [1000.0, 0.0, 0.0]])
+    assert separations(pos) == pytest.approx(50.0)
+    assert separations(pos[:1]) is None
+    obstacles = obstacles_from_mission(table3)
+    assert clearance(np.array([[3000.0, 3000.0, 500.0]]), obstacles) == pytest.approx(50.0)
