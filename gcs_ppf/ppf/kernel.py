@@ -37,6 +37,10 @@ EPSILON_1 = 1.0e6  # |F_j| inside an influence radius, ε₁ ≫ 1 (Eq. 13)
 EPSILON_3 = 1.0e9  # braking vector of s3, ε₃ ≫ |F_v^sx| (Eq. 24)
 LOCAL_MINIMUM_ANGLE = math.radians(1.0)  # repulsion this close to antiparallel → s2
 AVOIDANCE_TURN_ANGLE = math.pi / 2  # a moving obstacle is out-turned in a quarter turn
+MAX_FOLLOW_PITCH = math.pi / 4  # steepest flight path target following asks for
+MAX_AVOID_PITCH = math.pi / 3  # steepest flight path any wanted direction may have
+INFLUENCE_STEPS = 3.0  # steps of travel added to the influence radius (discrete turning)
+SIDEWAYS_EPS = 1e-9  # |F_v^y| below this fraction of |F_v| counts as 0 in Eq. 19 (round-off)
 CONFLICT_HORIZON_TURNS = 1.0  # teammate conflicts are looked for this many quarter turns ahead
 
 
@@ -124,6 +128,83 @@ def braking_speed(leader_speed: float, distance: float, accel: float) -> float:
 
 
 @njit(cache=True)
+def from_vcs(
+    vx: float, vy: float, vz: float, cp: float, sp: float, cy: float, sy: float
+) -> tuple[float, float, float]:
+    """VCS vector → ICS: the transpose of ``to_vcs`` (Eq. 6–8, erratum 1)."""
+    return slot_to_ics(vx, vy, vz, cp, sp, cy, sy)
+
+
+@njit(cache=True)
+def limit_climb(
+    dx: float,
+    dy: float,
+    dz: float,
+    nx: float,
+    ny: float,
+    nz: float,
+    in_plane: bool,
+    cy: float,
+    sy: float,
+) -> tuple[float, float, float]:
+    """The wanted ICS direction d, no steeper than ``MAX_AVOID_PITCH``.
+
+    Pitch stops at ±π/2 (Eq. 1) and near it yaw no longer turns the flight direction, so
+    a vehicle asked to steepen past the vertical would hang there, unable to turn.  When d
+    slides along a static obstacle (``in_plane``: d lies in the plane normal to the
+    repulsion n), the limited direction is the nearest one in that plane, so it still does
+    not close on the obstacle; otherwise d keeps its heading and takes the limit angle.
+    """
+    norm = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if norm == 0.0:
+        return dx, dy, dz
+    dx, dy, dz = dx / norm, dy / norm, dz / norm
+    top = math.sin(MAX_AVOID_PITCH)
+    if abs(dz) <= top:
+        return dx, dy, dz
+    n = math.sqrt(nx * nx + ny * ny + nz * nz)
+    e1n = math.sqrt(nx * nx + ny * ny)
+    if in_plane and n > 0.0 and e1n > 1e-9 * n:
+        nx, ny, nz = nx / n, ny / n, nz / n
+        e1x, e1y = -ny / e1n * n, nx / e1n * n  # horizontal, in the plane
+        e2x, e2y, e2z = -nz * e1y, nz * e1x, nx * e1y - ny * e1x  # n × e1: steepest
+        if e2z < 0.0:
+            e2x, e2y, e2z = -e2x, -e2y, -e2z
+        a = dx * e1x + dy * e1y
+        b = dx * e2x + dy * e2y + dz * e2z
+        b_max = top / e2z
+        b_new = min(max(b, -b_max), b_max)
+        a_new = math.copysign(math.sqrt(max(1.0 - b_new * b_new, 0.0)), a if a != 0.0 else 1.0)
+        return (a_new * e1x + b_new * e2x, a_new * e1y + b_new * e2y, b_new * e2z)
+    h = math.sqrt(dx * dx + dy * dy)
+    hx, hy = (dx / h, dy / h) if h > 0.0 else (cy, sy)
+    c = math.cos(MAX_AVOID_PITCH)
+    return c * hx, c * hy, math.copysign(top, dz)
+
+
+@njit(cache=True)
+def follow_direction(
+    gx: float, gy: float, gz: float, cy: float, sy: float
+) -> tuple[float, float, float]:
+    """Unit attraction towards (gx, gy, gz) (Eq. 14), no steeper than ``MAX_FOLLOW_PITCH``.
+
+    Near the vertical the yaw of Eq. 5 no longer turns the flight direction, and the pitch
+    of Eq. 1 stops at ±π/2: a vehicle sent straight up at a target above and behind it
+    would stay vertical until its yaw came round.  A fixed wing climbs to a high target
+    in a spiral instead, so target following asks for at most this flight-path angle
+    (obstacle avoidance may still use the whole range).  With no horizontal component
+    the current heading (cos ψ, sin ψ) is kept.
+    """
+    h = math.sqrt(gx * gx + gy * gy)
+    if h == 0.0 and gz == 0.0:
+        return cy, sy, 0.0
+    cx_, cy_ = (gx / h, gy / h) if h > 0.0 else (cy, sy)
+    elevation = min(max(math.atan2(gz, h), -MAX_FOLLOW_PITCH), MAX_FOLLOW_PITCH)
+    ce = math.cos(elevation)
+    return ce * cx_, ce * cy_, math.sin(elevation)
+
+
+@njit(cache=True)
 def _closing_speed(
     dx: float, dy: float, dz: float, d: float, ux: float, uy: float, uz: float
 ) -> float:
@@ -191,7 +272,7 @@ def nearby_obstacles(
                 obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2
             )
             reach = obs_radius[j] + lim.safe_distance_obstacle + lim.v_max / omega
-            reach += lim.v_max * dt + u * AVOIDANCE_TURN_ANGLE / omega
+            reach += INFLUENCE_STEPS * lim.v_max * dt + u * AVOIDANCE_TURN_ANGLE / omega
             reach += (lim.v_max + u) * horizon_steps * dt
             dx = pos[i, 0] - obs_center[j, 0]
             dy = pos[i, 1] - obs_center[j, 1]
@@ -308,14 +389,16 @@ def fleet_step(
             d2 = dx * dx + dy * dy + dz * dz
             keep_out = obs_radius[j] + lim.safe_distance_obstacle
             u_max = obs_speed[j]
-            reach = keep_out + rho + vi * dt + u_max * AVOIDANCE_TURN_ANGLE / omega
+            reach = (
+                keep_out + rho + INFLUENCE_STEPS * vi * dt + u_max * AVOIDANCE_TURN_ANGLE / omega
+            )
             if d2 > reach * reach:  # cheap rejection: R ≤ keep_out + ρ
                 continue
             d = math.sqrt(d2)
             closing = _closing_speed(
                 dx, dy, dz, d, obs_velocity[j, 0], obs_velocity[j, 1], obs_velocity[j, 2]
             )
-            radius = influence_radius(vi, omega, keep_out) + vi * dt
+            radius = influence_radius(vi, omega, keep_out) + INFLUENCE_STEPS * vi * dt
             radius += closing * AVOIDANCE_TURN_ANGLE / omega
             if d <= radius and d > 0.0:
                 rx += EPSILON_1 * dx / d
@@ -397,11 +480,7 @@ def fleet_step(
                 gx = local_target[i, 0] + lead * direction[0, 0] - px
                 gy = local_target[i, 1] + lead * direction[0, 1] - py
                 gz = local_target[i, 2] + lead * direction[0, 2] - pz
-            g = math.sqrt(gx * gx + gy * gy + gz * gz)
-            if g > 0.0:
-                fx, fy, fz = gx / g, gy / g, gz / g
-            else:
-                fx, fy, fz = direction[i, 0], direction[i, 1], direction[i, 2]
+            fx, fy, fz = follow_direction(gx, gy, gz, cy, sy)
 
         # Into the VCS (Eq. 16–18).
         fvx, fvy, fvz = to_vcs(fx, fy, fz, cp, sp, cy, sy)
@@ -423,6 +502,7 @@ def fleet_step(
         # and straight ahead once F_v^x ≥ 0.  The turn's sense is still that of F_v^y and
         # F_v^z; a full turn towards F_v would end flying straight away from the obstacle
         # and then zigzag along its influence sphere.  Moving threats keep the full turn.
+        tangent = repelled and not moving_threat and fvx < 0.0
         if repelled and not moving_threat:
             if fvx >= 0.0:
                 fvx, fvy, fvz = 1.0, 0.0, 0.0
@@ -430,9 +510,25 @@ def fleet_step(
                 k_proj = fvx / (f_norm * f_norm)
                 fvx, fvy, fvz = 1.0 - k_proj * fvx, -k_proj * fvy, -k_proj * fvz
 
+        # No steeper than MAX_AVOID_PITCH (see ``limit_climb``), then back into the VCS.
+        dx, dy, dz = from_vcs(fvx, fvy, fvz, cp, sp, cy, sy)
+        dx, dy, dz = limit_climb(dx, dy, dz, rx, ry, rz, tangent, cy, sy)
+        fvx, fvy, fvz = to_vcs(dx, dy, dz, cp, sp, cy, sy)
+
         # Trend matrix f (Eq. 19, erratum 2): pitch follows F_v^z, yaw follows F_v^y.
         elevation = math.atan2(fvz, math.sqrt(fvx * fvx + fvy * fvy))
-        azimuth = math.atan2(fvy, fvx) if fvy != 0.0 else 0.0
+        wanted = math.sqrt(fvx * fvx + fvy * fvy + fvz * fvz)
+        azimuth = math.atan2(fvy, fvx) if abs(fvy) > SIDEWAYS_EPS * wanted else 0.0
+        if fvx < 0.0 or abs(pitch[i]) > MAX_FOLLOW_PITCH:
+            # Wanted direction behind, or a steep vehicle: the sign of F_v^z would pitch
+            # the nose on through the vertical (a loop; and a steep vehicle that yaws keeps
+            # steepening, its z_v tilted away from the wanted direction's vertical plane),
+            # which Eq. 1's pitch range [−π/2, π/2] rules out and where yaw loses its hold.
+            # Go for the wanted elevation in the ICS instead and turn round by yaw (to the
+            # left when straight behind).
+            elevation = math.atan2(dz, math.sqrt(dx * dx + dy * dy)) - pitch[i]
+            if fvx < 0.0 and azimuth == 0.0:
+                azimuth = math.pi
         f_pitch = trend(elevation, lim.max_pitch_rate, dt)
         f_yaw = trend(azimuth, lim.max_yaw_rate, dt)
 

@@ -16,11 +16,15 @@ from gcs_ppf.ppf.kernel import (
     AVOIDANCE_TURN_ANGLE,
     CONFLICT_HORIZON_TURNS,
     EPSILON_1,
+    INFLUENCE_STEPS,
     LOCAL_MINIMUM_ANGLE,
+    MAX_FOLLOW_PITCH,
     S1_FOLLOW,
     S2_LOCAL_MINIMUM,
     S3_FORMATION,
+    SIDEWAYS_EPS,
     KernelLimits,
+    limit_climb,
 )
 from gcs_ppf.scene import BoolArray, FloatArray, IntArray
 
@@ -65,7 +69,7 @@ def reference_step(
     closing = np.maximum((d_obs * obs_velocity[None]).sum(-1) / np.where(dist > 0, dist, 1), 0)
     rho = (speed / omega)[:, None]
     keep = (obs_radius + lim.safe_distance_obstacle)[None]
-    radius = np.sqrt((keep + rho) ** 2 - rho**2) + (speed * dt)[:, None]
+    radius = np.sqrt((keep + rho) ** 2 - rho**2) + INFLUENCE_STEPS * (speed * dt)[:, None]
     radius = radius + closing * AVOIDANCE_TURN_ANGLE / omega
     inside = (dist <= radius) & (dist > 0)
     rep = EPSILON_1 * (_unit(d_obs) * inside[..., None]).sum(1)
@@ -103,7 +107,18 @@ def reference_step(
     # Eq. 14–15: attraction (unit) unless repelled.
     aim = g + (speed[0] / omega) * u[0]
     aim[0] = target
-    field = np.where(repelled[:, None], rep, np.where(hold_course[:, None], u, _unit(aim - pos)))
+    to_aim = aim - pos
+    horizontal = np.hypot(to_aim[:, 0], to_aim[:, 1])
+    heading = np.where(
+        (horizontal > 0)[:, None],
+        to_aim[:, :2] / np.where(horizontal > 0, horizontal, 1.0)[:, None],
+        np.stack([cy, sy], axis=1),
+    )
+    elevation = np.clip(np.arctan2(to_aim[:, 2], horizontal), -MAX_FOLLOW_PITCH, MAX_FOLLOW_PITCH)
+    follow = np.concatenate(
+        [np.cos(elevation)[:, None] * heading, np.sin(elevation)[:, None]], axis=1
+    )
+    field = np.where(repelled[:, None], rep, np.where(hold_course[:, None], u, follow))
     field = np.where((np.linalg.norm(field, axis=1) > 0)[:, None], field, u)
 
     # Eq. 16–18 into the VCS.
@@ -132,9 +147,31 @@ def reference_step(
         np.where(closing_in, -k * fvz, np.where(hold, 0.0, fvz)),
     )
 
+    # No steeper than MAX_AVOID_PITCH (the kernel's limit_climb, vehicle by vehicle).
+    px_ = cp * fvx - sp * fvz  # VCS → ICS
+    d = np.stack([cy * px_ - sy * fvy, sy * px_ + cy * fvy, sp * fvx + cp * fvz], axis=1)
+    for i in range(n):
+        d[i] = limit_climb(
+            d[i, 0],
+            d[i, 1],
+            d[i, 2],
+            rep[i, 0],
+            rep[i, 1],
+            rep[i, 2],
+            bool(closing_in[i]),
+            cy[i],
+            sy[i],
+        )
+    bx = cy * d[:, 0] + sy * d[:, 1]  # ICS → VCS
+    fvx, fvy, fvz = cp * bx + sp * d[:, 2], -sy * d[:, 0] + cy * d[:, 1], -sp * bx + cp * d[:, 2]
+
     # Eq. 19 (erratum 2), saturated.
     elevation = np.arctan2(fvz, np.hypot(fvx, fvy))
-    azimuth = np.where(fvy != 0, np.arctan2(fvy, fvx), 0.0)
+    behind = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1])) - pitch
+    elevation = np.where((fvx < 0) | (np.abs(pitch) > MAX_FOLLOW_PITCH), behind, elevation)
+    wanted = np.sqrt(fvx**2 + fvy**2 + fvz**2)
+    azimuth = np.where(np.abs(fvy) > SIDEWAYS_EPS * wanted, np.arctan2(fvy, fvx), 0.0)
+    azimuth = np.where((fvx < 0) & (azimuth == 0.0), math.pi, azimuth)
     f_pitch = np.clip(elevation / (lim.max_pitch_rate * dt), -1, 1)
     f_yaw = np.clip(azimuth / (lim.max_yaw_rate * dt), -1, 1)
     f_speed = np.sign(along_field)

@@ -11,6 +11,7 @@ import pytest
 from gcs_ppf.mission import Mission
 from gcs_ppf.planner import advance
 from gcs_ppf.ppf.kernel import (
+    MAX_AVOID_PITCH,
     S2_LOCAL_MINIMUM,
     braking_speed,
     influence_radius,
@@ -101,15 +102,21 @@ def test_target_left_turns_left_and_target_above_pitches_up() -> None:
 
 
 def test_exact_head_on_enters_s2_and_pulls_up() -> None:
-    """Eq. 20: repulsion antiparallel to the velocity; F_add along +z_v pulls the nose up."""
+    """Eq. 20: repulsion antiparallel to the velocity; F_add along +z_v pulls the nose up
+    (while the vehicle turns round: the wanted direction is behind it), no steeper than
+    MAX_AVOID_PITCH."""
     mission = solo(
         [-1200.0, 0.0, 0.0], 0.0, [3000.0, 0.0, 0.0], [{"center": [0.0, 0.0, 0.0], "radius": 850.0}]
     )
-    run = advance(scene_from_mission(mission), 0.01, 300)
-    states = run.trajectory.state[:, 0]
-    assert (states == S2_LOCAL_MINIMUM).any()
-    assert run.scene.fleet.pitch[0] > 0.5
-    assert run.scene.fleet.yaw[0] == pytest.approx(0.0)
+    run = advance(scene_from_mission(mission), 0.01, 500)
+    tr = run.trajectory
+    entered = int(np.argmax(tr.state[:, 0] == S2_LOCAL_MINIMUM))
+    assert entered > 0
+    assert tr.pitch[entered, 0] > 0.0
+    assert tr.pitch[-1, 0] > 0.5
+    # The limit is on the wanted direction; pitch follows its elevation in the VCS, which
+    # drifts from the ICS elevation by a little while the vehicle also yaws.
+    assert tr.pitch.max() <= MAX_AVOID_PITCH + math.radians(2.0)
 
 
 def test_advance_does_not_mutate_its_input() -> None:
