@@ -1,0 +1,90 @@
+"""``python -m sitl MISSION.json``: fly a mission's vehicles as simulated ArduPlanes.
+
+See sitl/README.md for connection strings, options and the deviations from ArduPlane.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import sys
+import time
+from pathlib import Path
+
+from gcs_ppf.mission import MissionError, load_mission_file
+from sitl.engine import Simulation, parse_param_override
+from sitl.faults import parse_fault
+from sitl.server import ServerConfig, check_speedup, serve, signing_key
+
+
+def parse_udp(text: str) -> tuple[str, int]:
+    """``udp:HOST:PORT`` (or ``HOST:PORT``) → (host, port)."""
+    body = text.removeprefix("udp:")
+    host, sep, port = body.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise argparse.ArgumentTypeError(f"--out: expected udp:HOST:PORT, got {text!r}")
+    return host, int(port)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m sitl", description=__doc__)
+    p.add_argument("mission", type=Path, help="mission document (JSON, CONVENTIONS §3)")
+    p.add_argument("--speedup", type=float, default=1.0, help="simulated seconds per wall second")
+    p.add_argument("--base-port", type=int, default=5760, help="TCP port of vehicle 0 (+10 each)")
+    p.add_argument("--out", type=parse_udp, default=None, help="also stream to udp:HOST:PORT")
+    p.add_argument("--seed", type=int, default=0, help="seed of noise and packet loss")
+    p.add_argument("--tlog", type=Path, default=None, help="write DIR/vehicle<ID>.tlog")
+    p.add_argument(
+        "--signing-key", default=None, help="MAVLink 2 signing key (64 hex) or passphrase"
+    )
+    p.add_argument(
+        "--param", action="append", default=[], metavar="[ID:]NAME=VALUE",
+        help="set a parameter at start, for vehicle ID or all (repeatable)",
+    )  # fmt: skip
+    p.add_argument(
+        "--fault", action="append", default=[], metavar="[ID:]KEY=VAL,...",
+        help="loss=%%, latency=ms, noise=m, cut=START+DUR, die=T (sim s; repeatable)",
+    )  # fmt: skip
+    p.add_argument("--duration", type=float, default=None, help="stop after this many sim seconds")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        mission = load_mission_file(args.mission)
+        speedup = check_speedup(args.speedup)
+        params = [parse_param_override(t) for t in args.param]
+        faults = [parse_fault(t) for t in args.fault]
+        if not 1 <= args.base_port <= 65535 - 10 * (len(mission.vehicles) - 1):
+            raise ValueError("--base-port: ports out of range for this many vehicles")
+        sim = Simulation(
+            mission, seed=args.seed, params=params, faults=faults,
+            boot_unix_us=int(time.time() * 1e6),
+        )  # fmt: skip
+    except (MissionError, ValueError) as exc:
+        print(f"sitl: {exc}", file=sys.stderr)
+        return 2
+    cfg = ServerConfig(
+        base_port=args.base_port,
+        speedup=speedup,
+        out=args.out,
+        seed=args.seed,
+        signing_key=signing_key(args.signing_key) if args.signing_key else None,
+        tlog_dir=args.tlog,
+        duration_s=args.duration,
+    )
+
+    def ready(line: str) -> None:
+        print(line, flush=True)
+
+    try:
+        asyncio.run(serve(sim, cfg, ready=ready))
+    except OSError as exc:
+        print(f"sitl: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,344 @@
+"""One simulated ArduPlane autopilot: modes, arming, parameters, mission, failsafe.
+
+Sans I/O: ``handle`` takes a decoded message, its sender and the clocks and returns the
+messages to send (to the sender, or to every client); ``update`` runs once per physics step.
+The autopilot steers by writing its row of the fleet ``Guidance`` arrays (``write_guidance``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from gcs_ppf import geodesy
+from gcs_ppf.mission import Origin
+from sitl import messages as mb
+from sitl import mission_protocol as mp
+from sitl import streams as st
+from sitl.faults import FaultState
+from sitl.messages import Message
+from sitl.modes import PlaneMode
+from sitl.navigation import AutoEvents, MissionRunner, NavTarget
+from sitl.params import ParamTable
+from sitl.physics import ORBIT_MARGIN, Envelope, Guidance, GuidanceKind
+
+Vec3 = tuple[float, float, float]
+
+MAV_SEVERITY_CRITICAL = 2
+MAV_SEVERITY_WARNING = 4
+MAV_SEVERITY_NOTICE = 5
+MAV_SEVERITY_INFO = 6
+
+
+@dataclass(frozen=True, slots=True)
+class Clock:
+    """Simulated time (drives the vehicle) and link time (drives protocol timeouts), s."""
+
+    sim_s: float
+    link_s: float
+    boot_unix_us: int = 0
+
+    @property
+    def time_boot_ms(self) -> int:
+        return round(self.sim_s * 1000.0)
+
+    @property
+    def unix_us(self) -> int:
+        return self.boot_unix_us + round(self.sim_s * 1e6)
+
+
+@dataclass(frozen=True, slots=True)
+class Kinematics:
+    """One vehicle's state as the autopilot sees it (ICS, SI)."""
+
+    pos_enu_m: Vec3
+    yaw_rad: float
+    pitch_rad: float
+    speed_m_s: float
+    landed: bool
+
+
+@dataclass
+class Outbox:
+    """Messages produced by one event: ``reply`` to the sender, ``broadcast`` to every client."""
+
+    reply: list[Message] = field(default_factory=list)
+    broadcast: list[Message] = field(default_factory=list)
+
+    def text(self, severity: int, text: str) -> None:
+        self.broadcast.append(mb.statustext(severity, text))
+
+
+class Autopilot:
+    """The autopilot of vehicle ``index`` of the fleet."""
+
+    def __init__(
+        self,
+        index: int,
+        sysid: int,
+        origin: Origin,
+        home_enu_m: Vec3,
+        params: ParamTable,
+        faults: FaultState,
+        initial_speed_m_s: float,
+    ) -> None:
+        self.index = index
+        self.sysid = sysid
+        self.origin = origin
+        self.params = params
+        self.faults = faults
+        self.home_enu_m = home_enu_m
+        lat, lon, alt = geodesy.enu_to_geodetic(*home_enu_m, origin)
+        self.home_geo = (lat, lon, alt)
+        self.mission = mp.MissionServer()
+        self.runner = MissionRunner([], [])
+        self.streams = st.StreamSchedule.default()
+        self.mode = PlaneMode.MANUAL
+        self.armed = True
+        self.nav = NavTarget(GuidanceKind.HOLD, home_enu_m)
+        self.new_airspeed_m_s: float | None = None
+        self.manual_speed_m_s = initial_speed_m_s
+        self.glide = False
+        self.last_gcs_heartbeat_s: float | None = None
+        self.gcs_failsafe = False
+        self.guidance_dirty = True
+        self.envelope_dirty = True
+        self.mission_current_sent = -1
+        self.guided_radius_m: float | None = None  # DO_REPOSITION param3, until a mode change
+        self.guided_ccw: bool | None = None
+        self.reboot_requested = False
+
+    # ---- geometry ------------------------------------------------------------------------
+    def location_to_enu(self, frame: int, lat_e7: int, lon_e7: int, z_m: float) -> Vec3 | None:
+        """A MAVLink global location as ICS metres; None for an unsupported frame.
+
+        Latitude = longitude = 0 means "here" (x and y NaN); terrain frames are read as
+        relative to home (the simulated terrain is flat at home altitude).
+        """
+        if frame not in mp.GLOBAL_FRAMES:
+            return None
+        alt_amsl = z_m + (self.home_geo[2] if frame in mp.RELATIVE_FRAMES else 0.0)
+        if lat_e7 == 0 and lon_e7 == 0:
+            _, _, up = geodesy.geodetic_to_enu(
+                self.home_geo[0], self.home_geo[1], alt_amsl, self.origin
+            )
+            return (math.nan, math.nan, up)
+        return geodesy.geodetic_to_enu(lat_e7 * 1e-7, lon_e7 * 1e-7, alt_amsl, self.origin)
+
+    def rtl_point(self, kin: Kinematics) -> Vec3:
+        rtl_alt = self.params["RTL_ALTITUDE"]
+        z = kin.pos_enu_m[2] if rtl_alt < 0 else self.home_enu_m[2] + rtl_alt
+        return (self.home_enu_m[0], self.home_enu_m[1], z)
+
+    def loiter(
+        self, center: Vec3, radius: float | None = None, ccw: bool | None = None
+    ) -> NavTarget:
+        rad = self.params["WP_LOITER_RAD"]
+        r = abs(rad) if radius is None else radius
+        counter = rad < 0 if ccw is None else ccw
+        return NavTarget(GuidanceKind.ORBIT, center, r, -1.0 if counter else 1.0)
+
+    def set_nav(self, nav: NavTarget) -> None:
+        if nav != self.nav:
+            self.nav = nav
+            self.guidance_dirty = True
+
+    # ---- state changes -------------------------------------------------------------------
+    def set_mode(self, mode: PlaneMode, kin: Kinematics, clock: Clock, out: Outbox) -> bool:
+        """Enter ``mode`` as ArduPlane does; always succeeds for the modes flown here."""
+        self.mode = mode
+        self.new_airspeed_m_s = None
+        self.guided_radius_m = None
+        self.guided_ccw = None
+        self.guidance_dirty = True
+        here = kin.pos_enu_m
+        if mode == PlaneMode.MANUAL:
+            self.manual_speed_m_s = kin.speed_m_s
+            self.set_nav(NavTarget(GuidanceKind.HOLD, here))
+        elif mode == PlaneMode.CIRCLE:
+            rad = self.params["WP_LOITER_RAD"]
+            self.set_nav(
+                NavTarget(GuidanceKind.TURN, here, max(abs(rad), 1.0), -1 if rad < 0 else 1)
+            )
+        elif mode in (PlaneMode.LOITER, PlaneMode.GUIDED):
+            self.set_nav(self.loiter(here))
+        elif mode == PlaneMode.TAKEOFF:
+            climb = self.home_enu_m[2] + self.params["TKOFF_ALT"]
+            self.set_nav(self.loiter((here[0], here[1], max(here[2], climb))))
+        elif mode == PlaneMode.RTL:
+            self.set_nav(self.loiter(self.rtl_point(kin)))
+        elif mode == PlaneMode.AUTO:
+            self._auto_begin(kin, clock, out)
+        return True
+
+    def _auto_begin(self, kin: Kinematics, clock: Clock, out: Outbox) -> None:
+        events = AutoEvents()
+        if self.runner.current < 1 or self.runner.current >= self.runner.count:
+            self.runner.restart()
+        self.runner.begin(kin.pos_enu_m, kin.yaw_rad, clock.sim_s, events)
+        self._auto_events(events, kin, clock, out)
+        if self.mode == PlaneMode.AUTO:
+            self.set_nav(self.runner.target(self.rtl_point(kin), self.params["WP_LOITER_RAD"]))
+
+    def _auto_events(self, events: AutoEvents, kin: Kinematics, clock: Clock, out: Outbox) -> None:
+        for seq in events.reached:
+            out.broadcast.append(mb.mission_item_reached(seq))
+            out.text(MAV_SEVERITY_INFO, f"Reached waypoint #{seq}")
+        for _type, speed in events.speed_changes:
+            self.change_speed(speed, out)
+        if events.landed:
+            self.armed = False
+            out.text(MAV_SEVERITY_INFO, "Land complete")
+        if events.complete and self.mode == PlaneMode.AUTO:
+            out.text(MAV_SEVERITY_INFO, "Mission complete, changing mode to RTL")
+            self.set_mode(PlaneMode.RTL, kin, clock, out)
+
+    def change_speed(self, speed_m_s: float, out: Outbox) -> bool:
+        """DO_CHANGE_SPEED (airspeed): −2 returns to cruise; else within AIRSPEED_MIN/MAX."""
+        if speed_m_s == -2.0:
+            self.new_airspeed_m_s = None
+        elif self.params["AIRSPEED_MIN"] <= speed_m_s <= self.params["AIRSPEED_MAX"]:
+            self.new_airspeed_m_s = speed_m_s
+            out.text(MAV_SEVERITY_INFO, f"Set airspeed {int(speed_m_s)} m/s")
+        else:
+            return False
+        self.guidance_dirty = True
+        return True
+
+    def mission_changed(self) -> None:
+        items = self.mission.items
+        targets: list[Vec3 | None] = [None]
+        for item in items[1:]:
+            tgt = None
+            if item.command in mp.NAV_WITH_LOCATION:
+                tgt = self.location_to_enu(item.frame, item.x, item.y, item.z)
+                if tgt is not None and item.command == mp.MAV_CMD_NAV_LAND:
+                    tgt = (tgt[0], tgt[1], self.home_enu_m[2] - 50.0)  # glide into the ground
+            targets.append(tgt)
+        self.runner = MissionRunner(list(items), targets)
+
+    # ---- per step ------------------------------------------------------------------------
+    @property
+    def speed_cmd_m_s(self) -> float:
+        if self.mode == PlaneMode.MANUAL:
+            return self.manual_speed_m_s
+        speed = self.new_airspeed_m_s or self.params["AIRSPEED_CRUISE"]
+        return min(max(speed, self.params["AIRSPEED_MIN"]), self.params["AIRSPEED_MAX"])
+
+    @property
+    def thrust(self) -> bool:
+        return self.armed and not self.faults.dead and not self.glide
+
+    def write_guidance(self, guid: Guidance) -> None:
+        i = self.index
+        guid.kind[i] = int(self.nav.kind)
+        guid.target_enu_m[i] = self.nav.pos_enu_m
+        guid.radius_m[i] = self.nav.radius_m
+        guid.direction[i] = self.nav.direction
+        guid.speed_cmd_m_s[i] = self.speed_cmd_m_s
+        guid.thrust[i] = self.thrust
+        self.guidance_dirty = False
+
+    def write_envelope(self, env: Envelope) -> None:
+        i, p = self.index, self.params
+        env.v_min_m_s[i] = p["SIM_SPEED_MIN"]
+        env.v_max_m_s[i] = max(p["SIM_SPEED_MAX"], p["SIM_SPEED_MIN"])
+        env.accel_m_s2[i] = p["SIM_ACCEL_MAX"]
+        env.decel_m_s2[i] = p["SIM_DECEL_MAX"]
+        env.max_yaw_rate_rad_s[i] = math.radians(p["SIM_YAW_RATE"])
+        env.max_pitch_rate_rad_s[i] = math.radians(p["SIM_PTCH_RATE"])
+        env.pitch_min_rad[i] = math.radians(p["PTCH_LIM_MIN_DEG"])
+        env.pitch_max_rad[i] = math.radians(p["PTCH_LIM_MAX_DEG"])
+        self.envelope_dirty = False
+
+    def loiter_radius_eff_m(self, kin: Kinematics) -> float:
+        """The loiter radius actually flown (see physics.effective_radius_m)."""
+        w = math.radians(self.params["SIM_YAW_RATE"])
+        return max(abs(self.nav.radius_m), ORBIT_MARGIN * kin.speed_m_s / w)
+
+    def update(self, kin: Kinematics, clock: Clock) -> Outbox | None:
+        """Once per physics step: mission progress, failsafe, faults. None if nothing to say."""
+        out: Outbox | None = None
+        if self.faults.update(clock.sim_s):
+            self.guidance_dirty = True
+        if self.faults.dead:
+            return None
+        if self.mode == PlaneMode.AUTO and self.runner.active:
+            events = self.runner.update(
+                self.rtl_point(kin), kin.pos_enu_m, kin.yaw_rad, self.loiter_radius_eff_m(kin),
+                self.params["WP_RADIUS"], clock.sim_s, kin.landed,
+            )  # fmt: skip
+            if events.reached or events.complete or events.speed_changes or events.landed:
+                out = Outbox()
+                self._auto_events(events, kin, clock, out)
+                if self.mode == PlaneMode.AUTO:
+                    self.set_nav(
+                        self.runner.target(self.rtl_point(kin), self.params["WP_LOITER_RAD"])
+                    )
+        if self.mission_current_sent != self.runner.current:
+            out = out or Outbox()
+            out.broadcast.append(self.mission_current_msg())
+        fs = self._failsafe(kin, clock)
+        if fs is not None:
+            out = out or Outbox()
+            out.broadcast.extend(fs.broadcast)
+        if self.mission.state == mp.Transfer.RECEIVING:
+            res = self.mission.tick(clock.link_s)
+            if res.replies:
+                out = out or Outbox()
+                out.broadcast.extend(res.replies)
+        return out
+
+    def _failsafe(self, kin: Kinematics, clock: Clock) -> Outbox | None:
+        """ArduPlane's long GCS failsafe: no heartbeat from SYSID_MYGCS for FS_LONG_TIMEOUT."""
+        if self.params["FS_GCS_ENABL"] == 0 or self.last_gcs_heartbeat_s is None:
+            return None
+        silent = clock.sim_s - self.last_gcs_heartbeat_s > self.params["FS_LONG_TIMEOUT"]
+        if silent and not self.gcs_failsafe:
+            self.gcs_failsafe = True
+            out = Outbox()
+            out.text(MAV_SEVERITY_CRITICAL, "Failsafe. Long event on: type=2/reason=2")
+            action = int(self.params["FS_LONG_ACTN"])
+            if action == 2:
+                self.glide = True
+                self.guidance_dirty = True
+            elif not (action == 0 and self.mode == PlaneMode.AUTO):
+                self.set_mode(PlaneMode.RTL, kin, clock, out)
+            return out
+        if not silent and self.gcs_failsafe:
+            self.gcs_failsafe = False
+            self.glide = False
+            self.guidance_dirty = True
+            out = Outbox()
+            out.text(MAV_SEVERITY_WARNING, "Long failsafe cleared")
+            return out
+        return None
+
+    def mission_current_msg(self) -> Message:
+        total = max(self.runner.count - 1, 0)
+        seq = self.runner.current if self.runner.count > 1 else 0
+        state = 1 if self.runner.count <= 1 else (3 if self.mode == PlaneMode.AUTO else 4)
+        if self.runner.count > 1 and not self.runner.active and self.mode == PlaneMode.AUTO:
+            state = 5
+        self.mission_current_sent = self.runner.current
+        return mb.mission_current(seq, total, state, 1 if self.mode == PlaneMode.AUTO else 0)
+
+    def system_status(self) -> int:
+        if self.faults.dead:
+            return mb.MAV_STATE_POWEROFF
+        if self.gcs_failsafe:
+            return mb.MAV_STATE_CRITICAL
+        return mb.MAV_STATE_ACTIVE if self.armed else mb.MAV_STATE_STANDBY
+
+    def heartbeat(self) -> Message:
+        return mb.heartbeat(self.mode, self.armed, self.system_status())
+
+    def home_position(self, clock: Clock) -> Message:
+        return mb.home_position(*self.home_geo, clock.unix_us)
+
+    def position_target(self, clock: Clock) -> Message | None:
+        if self.mode == PlaneMode.MANUAL:
+            return None
+        x, y, z = self.nav.pos_enu_m
+        lat, lon, alt = geodesy.enu_to_geodetic(x, y, z, self.origin)
+        return mb.position_target_global_int(clock.time_boot_ms, lat, lon, alt)

@@ -1,0 +1,139 @@
+"""The parameter table of one simulated vehicle.
+
+A small set of real ArduPlane parameters that change behaviour, plus SIM_* parameters for the
+simulated airframe and faults (ArduPilot's SITL also names its simulator knobs SIM_*).
+Integer parameters are reported with their MAVLink integer type and their value cast to a
+float, as ArduPilot does; a PARAM_SET of an integer parameter accepts an integral float
+(MAVSDK and MAVProxy send plain floats). A value out of range, NaN or a fraction for an
+integer parameter is refused: the vehicle answers with the unchanged value.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import IntEnum
+
+from gcs_ppf.mission import Limits
+
+
+class ParamType(IntEnum):
+    """MAV_PARAM_TYPE values used here."""
+
+    INT8 = 2
+    INT16 = 4
+    INT32 = 6
+    REAL32 = 9
+
+
+@dataclass(frozen=True, slots=True)
+class ParamSpec:
+    """One parameter: name (≤ 16 chars), default, MAVLink type, inclusive range, meaning."""
+
+    name: str
+    default: float
+    ptype: ParamType
+    minimum: float
+    maximum: float
+    doc: str
+
+    @property
+    def is_integer(self) -> bool:
+        return self.ptype != ParamType.REAL32
+
+
+def vehicle_param_specs(sysid: int, limits: Limits, cruise_m_s: float) -> list[ParamSpec]:
+    """Parameter definitions for a vehicle with MAVLink id ``sysid`` and envelope ``limits``."""
+    yaw_rate_deg = math.degrees(limits.max_yaw_rate)
+    pitch_rate_deg = math.degrees(limits.max_pitch_rate)
+    i8, i16, i32, f = ParamType.INT8, ParamType.INT16, ParamType.INT32, ParamType.REAL32
+    return [
+        ParamSpec("SYSID_THISMAV", sysid, i16, 1, 255, "MAVLink system id (after reboot)"),
+        ParamSpec("SYSID_MYGCS", 255, i16, 1, 255, "system id of the GCS for the failsafe"),
+        ParamSpec("INITIAL_MODE", 0, i8, 0, 24, "flight mode at start"),
+        ParamSpec("AIRSPEED_MIN", limits.v_min, f, 1, 1000, "minimum commanded airspeed, m/s"),
+        ParamSpec("AIRSPEED_MAX", limits.v_max, f, 1, 1000, "maximum commanded airspeed, m/s"),
+        ParamSpec("AIRSPEED_CRUISE", cruise_m_s, f, 1, 1000, "cruise airspeed, m/s"),
+        ParamSpec("WP_RADIUS", 90, i16, 1, 32767, "waypoint acceptance radius, m"),
+        ParamSpec("WP_LOITER_RAD", 60, i16, -32767, 32767, "loiter radius, m; <0 CCW"),
+        ParamSpec("RTL_ALTITUDE", 100, f, -1, 32767, "RTL altitude above home, m; -1 current"),
+        ParamSpec("TKOFF_ALT", 50, f, 0, 1000, "TAKEOFF mode target altitude above home, m"),
+        ParamSpec("PTCH_LIM_MAX_DEG", 20, f, 0, 90, "maximum pitch, degrees"),
+        ParamSpec("PTCH_LIM_MIN_DEG", -25, f, -90, 0, "minimum pitch, degrees"),
+        ParamSpec("FS_GCS_ENABL", 0, i8, 0, 2, "GCS failsafe: 0 off, 1 heartbeat, 2 also RSSI"),
+        ParamSpec("FS_LONG_TIMEOUT", 5, f, 1, 300, "GCS-loss failsafe timeout, s"),
+        ParamSpec("FS_LONG_ACTN", 0, i8, 0, 3, "0 RTL (AUTO continues), 1 RTL, 2 glide"),
+        ParamSpec("SIM_YAW_RATE", yaw_rate_deg, f, 0.1, 360, "airframe turn rate, deg/s"),
+        ParamSpec("SIM_PTCH_RATE", pitch_rate_deg, f, 0.1, 360, "airframe pitch rate, deg/s"),
+        ParamSpec("SIM_ACCEL_MAX", limits.accel, f, 0.1, 1000, "airframe acceleration, m/s/s"),
+        ParamSpec("SIM_DECEL_MAX", limits.decel, f, 0.1, 1000, "airframe deceleration, m/s/s"),
+        ParamSpec("SIM_SPEED_MIN", limits.v_min, f, 0.1, 1000, "airframe stall speed, m/s"),
+        ParamSpec("SIM_SPEED_MAX", limits.v_max, f, 0.1, 1000, "airframe top speed, m/s"),
+        ParamSpec("SIM_GPS_NOISE", 0, f, 0, 1000, "position noise (1σ), m"),
+        ParamSpec("SIM_LINK_LOSS", 0, f, 0, 100, "link packet loss, % each way"),
+        ParamSpec("SIM_LINK_DELAY", 0, i32, 0, 60000, "added link latency each way, ms"),
+        ParamSpec("SIM_LINK_CUT", 0, f, 0, 86400, "cut the link for this many s from now"),
+        ParamSpec("SIM_KILL", 0, i8, 0, 1, "1 kills the vehicle: silent, unpowered"),
+    ]
+
+
+class ParamTable:
+    """Values of one vehicle's parameters, in a fixed order (the PARAM_VALUE index)."""
+
+    def __init__(self, specs: list[ParamSpec]) -> None:
+        self._specs = list(specs)
+        self._index = {s.name: k for k, s in enumerate(self._specs)}
+        self._values = [float(s.default) for s in self._specs]
+
+    def __len__(self) -> int:
+        return len(self._specs)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._index
+
+    def __getitem__(self, name: str) -> float:
+        return self._values[self._index[name]]
+
+    def names(self) -> list[str]:
+        return [s.name for s in self._specs]
+
+    def spec(self, name: str) -> ParamSpec:
+        return self._specs[self._index[name]]
+
+    def index_of(self, name: str) -> int:
+        return self._index[name]
+
+    def at(self, index: int) -> tuple[ParamSpec, float] | None:
+        """(spec, value) of parameter number ``index``, or None if out of range."""
+        if 0 <= index < len(self._specs):
+            return self._specs[index], self._values[index]
+        return None
+
+    def validate(self, name: str, value: float) -> float | None:
+        """The value that setting ``name`` to ``value`` would store, or None if refused."""
+        k = self._index.get(name)
+        if k is None or not math.isfinite(value):
+            return None
+        spec = self._specs[k]
+        if spec.is_integer:
+            if abs(value - round(value)) > 1e-6:
+                return None
+            value = float(round(value))
+        if not spec.minimum <= value <= spec.maximum:
+            return None
+        return value
+
+    def set(self, name: str, value: float) -> bool:
+        """Store ``value``; False (nothing changed) if it is refused."""
+        checked = self.validate(name, value)
+        if checked is None:
+            return False
+        self._values[self._index[name]] = checked
+        return True
+
+
+def decode_param_id(raw: str | bytes) -> str:
+    """PARAM_*.param_id as text: NUL-terminated unless all 16 characters are used."""
+    if isinstance(raw, bytes):
+        raw = raw.decode("ascii", errors="replace")
+    return raw.split("\x00", 1)[0]

@@ -1,0 +1,336 @@
+"""The asyncio shell: sockets, wall-clock pacing, faults on the wire, signing, tlogs.
+
+Per vehicle i a TCP server on 127.0.0.1:base_port + 10·i accepts any number of clients; all
+of them receive the telemetry stream, replies go to the client that asked. With ``--out``
+each vehicle also has a UDP socket that streams to that address and accepts commands from it.
+Every client has its own pymavlink codec (``MAVLink(None, sysid, 1)``): ``parse_buffer`` in,
+``pack`` out. Nothing here decides what a vehicle does; ``sitl.engine`` does.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import functools
+import hashlib
+import math
+import random
+import signal
+import struct
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, BinaryIO
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from sitl.autopilot import MAV_SEVERITY_WARNING, Outbox
+from sitl.engine import Simulation
+from sitl.messages import Message, statustext
+from sitl.physics import DT_S
+
+#: Write buffer above which a slow client's telemetry is dropped (bytes).
+MAX_BUFFERED = 1 << 20
+#: MAVLink signing epoch, 2015-01-01 UTC (timestamps count 10 µs from it).
+SIGNING_EPOCH_S = 1420070400
+
+
+def signing_key(text: str) -> bytes:
+    """A 32-byte key: 64 hex digits as they are, anything else hashed with SHA-256 (as
+    MAVProxy's ``signing setup PASSPHRASE`` does)."""
+    try:
+        raw = bytes.fromhex(text)
+        if len(raw) == 32:
+            return raw
+    except ValueError:
+        pass
+    return hashlib.sha256(text.encode("utf-8")).digest()
+
+
+class Peer:
+    """One client of one vehicle: its codec and how to write to it."""
+
+    def __init__(self, link: VehicleLink, write: Callable[[bytes], None], label: str) -> None:
+        self.link = link
+        self.write = write
+        self.label = label
+        self.mav = mavlink.MAVLink(None, srcSystem=link.sysid, srcComponent=1)
+        self.mav.robust_parsing = True
+        self.buffered: Callable[[], int] = lambda: 0
+        self.close: Callable[[], None] = lambda: None
+        if link.key is not None:
+            self.mav.signing.secret_key = link.key
+            self.mav.signing.sign_outgoing = True
+            self.mav.signing.link_id = 0
+            self.mav.signing.timestamp = int((time.time() - SIGNING_EPOCH_S) * 1e5)
+            self.mav.signing.allow_unsigned_callback = lambda _mav, _msgid: False
+
+    def pack(self, msg: Message) -> bytes:
+        self.mav.srcSystem = self.link.sysid
+        data: bytes = msg.pack(self.mav)
+        return data
+
+    def parse(self, data: bytes) -> list[Any]:
+        try:
+            return list(self.mav.parse_buffer(data) or [])
+        except Exception:  # a malformed frame must never take the vehicle down
+            self.mav.buf = bytearray()
+            self.mav.buf_index = 0
+            return []
+
+
+@dataclass
+class LinkStats:
+    rx_msgs: int = 0
+    tx_msgs: int = 0
+    dropped: int = 0
+    bad: int = 0
+
+
+class VehicleLink:
+    """The wire side of vehicle ``index``: its peers, the link faults, signing and tlog."""
+
+    def __init__(
+        self,
+        sim: Simulation,
+        index: int,
+        speedup: float,
+        seed: int,
+        key: bytes | None,
+        tlog: BinaryIO | None,
+    ) -> None:
+        self.sim = sim
+        self.index = index
+        self.ap = sim.autopilots[index]
+        self.speedup = speedup
+        self.rng = random.Random(seed * 1000003 + self.ap.sysid)
+        self.key = key
+        self.tlog = tlog
+        self.tlog_mav = mavlink.MAVLink(None, srcSystem=self.ap.sysid, srcComponent=1)
+        self.peers: list[Peer] = []
+        self.stats = LinkStats()
+        self.signing_warned = False
+        self.loop = asyncio.get_event_loop()
+
+    @property
+    def sysid(self) -> int:
+        return self.ap.sysid
+
+    # ---- faults --------------------------------------------------------------------------
+    def _blocked(self) -> bool:
+        f = self.ap.faults
+        if f.dead or f.link_cut(self.sim.sim_s):
+            return True
+        return f.loss_pct > 0 and self.rng.random() * 100.0 < f.loss_pct
+
+    def _delay_s(self) -> float:
+        return self.ap.faults.latency_ms / 1000.0 / self.speedup
+
+    # ---- inbound -------------------------------------------------------------------------
+    def receive(self, peer: Peer, data: bytes) -> None:
+        for msg in peer.parse(data):
+            if self._blocked():
+                self.stats.dropped += 1
+                continue
+            delay = self._delay_s()
+            if delay > 0:
+                self.loop.call_later(delay, self._deliver, peer, msg)
+            else:
+                self._deliver(peer, msg)
+
+    def _deliver(self, peer: Peer, msg: Any) -> None:
+        if msg.get_type() == "BAD_DATA":
+            self.stats.bad += 1
+            if "signature" in str(msg.reason) and not self.signing_warned:
+                self.signing_warned = True
+                text = statustext(MAV_SEVERITY_WARNING, "Bad or missing signature: message ignored")
+                self.send(Outbox(broadcast=[text]), None)
+            return
+        self.stats.rx_msgs += 1
+        self._log(msg.get_msgbuf())
+        try:
+            out = self.sim.handle(self.index, msg, self.loop.time())
+        except Exception as exc:  # never let one message kill the vehicle; say why
+            print(f"sitl: vehicle {self.sysid}: {msg.get_type()} raised {exc!r}", file=sys.stderr)
+            return
+        if out is not None:
+            self.send(out, peer)
+
+    # ---- outbound ------------------------------------------------------------------------
+    def send(self, out: Outbox, reply_to: Peer | None) -> None:
+        for msg in out.broadcast:
+            self._log_out(msg)
+            for peer in self.peers:
+                self._write(peer, msg)
+        for msg in out.reply:
+            self._log_out(msg)
+            if reply_to is not None:
+                self._write(reply_to, msg)
+
+    def _write(self, peer: Peer, msg: Message) -> None:
+        if self._blocked() or peer.buffered() > MAX_BUFFERED:
+            self.stats.dropped += 1
+            return
+        data = peer.pack(msg)
+        self.stats.tx_msgs += 1
+        delay = self._delay_s()
+        if delay > 0:
+            self.loop.call_later(delay, peer.write, data)
+        else:
+            peer.write(data)
+
+    def _log_out(self, msg: Message) -> None:
+        if self.tlog is not None and not self.ap.faults.dead:
+            self.tlog_mav.srcSystem = self.sysid
+            self._log(msg.pack(self.tlog_mav))
+
+    def _log(self, frame: bytes | bytearray) -> None:
+        if self.tlog is not None:
+            self.tlog.write(struct.pack(">Q", self.sim.boot_unix_us + round(self.sim.sim_s * 1e6)))
+            self.tlog.write(bytes(frame))
+
+
+class _TcpClient(asyncio.Protocol):
+    def __init__(self, link: VehicleLink) -> None:
+        self.link = link
+        self.peer: Peer | None = None
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        assert isinstance(transport, asyncio.Transport)
+        self.transport = transport
+        self.peer = Peer(self.link, self._write, str(transport.get_extra_info("peername")))
+        self.peer.buffered = transport.get_write_buffer_size
+        self.peer.close = transport.close
+        self.link.peers.append(self.peer)
+
+    def _write(self, data: bytes) -> None:
+        if not self.transport.is_closing():
+            self.transport.write(data)
+
+    def data_received(self, data: bytes) -> None:
+        if self.peer is not None:
+            self.link.receive(self.peer, data)
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        if self.peer in self.link.peers:
+            self.link.peers.remove(self.peer)
+
+
+class _UdpOut(asyncio.DatagramProtocol):
+    def __init__(self, link: VehicleLink) -> None:
+        self.link = link
+        self.peer: Peer | None = None
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        self.transport: Any = transport  # a _SelectorDatagramTransport, not a DatagramTransport
+        self.peer = Peer(self.link, self._write, "udp-out")
+        self.link.peers.append(self.peer)
+
+    def _write(self, data: bytes) -> None:
+        with contextlib.suppress(OSError):
+            self.transport.sendto(data)
+
+    def datagram_received(self, data: bytes, addr: tuple[str | Any, int]) -> None:
+        if self.peer is not None:
+            self.link.receive(self.peer, data)
+
+    def error_received(self, exc: Exception) -> None:  # nobody listening yet: keep sending
+        pass
+
+
+@dataclass(frozen=True, slots=True)
+class ServerConfig:
+    base_port: int = 5760
+    speedup: float = 1.0
+    out: tuple[str, int] | None = None
+    seed: int = 0
+    signing_key: bytes | None = None
+    tlog_dir: Path | None = None
+    host: str = "127.0.0.1"
+    duration_s: float | None = None  # stop after this much simulated time (tests, benchmarks)
+
+
+async def pace(
+    sim: Simulation,
+    links: list[VehicleLink],
+    speedup: float,
+    stop: asyncio.Event,
+    duration_s: float | None = None,
+) -> None:
+    """Advance the simulation so that sim time = speedup × wall time (falling behind if the
+    CPU cannot keep up, never bursting to catch up by more than 0.25 s of wall time)."""
+    loop = asyncio.get_running_loop()
+    t0 = loop.time()
+    while not stop.is_set():
+        now = loop.time()
+        target = (now - t0) * speedup
+        if target - sim.sim_s > 0.25 * speedup:  # too far behind: let wall time slip
+            t0 += (target - sim.sim_s) / speedup - 0.25
+            target = (now - t0) * speedup
+        batch = 0
+        while sim.sim_s + DT_S <= target + 1e-9 and batch < 200:
+            for i, out in sim.step(loop.time()):
+                links[i].send(out, None)
+            batch += 1
+            if duration_s is not None and sim.sim_s >= duration_s:
+                stop.set()
+                return
+        wait = t0 + (sim.sim_s + DT_S) / speedup - loop.time()
+        await asyncio.sleep(max(wait, 0.0) if batch < 200 else 0.0)
+
+
+async def serve(
+    sim: Simulation, cfg: ServerConfig, *, ready: Callable[[str], None] = print
+) -> None:
+    """Run until SIGINT/SIGTERM (or ``cfg.duration_s`` of simulated time)."""
+    loop = asyncio.get_running_loop()
+    stop = asyncio.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(NotImplementedError, RuntimeError):
+            loop.add_signal_handler(sig, stop.set)
+    async with contextlib.AsyncExitStack() as stack:
+        links: list[VehicleLink] = []
+        for i, ap in enumerate(sim.autopilots):
+            tlog: BinaryIO | None = None
+            if cfg.tlog_dir is not None:
+                cfg.tlog_dir.mkdir(parents=True, exist_ok=True)
+                tlog = stack.enter_context((cfg.tlog_dir / f"vehicle{ap.sysid}.tlog").open("wb"))
+            link = VehicleLink(sim, i, cfg.speedup, cfg.seed, cfg.signing_key, tlog)
+            links.append(link)
+            port = cfg.base_port + 10 * i
+            server = await loop.create_server(
+                functools.partial(_TcpClient, link), cfg.host, port, reuse_address=True
+            )
+            stack.push_async_callback(_close_server, server)
+            if cfg.out is not None:
+                transport, _ = await loop.create_datagram_endpoint(
+                    functools.partial(_UdpOut, link), remote_addr=cfg.out
+                )
+                stack.callback(transport.close)
+            ready(f"vehicle {ap.sysid}: tcp:{cfg.host}:{port}")
+        ready(f"sitl ready: {len(links)} vehicles, speedup {cfg.speedup:g}")
+        clock = asyncio.create_task(pace(sim, links, cfg.speedup, stop, cfg.duration_s))
+        try:
+            await stop.wait()
+        finally:
+            stop.set()
+            clock.cancel()
+            with contextlib.suppress(asyncio.CancelledError):
+                await clock
+            for link in links:
+                for peer in list(link.peers):
+                    peer.close()
+
+
+async def _close_server(server: asyncio.Server) -> None:
+    server.close()
+    with contextlib.suppress(Exception):
+        await asyncio.wait_for(server.wait_closed(), 1.0)
+
+
+def check_speedup(value: float) -> float:
+    if not math.isfinite(value) or value <= 0:
+        raise ValueError("--speedup must be a positive number")
+    return value
