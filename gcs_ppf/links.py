@@ -1,0 +1,425 @@
+"""asyncio MAVLink links (TCP client, UDP server, UDP client) that reconnect, with a tlog.
+
+A ``MavlinkLink`` owns one transport, one ``Codec`` and optionally one tlog file.  ``run()``
+connects, reads and hands every decoded message to ``on_message``; when the connection fails or
+ends it waits (exponential backoff) and connects again, until ``close()``.  URLs use pymavlink's
+syntax: ``tcp:HOST:PORT`` (client), ``udpin:HOST:PORT`` and ``udp:HOST:PORT`` (listen, answer the
+last sender: ``udp:`` listens in pymavlink too), ``udpout:HOST:PORT`` (send to HOST:PORT).
+
+The tlog is the format MAVProxy writes and ``mavlogdump.py`` reads: every frame in and out,
+each preceded by its UNIX time in microseconds as an 8-byte big-endian integer.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import enum
+import logging
+import math
+import socket
+import struct
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import IO
+
+from gcs_ppf.mavlink.ardupilot import GCS_COMPONENT_ID, GCS_SYSTEM_ID
+from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage, signing_timestamp
+
+log = logging.getLogger(__name__)
+
+_READ_SIZE = 65536
+_TLOG_FLUSH_S = 1.0
+
+
+class LinkKind(enum.StrEnum):
+    TCP = "tcp"
+    """TCP client: connects to HOST:PORT (ArduPilot SITL serves MAVLink on tcp 5760)."""
+    UDP_IN = "udpin"
+    """UDP server: binds HOST:PORT and sends to whoever sent last."""
+    UDP_OUT = "udpout"
+    """UDP client: sends to HOST:PORT and reads its answers."""
+    SERIAL = "serial"
+    """Serial device at a baud rate (needs pyserial, not installed: not supported)."""
+
+
+@dataclass(frozen=True, slots=True)
+class LinkUrl:
+    """A parsed link URL.  For SERIAL, ``host`` is the device path and ``port`` the baud rate."""
+
+    kind: LinkKind
+    host: str
+    port: int
+
+    def __str__(self) -> str:
+        if self.kind is LinkKind.SERIAL:
+            return f"{self.host}:{self.port}"
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"{self.kind}:{host}:{self.port}"
+
+
+_SCHEMES = {
+    "tcp": LinkKind.TCP,
+    "udpin": LinkKind.UDP_IN,
+    "udp": LinkKind.UDP_IN,
+    "udpout": LinkKind.UDP_OUT,
+}
+
+
+def parse_link_url(url: str) -> LinkUrl:
+    """Parse ``tcp:HOST:PORT``, ``udpin:HOST:PORT``, ``udp:HOST:PORT``, ``udpout:HOST:PORT``.
+
+    IPv6 hosts go in brackets (``tcp:[::1]:5760``).  Raises ValueError naming what is wrong;
+    a serial device (``/dev/ttyUSB0:57600``, ``COM3,115200``) raises NotImplementedError.
+    """
+    text = url.strip()
+    if not text:
+        raise ValueError("link URL is empty; expected e.g. tcp:127.0.0.1:5760")
+    if text.startswith("/dev/") or text.upper().startswith("COM"):
+        return _serial(text)
+    scheme, sep, rest = text.partition(":")
+    kind = _SCHEMES.get(scheme.lower())
+    if not sep or kind is None:
+        raise ValueError(
+            f"link URL {url!r}: unknown scheme {scheme!r}; expected one of "
+            "tcp:HOST:PORT, udpin:HOST:PORT, udp:HOST:PORT, udpout:HOST:PORT"
+        )
+    host, sep, port_text = rest.rpartition(":")
+    if not sep or not host:
+        raise ValueError(f"link URL {url!r}: expected {scheme}:HOST:PORT, missing host or port")
+    if host.startswith("[") and host.endswith("]"):
+        host = host[1:-1]
+    elif ":" in host:
+        raise ValueError(f"link URL {url!r}: put an IPv6 host in brackets, e.g. tcp:[::1]:5760")
+    if not host or any(c.isspace() for c in host):
+        raise ValueError(f"link URL {url!r}: host {host!r} is not a host name or address")
+    if not port_text.isdigit() or not 1 <= int(port_text) <= 65535:
+        raise ValueError(f"link URL {url!r}: port {port_text!r} is not a number in 1..65535")
+    return LinkUrl(kind, host, int(port_text))
+
+
+def _serial(text: str) -> LinkUrl:
+    device, _, baud_text = text.replace(",", ":").partition(":")
+    baud = 115200
+    if baud_text:
+        if not baud_text.isdigit() or int(baud_text) <= 0:
+            raise ValueError(f"serial link {text!r}: baud {baud_text!r} is not a positive number")
+        baud = int(baud_text)
+    raise NotImplementedError(
+        f"serial link {device} at {baud} baud: serial ports need pyserial, which is not "
+        "installed; bridge the port to UDP or TCP (e.g. mavproxy.py --master "
+        f"{device} --out udpout:127.0.0.1:14550) and use that URL"
+    )
+
+
+@dataclass(frozen=True, slots=True)
+class LinkStats:
+    """Counters of one link since it was created."""
+
+    bytes_in: int = 0
+    bytes_out: int = 0
+    messages_in: int = 0
+    messages_out: int = 0
+    parse_errors: int = 0
+    """Frames dropped as bad (CRC, header, signature, truncated datagram)."""
+    bytes_skipped: int = 0
+    """Noise between frames."""
+    dropped_out: int = 0
+    """Messages not sent because the link was down (or had no peer yet)."""
+    connect_attempts: int = 0
+    connects: int = 0
+    """Successful connections (TCP connected, UDP socket bound)."""
+    reconnects: int = 0
+    """Successful connections after the first."""
+    callback_errors: int = 0
+    """Exceptions raised by ``on_message`` (logged, then ignored)."""
+    backoff_s: float = 0.0
+    """The wait before the next connection attempt."""
+
+
+OnMessage = Callable[["MavlinkLink", MAVLinkMessage], None]
+
+
+class _Datagrams(asyncio.DatagramProtocol):
+    """Queues received datagrams; None in the queue means the socket closed."""
+
+    def __init__(self) -> None:
+        self.queue: asyncio.Queue[tuple[bytes, tuple[str, int]] | None] = asyncio.Queue()
+        self.errors = 0
+
+    def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
+        self.queue.put_nowait((data, addr))
+
+    def error_received(self, exc: Exception) -> None:
+        # ICMP "port unreachable" after a send to a peer not listening (yet): not fatal.
+        self.errors += 1
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        self.queue.put_nowait(None)
+
+
+class MavlinkLink:
+    """One MAVLink link to one or more vehicles; see the module docstring."""
+
+    def __init__(
+        self,
+        url: str,
+        on_message: OnMessage,
+        *,
+        source_system: int = GCS_SYSTEM_ID,
+        source_component: int = GCS_COMPONENT_ID,
+        tlog_path: Path | None = None,
+        backoff_initial_s: float = 0.5,
+        backoff_max_s: float = 5.0,
+        connect_timeout_s: float = 5.0,
+        send_timeout_s: float = 2.0,
+        signing_key: bytes | None = None,
+        signing_link_id: int = 0,
+    ) -> None:
+        self.url = parse_link_url(url)
+        if not (0 < backoff_initial_s <= backoff_max_s and math.isfinite(backoff_max_s)):
+            raise ValueError(
+                "backoff must satisfy 0 < backoff_initial_s <= backoff_max_s < inf, got "
+                f"{backoff_initial_s}, {backoff_max_s}"
+            )
+        self._on_message = on_message
+        self._codec = Codec(
+            source_system,
+            source_component,
+            signing_key=signing_key,
+            signing_link_id=signing_link_id,
+            signing_timestamp=signing_timestamp(time.time()) if signing_key else 0,
+        )
+        self._tlog_path = tlog_path
+        self._tlog: IO[bytes] | None = None
+        self._tlog_flushed_s = 0.0
+        self._backoff_initial_s = backoff_initial_s
+        self._backoff_max_s = backoff_max_s
+        self._connect_timeout_s = connect_timeout_s
+        self._send_timeout_s = send_timeout_s
+        self._closed = False
+        self._close_event = asyncio.Event()
+        self._stats = LinkStats()
+        # The live connection: set by a session, cleared when it ends.
+        self._writer: asyncio.StreamWriter | None = None
+        self._udp: asyncio.DatagramTransport | None = None
+        self._peer: tuple[str, int] | None = None
+        self._running = False
+
+    # -- state -----------------------------------------------------------------------------
+    @property
+    def connected(self) -> bool:
+        """True while messages can be sent (TCP connected; UDP bound with a known peer)."""
+        if self._writer is not None:
+            return not self._writer.is_closing()
+        return self._udp is not None and self._peer is not None and not self._udp.is_closing()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    @property
+    def stats(self) -> LinkStats:
+        codec = self._codec.stats
+        return replace(self._stats, parse_errors=codec.errors, bytes_skipped=codec.bytes_skipped)
+
+    @property
+    def codec(self) -> Codec:
+        return self._codec
+
+    def close(self) -> None:
+        """Stop: ``run()`` returns soon after.  Safe to call more than once, and before ``run``."""
+        self._closed = True
+        self._close_event.set()
+        if self._writer is not None:
+            self._writer.close()
+        if self._udp is not None:
+            self._udp.close()
+
+    # -- running ---------------------------------------------------------------------------
+    async def run(self) -> None:
+        """Connect, read, reconnect with exponential backoff, until ``close()``.
+
+        Never raises (except CancelledError when the task is cancelled).
+        """
+        if self._running:
+            raise RuntimeError("MavlinkLink.run() is already running")
+        self._running = True
+        backoff = self._backoff_initial_s
+        try:
+            self._open_tlog()
+            while not self._closed:
+                self._stats = replace(
+                    self._stats, connect_attempts=self._stats.connect_attempts + 1
+                )
+                heard = False
+                try:
+                    heard = await self._session()
+                except (OSError, TimeoutError, EOFError) as exc:
+                    log.info("link %s: %s", self.url, exc or type(exc).__name__)
+                except Exception:
+                    log.exception("link %s: unexpected error", self.url)
+                if self._closed:
+                    break
+                if heard:
+                    backoff = self._backoff_initial_s
+                self._stats = replace(self._stats, backoff_s=backoff)
+                with contextlib.suppress(TimeoutError):
+                    async with asyncio.timeout(backoff):
+                        await self._close_event.wait()
+                backoff = min(backoff * 2.0, self._backoff_max_s)
+        finally:
+            self._running = False
+            self._drop_connection()
+            self._close_tlog()
+
+    async def _session(self) -> bool:
+        """One connection, until it ends; True if any message was received on it."""
+        self._codec.reset()
+        if self.url.kind is LinkKind.TCP:
+            return await self._tcp_session()
+        if self.url.kind in (LinkKind.UDP_IN, LinkKind.UDP_OUT):
+            return await self._udp_session()
+        raise NotImplementedError(f"link kind {self.url.kind} is not supported")
+
+    async def _tcp_session(self) -> bool:
+        async with asyncio.timeout(self._connect_timeout_s):
+            reader, writer = await asyncio.open_connection(self.url.host, self.url.port)
+        sock = writer.get_extra_info("socket")
+        if sock is not None:
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self._writer = writer
+        self._connected_once()
+        heard = False
+        try:
+            while not self._closed:
+                data = await reader.read(_READ_SIZE)
+                if not data:
+                    log.info("link %s: connection closed by the peer", self.url)
+                    return heard
+                heard = self._received(self._codec.parse(data), len(data)) or heard
+            return heard
+        finally:
+            self._drop_connection()
+
+    async def _udp_session(self) -> bool:
+        loop = asyncio.get_running_loop()
+        address = (self.url.host, self.url.port)
+        if self.url.kind is LinkKind.UDP_IN:
+            transport, proto = await loop.create_datagram_endpoint(_Datagrams, local_addr=address)
+            self._peer = None
+        else:
+            transport, proto = await loop.create_datagram_endpoint(_Datagrams, remote_addr=address)
+            self._peer = address
+        self._udp = transport
+        self._connected_once()
+        heard = False
+        try:
+            while not self._closed:
+                item = await proto.queue.get()
+                if item is None:
+                    return heard
+                data, addr = item
+                if self.url.kind is LinkKind.UDP_IN:
+                    self._peer = addr  # answer whoever spoke last
+                heard = self._received(self._codec.parse_datagram(data), len(data)) or heard
+            return heard
+        finally:
+            self._drop_connection()
+
+    def _connected_once(self) -> None:
+        s = self._stats
+        self._stats = replace(
+            s, connects=s.connects + 1, reconnects=s.reconnects + (1 if s.connects else 0)
+        )
+        log.info("link %s: connected", self.url)
+
+    def _drop_connection(self) -> None:
+        writer, udp = self._writer, self._udp
+        self._writer = None
+        self._udp = None
+        self._peer = None
+        if writer is not None:
+            writer.close()
+        if udp is not None:
+            udp.close()
+
+    def _received(self, messages: list[MAVLinkMessage], n_bytes: int) -> bool:
+        """Log and deliver decoded messages; True if there were any."""
+        self._stats = replace(
+            self._stats,
+            bytes_in=self._stats.bytes_in + n_bytes,
+            messages_in=self._stats.messages_in + len(messages),
+        )
+        for msg in messages:
+            self._tlog_write(bytes(msg.get_msgbuf()))
+            try:
+                self._on_message(self, msg)
+            except Exception:
+                self._stats = replace(self._stats, callback_errors=self._stats.callback_errors + 1)
+                log.exception("link %s: on_message failed on %s", self.url, msg.get_type())
+        return bool(messages)
+
+    # -- sending ---------------------------------------------------------------------------
+    async def send(self, msg: MAVLinkMessage) -> bool:
+        """Encode ``msg`` and hand it to the transport (True); False, and counted, if the link
+        is down or (``udpin``) no peer has spoken yet.
+
+        Raises ValueError if ``msg`` cannot be encoded.  A TCP peer that stops reading for
+        ``send_timeout_s`` is treated as gone: the connection is dropped and remade.
+        """
+        if not self.connected:
+            self._stats = replace(self._stats, dropped_out=self._stats.dropped_out + 1)
+            return False
+        frame = self._codec.encode(msg)
+        writer = self._writer
+        if writer is not None:
+            writer.write(frame)
+        elif self._udp is not None and self._peer is not None:
+            if self.url.kind is LinkKind.UDP_OUT:
+                self._udp.sendto(frame)
+            else:
+                self._udp.sendto(frame, self._peer)
+        self._tlog_write(frame)
+        self._stats = replace(
+            self._stats,
+            bytes_out=self._stats.bytes_out + len(frame),
+            messages_out=self._stats.messages_out + 1,
+        )
+        if writer is not None:
+            try:
+                async with asyncio.timeout(self._send_timeout_s):
+                    await writer.drain()
+            except (TimeoutError, OSError) as exc:
+                log.warning("link %s: send failed (%s), reconnecting", self.url, exc or "timeout")
+                if writer is self._writer:
+                    writer.transport.abort()
+        return True
+
+    # -- tlog ------------------------------------------------------------------------------
+    def _open_tlog(self) -> None:
+        """Open the tlog for appending; a tlog that cannot be written is logged, not fatal."""
+        if self._tlog_path is not None and self._tlog is None:
+            try:
+                self._tlog_path.parent.mkdir(parents=True, exist_ok=True)
+                self._tlog = self._tlog_path.open("ab")
+            except OSError as exc:
+                log.error("link %s: cannot write tlog %s: %s", self.url, self._tlog_path, exc)
+                return
+            self._tlog_flushed_s = time.monotonic()
+
+    def _tlog_write(self, frame: bytes) -> None:
+        if self._tlog is None:
+            return
+        self._tlog.write(struct.pack(">Q", int(time.time() * 1e6)) + frame)
+        now = time.monotonic()
+        if now - self._tlog_flushed_s >= _TLOG_FLUSH_S:
+            self._tlog.flush()
+            self._tlog_flushed_s = now
+
+    def _close_tlog(self) -> None:
+        if self._tlog is not None:
+            self._tlog.close()
+            self._tlog = None

@@ -1,0 +1,1 @@
+"""GCS-side MAVLink edges: ArduPlane facts, codec, command builders, telemetry decoding."""

@@ -1,0 +1,182 @@
+"""Pure decoding of an ArduPlane's telemetry into one immutable sample per vehicle.
+
+``apply(tel, msg, now_s)`` folds one received message into a new ``VehicleTelemetry``.  Units
+are in the field names; angles and velocities are in MAVLink's NED convention (yaw and heading
+from north, clockwise; velocities north/east/down) — conversion to the paper's ENU frame is the
+job of ``gcs_ppf.frames``.  ``now_s`` is whatever clock the caller keeps (monotonic seconds in
+the service); nothing here reads a clock.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import Any
+
+from gcs_ppf.mavlink.ardupilot import PlaneMode, is_armed, mode_name, plane_mode
+from gcs_ppf.mavlink.codec import MAVLinkMessage
+
+UINT16_UNKNOWN = 0xFFFF
+"""GLOBAL_POSITION_INT.hdg when the heading is unknown."""
+
+
+@dataclass(frozen=True, slots=True)
+class CommandAck:
+    """The last COMMAND_ACK received for one command."""
+
+    command: int
+    """``MAV_CMD`` number acknowledged."""
+    result: int
+    """``MAV_RESULT`` (0 ACCEPTED, 1 TEMPORARILY_REJECTED, 2 DENIED, 3 UNSUPPORTED, 4 FAILED,
+    5 IN_PROGRESS, ...)."""
+    received_s: float
+    """Caller's clock when it arrived."""
+
+
+@dataclass(frozen=True, slots=True)
+class VehicleTelemetry:
+    """What is known of one vehicle (system id, component id); None: not received yet."""
+
+    system_id: int
+    component_id: int
+    mav_type: int | None = None
+    """HEARTBEAT.type (``MAV_TYPE``; 1 = fixed wing)."""
+    autopilot: int | None = None
+    """HEARTBEAT.autopilot (``MAV_AUTOPILOT``; 3 = ArduPilot)."""
+    custom_mode: int | None = None
+    """HEARTBEAT.custom_mode as received."""
+    mode: PlaneMode | None = None
+    """``custom_mode`` as an ArduPlane mode; None if not one (or no heartbeat yet)."""
+    armed: bool = False
+    system_status: int | None = None
+    """HEARTBEAT.system_status (``MAV_STATE``)."""
+    last_heartbeat_s: float | None = None
+    """Caller's clock at the last HEARTBEAT."""
+    last_update_s: float | None = None
+    """Caller's clock at the last message that changed this record."""
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+    alt_amsl_m: float | None = None
+    relative_alt_m: float | None = None
+    """Altitude above home (GLOBAL_POSITION_INT.relative_alt)."""
+    vn_m_s: float | None = None
+    ve_m_s: float | None = None
+    vd_m_s: float | None = None
+    heading_deg: float | None = None
+    """GLOBAL_POSITION_INT.hdg: [0, 360) from north, clockwise; None if unknown."""
+    roll_rad: float | None = None
+    pitch_rad: float | None = None
+    yaw_rad: float | None = None
+    """ATTITUDE.yaw: from north, clockwise, (−π, π]."""
+    airspeed_m_s: float | None = None
+    groundspeed_m_s: float | None = None
+    climb_m_s: float | None = None
+    """VFR_HUD.climb (positive up)."""
+    time_boot_ms: int | None = None
+    """Vehicle time: ``time_boot_ms`` of the most recent message carrying one."""
+    system_time_boot_ms: int | None = None
+    """SYSTEM_TIME.time_boot_ms."""
+    unix_time_us: int | None = None
+    """SYSTEM_TIME.time_unix_usec; None while the vehicle has no GPS time (it sends 0)."""
+    command_acks: tuple[CommandAck, ...] = ()
+    """The last COMMAND_ACK per command, ordered by command number."""
+
+    @property
+    def mode_name(self) -> str | None:
+        """ArduPlane's name of the current mode (``"GUIDED"``), None before the first heartbeat."""
+        return None if self.custom_mode is None else mode_name(self.custom_mode)
+
+    def ack(self, command: int) -> CommandAck | None:
+        """The last COMMAND_ACK received for ``command``, if any."""
+        for a in self.command_acks:
+            if a.command == command:
+                return a
+        return None
+
+
+def apply(tel: VehicleTelemetry | None, msg: MAVLinkMessage, now_s: float) -> VehicleTelemetry:
+    """``tel`` updated with ``msg`` (received at caller time ``now_s``), as a new object.
+
+    ``tel`` None starts a record for the message's sender.  Messages from another system or
+    component than ``tel``'s, and message types not decoded here, return ``tel`` unchanged.
+    Decoded: HEARTBEAT, GLOBAL_POSITION_INT, ATTITUDE, VFR_HUD, SYSTEM_TIME, COMMAND_ACK; the
+    ``time_boot_ms`` of any message carrying one.
+    """
+    src = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
+    if tel is None:
+        tel = VehicleTelemetry(system_id=src[0], component_id=src[1])
+    elif src != (tel.system_id, tel.component_id):
+        return tel
+    decode = _DECODERS.get(msg.get_type())
+    changes: dict[str, Any] = decode(tel, msg, now_s) if decode is not None else {}
+    boot_ms = getattr(msg, "time_boot_ms", None)
+    if isinstance(boot_ms, int):
+        changes["time_boot_ms"] = boot_ms
+    if not changes:
+        return tel
+    changes["last_update_s"] = now_s
+    return replace(tel, **changes)
+
+
+def _heartbeat(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:
+    custom = int(msg.custom_mode)
+    return {
+        "mav_type": int(msg.type),
+        "autopilot": int(msg.autopilot),
+        "custom_mode": custom,
+        "mode": plane_mode(custom),
+        "armed": is_armed(msg.base_mode),
+        "system_status": int(msg.system_status),
+        "last_heartbeat_s": now_s,
+    }
+
+
+def _global_position_int(
+    tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float
+) -> dict[str, Any]:
+    hdg = int(msg.hdg)
+    return {
+        "lat_deg": msg.lat * 1e-7,
+        "lon_deg": msg.lon * 1e-7,
+        "alt_amsl_m": msg.alt * 1e-3,
+        "relative_alt_m": msg.relative_alt * 1e-3,
+        "vn_m_s": msg.vx * 1e-2,
+        "ve_m_s": msg.vy * 1e-2,
+        "vd_m_s": msg.vz * 1e-2,
+        "heading_deg": None if hdg == UINT16_UNKNOWN else hdg * 1e-2,
+    }
+
+
+def _attitude(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:
+    return {"roll_rad": float(msg.roll), "pitch_rad": float(msg.pitch), "yaw_rad": float(msg.yaw)}
+
+
+def _vfr_hud(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:
+    return {
+        "airspeed_m_s": float(msg.airspeed),
+        "groundspeed_m_s": float(msg.groundspeed),
+        "climb_m_s": float(msg.climb),
+    }
+
+
+def _system_time(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:
+    unix_us = int(msg.time_unix_usec)
+    return {
+        "system_time_boot_ms": int(msg.time_boot_ms),
+        "unix_time_us": unix_us if unix_us > 0 else None,
+    }
+
+
+def _command_ack(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:
+    ack = CommandAck(command=int(msg.command), result=int(msg.result), received_s=now_s)
+    others = [a for a in tel.command_acks if a.command != ack.command]
+    return {"command_acks": tuple(sorted([*others, ack], key=lambda a: a.command))}
+
+
+_DECODERS = {
+    "HEARTBEAT": _heartbeat,
+    "GLOBAL_POSITION_INT": _global_position_int,
+    "ATTITUDE": _attitude,
+    "VFR_HUD": _vfr_hud,
+    "SYSTEM_TIME": _system_time,
+    "COMMAND_ACK": _command_ack,
+}

@@ -1,0 +1,135 @@
+"""Telemetry decoding with messages built (and put through the wire) by pymavlink."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import pytest
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from gcs_ppf.mavlink.ardupilot import PlaneMode
+from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage
+from gcs_ppf.mavlink.telemetry import VehicleTelemetry, apply
+
+
+def _wire(msg: MAVLinkMessage, system: int = 2, component: int = 1) -> MAVLinkMessage:
+    """``msg`` as a receiver sees it: encoded by the vehicle, decoded by the ground station."""
+    (decoded,) = Codec().parse(Codec(system, component).encode(msg))
+    return decoded
+
+
+def _heartbeat(custom_mode: int = 15, base_mode: int = 128 | 1) -> MAVLinkMessage:
+    return _wire(mavlink2.MAVLink_heartbeat_message(1, 3, base_mode, custom_mode, 4, 3))
+
+
+def test_heartbeat_starts_a_record() -> None:
+    tel = apply(None, _heartbeat(), 10.0)
+    assert (tel.system_id, tel.component_id) == (2, 1)
+    assert (tel.mav_type, tel.autopilot) == (1, 3)
+    assert tel.custom_mode == 15
+    assert tel.mode is PlaneMode.GUIDED
+    assert tel.mode_name == "GUIDED"
+    assert tel.armed
+    assert tel.system_status == 4
+    assert tel.last_heartbeat_s == 10.0
+    assert tel.last_update_s == 10.0
+    assert tel.lat_deg is None
+
+
+def test_unknown_custom_mode_keeps_the_raw_number() -> None:
+    tel = apply(None, _heartbeat(custom_mode=99, base_mode=1), 0.0)
+    assert tel.mode is None
+    assert tel.custom_mode == 99
+    assert tel.mode_name == "UNKNOWN(99)"
+    assert not tel.armed
+
+
+def test_global_position_int_units() -> None:
+    tel = apply(None, _heartbeat(), 0.0)
+    msg = mavlink2.MAVLink_global_position_int_message(
+        123456, 473977420, -85455940, 788500, 300250, 2500, -120, 30, 9050
+    )
+    tel = apply(tel, _wire(msg), 1.0)
+    assert tel.lat_deg == pytest.approx(47.397742, abs=1e-9)
+    assert tel.lon_deg == pytest.approx(-8.545594, abs=1e-9)
+    assert tel.alt_amsl_m == pytest.approx(788.5)
+    assert tel.relative_alt_m == pytest.approx(300.25)
+    assert (tel.vn_m_s, tel.ve_m_s, tel.vd_m_s) == pytest.approx((25.0, -1.2, 0.3))
+    assert tel.heading_deg == pytest.approx(90.5)
+    assert tel.time_boot_ms == 123456
+    assert tel.last_update_s == 1.0
+    assert tel.last_heartbeat_s == 0.0
+
+
+def test_unknown_heading_is_none() -> None:
+    msg = mavlink2.MAVLink_global_position_int_message(1, 0, 0, 0, 0, 0, 0, 0, 0xFFFF)
+    assert apply(None, _wire(msg), 0.0).heading_deg is None
+
+
+def test_attitude_vfr_hud_and_system_time() -> None:
+    tel = apply(None, _heartbeat(), 0.0)
+    tel = apply(tel, _wire(mavlink2.MAVLink_attitude_message(2000, 0.1, -0.2, 3.0, 0, 0, 0)), 1.0)
+    assert (tel.roll_rad, tel.pitch_rad, tel.yaw_rad) == pytest.approx((0.1, -0.2, 3.0))
+    assert tel.time_boot_ms == 2000
+    tel = apply(tel, _wire(mavlink2.MAVLink_vfr_hud_message(21.5, 23.0, 90, 55, 700.0, -1.5)), 2.0)
+    assert (tel.airspeed_m_s, tel.groundspeed_m_s, tel.climb_m_s) == pytest.approx(
+        (21.5, 23.0, -1.5)
+    )
+    assert tel.time_boot_ms == 2000  # VFR_HUD carries no time_boot_ms
+    tel = apply(tel, _wire(mavlink2.MAVLink_system_time_message(0, 2500)), 3.0)
+    assert tel.system_time_boot_ms == 2500
+    assert tel.time_boot_ms == 2500
+    assert tel.unix_time_us is None
+    tel = apply(tel, _wire(mavlink2.MAVLink_system_time_message(1_700_000_000_000_000, 2600)), 4.0)
+    assert tel.unix_time_us == 1_700_000_000_000_000
+
+
+def test_time_boot_ms_follows_the_latest_message_even_after_a_reboot() -> None:
+    tel = apply(None, _wire(mavlink2.MAVLink_attitude_message(90_000, 0, 0, 0, 0, 0, 0)), 0.0)
+    tel = apply(tel, _wire(mavlink2.MAVLink_attitude_message(150, 0, 0, 0, 0, 0, 0)), 1.0)
+    assert tel.time_boot_ms == 150
+
+
+def test_command_acks_keep_the_last_per_command() -> None:
+    tel = apply(None, _heartbeat(), 0.0)
+    tel = apply(tel, _wire(mavlink2.MAVLink_command_ack_message(192, 4)), 1.0)
+    tel = apply(tel, _wire(mavlink2.MAVLink_command_ack_message(176, 0)), 2.0)
+    tel = apply(tel, _wire(mavlink2.MAVLink_command_ack_message(192, 0)), 3.0)
+    assert [a.command for a in tel.command_acks] == [176, 192]
+    ack = tel.ack(192)
+    assert ack is not None
+    assert (ack.result, ack.received_s) == (0, 3.0)
+    assert tel.ack(400) is None
+
+
+def test_unknown_messages_and_other_senders_leave_the_record_unchanged() -> None:
+    tel = apply(None, _heartbeat(), 0.0)
+    status = mavlink2.MAVLink_statustext_message(6, b"hello")
+    assert apply(tel, _wire(status), 5.0) is tel
+    other_system = _wire(mavlink2.MAVLink_heartbeat_message(1, 3, 0, 12, 4, 3), system=9)
+    assert apply(tel, other_system, 5.0) is tel
+    camera = _wire(mavlink2.MAVLink_heartbeat_message(30, 8, 0, 0, 4, 3), component=100)
+    assert apply(tel, camera, 5.0) is tel
+
+
+def test_apply_returns_a_new_frozen_object_and_leaves_the_input_alone() -> None:
+    tel = apply(None, _heartbeat(), 0.0)
+    new = apply(tel, _heartbeat(custom_mode=12, base_mode=1), 1.0)
+    assert new is not tel
+    assert tel.mode is PlaneMode.GUIDED
+    assert new.mode is PlaneMode.LOITER
+    assert not new.armed
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        new.armed = True  # type: ignore[misc]
+
+
+def test_non_heartbeat_first_message_starts_an_empty_record() -> None:
+    msg = mavlink2.MAVLink_vfr_hud_message(20.0, 20.0, 0, 0, 0.0, 0.0)
+    tel = apply(None, _wire(msg, system=4), 0.0)
+    assert isinstance(tel, VehicleTelemetry)
+    assert tel.system_id == 4
+    assert tel.custom_mode is None
+    assert tel.mode_name is None
+    assert tel.airspeed_m_s == 20.0
+    assert not math.isnan(tel.airspeed_m_s)
