@@ -43,6 +43,16 @@ def build_parser() -> argparse.ArgumentParser:
         "--sweep-dt", action="store_true", help="also time the plan for Δt = 0.1 … 0.005 s (Fig. 9)"
     )
     plan.add_argument("--no-plots", action="store_true", help="write metrics and CSV only")
+    serve = sub.add_parser("serve", help="run the ground-station service (REST API, MAVLink)")
+    serve.add_argument(
+        "--link",
+        action="append",
+        metavar="URL",
+        help="MAVLink connection, pymavlink syntax (tcp:127.0.0.1:5760); repeat",
+    )
+    serve.add_argument("--host", help="address to serve the API on (default 127.0.0.1)")
+    serve.add_argument("--port", type=int, help="port of the API (default 8000)")
+    serve.add_argument("--db", type=Path, help="SQLite file (default gcs_ppf.db)")
     return parser
 
 
@@ -216,11 +226,38 @@ def plan_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def serve_command(args: argparse.Namespace) -> int:
+    import uvicorn
+    from pydantic import ValidationError
+
+    from api.app import create_app
+    from gcs_ppf.settings import Settings
+
+    given = {"links": args.link, "host": args.host, "port": args.port, "db": args.db}
+    try:
+        settings = Settings(**{k: v for k, v in given.items() if v is not None})
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        field = ".".join(str(p) for p in first["loc"])
+        print(f"gcs-ppf: error: settings: {field}: {first['msg']}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    log.info("serving on http://%s:%d (docs at /docs)", settings.host, settings.port)
+    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level="info")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    logging.basicConfig(
+        level=logging.INFO,
+        format="%(asctime)s %(name)s %(message)s"
+        if argv is None and len(sys.argv) > 1 and sys.argv[1] == "serve"
+        else "%(message)s",
+    )
     args = build_parser().parse_args(argv)
     if args.command == "plan":
         return plan_command(args)
+    if args.command == "serve":
+        return serve_command(args)
     return EXIT_BAD_INPUT  # pragma: no cover - argparse rejects unknown commands
 
 

@@ -2,8 +2,8 @@
 
 Pure: the service hands in the mission, the latest state of each vehicle (already in the
 ICS) and the obstacles as they are now; this runs PPF forward from there and picks, for
-each vehicle, the point of its planned path ``lookahead_s`` ahead (a plane that reaches its
-guided point circles it, so the point must stay ahead) and the speed the plan asks for.
+each vehicle, a guided point ahead on its planned heading (see ``guidance``) and the speed
+the plan asks for.
 """
 
 from __future__ import annotations
@@ -83,19 +83,68 @@ def scene_now(
     return replace(base, fleet=fleet, obstacles=obstacles)
 
 
-def guidance(scene: Scene, *, lookahead_s: float, dt: float, speed_lead_s: float = 0.5) -> Guidance:
-    """Run PPF ``lookahead_s`` ahead from ``scene`` and read off each vehicle's guided
-    point (its planned position then) and speed (its planned speed ``speed_lead_s`` on)."""
+FINAL_APPROACH_TURN_RADII = 5.0  # within this many turn radii, with the target ahead …
+FINAL_APPROACH_ANGLE = math.pi / 3  # … within this angle off the nose: fly at it
+GO_AROUND_TURN_RADII = 3.0  # closer, with the target off to the side: fly away first
+
+
+def leader_approach(scene: Scene) -> str:
+    """How the leader closes on its target: ``"plan"`` (PPF), ``"final"`` (line of sight
+    through the target, at its altitude) or ``"go_around"`` (straight on).
+
+    Offline the leader meets its target on the first pass.  Flown closed loop it can pass
+    it high or wide (the aircraft lags the plan), and PPF would then circle the target on
+    the tightest turn for ever: the target sits inside the turn circle.  A fixed-wing pilot
+    goes around: away to a few turn radii, then back in line, altitude settled meanwhile.
+    """
+    fleet = scene.fleet
+    omega = min(scene.limits.max_pitch_rate, scene.limits.max_yaw_rate)
+    turn_radius = fleet.speed[0] / omega
+    to_target = scene.target - fleet.pos[0]
+    distance = math.hypot(to_target[0], to_target[1])
+    off_nose = abs(math.remainder(math.atan2(to_target[1], to_target[0]) - fleet.yaw[0], math.tau))
+    if distance < FINAL_APPROACH_TURN_RADII * turn_radius and off_nose <= FINAL_APPROACH_ANGLE:
+        return "final"
+    if distance < GO_AROUND_TURN_RADII * turn_radius:
+        return "go_around"
+    return "plan"
+
+
+def guidance(
+    scene: Scene,
+    *,
+    lookahead_s: float,
+    dt: float,
+    carrot_m: float = 1500.0,
+    speed_lead_s: float = 0.5,
+) -> Guidance:
+    """Run PPF ``lookahead_s`` ahead from ``scene`` and read off each vehicle's guided point
+    and speed (its planned speed ``speed_lead_s`` on).
+
+    The guided point is the planned position ``lookahead_s`` ahead carried ``carrot_m``
+    further along the planned heading, at the planned altitude.  A fixed wing in GUIDED flies
+    to its point and circles it once near (ArduPlane's loiter), so a point only a few seconds
+    ahead would be circled; far out on the planned heading it steers the aircraft onto the
+    plan instead, and the leader flies through its target rather than circling it.
+    """
     steps = max(1, round(lookahead_s / dt))
     run = advance(scene, dt, steps)
     tr = run.trajectory
     k_speed = min(len(tr) - 1, max(0, round(speed_lead_s / dt) - 1))
     fleet = scene.fleet
     ids = fleet.ids.tolist()
-    guided = tr.pos[-1].copy()
+    ahead = tr.pos[-1].copy()
+    yaw = tr.yaw[-1].copy()
+    approach = leader_approach(scene)
+    if run.arrived or approach == "final":  # through the target, on the line of sight
+        ahead[0] = scene.target
+        to_target = scene.target - fleet.pos[0]
+        yaw[0] = math.atan2(to_target[1], to_target[0])
+    elif approach == "go_around":  # straight on at the target's altitude, then come back
+        ahead[0] = (fleet.pos[0, 0], fleet.pos[0, 1], scene.target[2])
+        yaw[0] = fleet.yaw[0]
+    guided = ahead + carrot_m * np.stack([np.cos(yaw), np.sin(yaw), np.zeros_like(yaw)], axis=1)
     guided[~fleet.active] = fleet.pos[~fleet.active]
-    if run.arrived:
-        guided[0] = scene.target
     gaps = [
         float(np.linalg.norm(
             local_target_point(fleet.pos[0], float(fleet.pitch[0]), float(fleet.yaw[0]),

@@ -16,6 +16,7 @@ from gcs_ppf.online import (
     separations,
     state_from_velocity,
 )
+from gcs_ppf.planner import advance
 from gcs_ppf.scene import obstacles_from_mission
 
 
@@ -41,12 +42,16 @@ def test_guided_points_lie_ahead_on_the_plan(table3: Mission) -> None:
     states = _states_at_start(table3)
     ids = {v.id for v in table3.vehicles}
     scene = scene_now(table3, states, ids, obstacles_from_mission(table3))
-    g = guidance(scene, lookahead_s=3.0, dt=0.02)
+    g = guidance(scene, lookahead_s=3.0, dt=0.02, carrot_m=1000.0)
     assert g.ids == [1, 2, 3, 4, 5]
     start = scene.fleet.pos
     ahead = np.linalg.norm(g.guided_point_m - start, axis=1)
-    assert np.all(ahead > 3.0 * 100.0 * 0.8)  # about 3 s of flight at ≥ 100 m/s
-    assert np.all(ahead <= 3.0 * 300.0 + 1e-6)
+    assert np.all(ahead > 1000.0 - 3.0 * 300.0)  # the carrot, beyond 3 s of flight
+    assert np.all(ahead <= 1000.0 + 3.0 * 300.0 + 1e-6)
+    plan = advance(scene, 0.02, 150).trajectory  # the same 3 s of PPF
+    assert np.allclose(g.guided_point_m[:, 2], plan.pos[-1, :, 2])  # planned altitude
+    bearing = g.guided_point_m[:, :2] - plan.pos[-1, :, :2]
+    assert np.allclose(np.arctan2(bearing[:, 1], bearing[:, 0]), plan.yaw[-1])
     assert g.state[0] == "s3"  # the leader waits for its wingmen
     assert np.all(g.speed_m_s >= 100.0 - 1e-9)
     assert g.local_target_distance_m[0] is None

@@ -1,0 +1,712 @@
+"""The ground-station service: links, vehicles, missions and runs (the imperative shell).
+
+It owns the clocks, the sockets and the tasks; planning is ``gcs_ppf.online`` (pure), the
+wire is ``gcs_ppf.links`` and ``gcs_ppf.mavlink``, storage is ``gcs_ppf.store``.  Routes
+in ``api/`` call the public methods here and nothing else.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import math
+import time
+from collections import deque
+from collections.abc import AsyncIterator
+from dataclasses import dataclass, field
+from enum import StrEnum
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gcs_ppf.geodesy import enu_to_geodetic, geodetic_to_enu
+from gcs_ppf.links import MavlinkLink, parse_link_url
+from gcs_ppf.mavlink import commands
+from gcs_ppf.mavlink.ardupilot import PlaneMode, mode_name
+from gcs_ppf.mavlink.telemetry import VehicleTelemetry, apply
+from gcs_ppf.mission import Mission, Obstacle
+from gcs_ppf.online import (
+    Guidance,
+    VehicleState,
+    clearance,
+    guidance,
+    scene_now,
+    separations,
+    state_from_velocity,
+)
+from gcs_ppf.scene import obstacles_from_mission
+from gcs_ppf.settings import Settings
+from gcs_ppf.store import Store, StoredMission, StoredRun
+
+log = logging.getLogger("gcs_ppf.service")
+
+ON_GROUND_ALT_M = 5.0  # below this height above home and …
+ON_GROUND_SPEED_M_S = 5.0  # … slower than this, a vehicle is on the ground
+TAKEOFF_ALT_M = 50.0
+STREAMED = {  # message id → rate factor of settings.stream_rate_hz
+    33: 1.0,  # GLOBAL_POSITION_INT
+    30: 1.0,  # ATTITUDE
+    74: 0.5,  # VFR_HUD
+    2: 0.2,  # SYSTEM_TIME
+    1: 0.2,  # SYS_STATUS
+}
+
+
+class ServiceError(Exception):
+    """A request the service cannot honour; ``status`` is the HTTP status that fits."""
+
+    status = 400
+
+    def __init__(self, message: str, detail: dict[str, Any] | None = None) -> None:
+        super().__init__(message)
+        self.message = message
+        self.detail = detail or {}
+
+
+class NotFound(ServiceError):
+    status = 404
+
+
+class Conflict(ServiceError):
+    status = 409
+
+
+class RunState(StrEnum):
+    """Life of a mission run."""
+
+    PENDING = "pending"
+    """Uploaded, never started (or not since its last run ended)."""
+    STARTING = "starting"
+    """Vehicles being launched or switched to GUIDED."""
+    RUNNING = "running"
+    """Planning and commanding every tick."""
+    COMPLETED = "completed"
+    """The leader reached the target; every vehicle loiters."""
+    ABORTED = "aborted"
+    """Stopped by the operator; every vehicle loiters."""
+    FAILED = "failed"
+    """The leader was lost (or the run could not go on); every vehicle loiters."""
+
+
+FINISHED = {RunState.COMPLETED, RunState.ABORTED, RunState.FAILED}
+
+
+@dataclass
+class Vehicle:
+    """A vehicle discovered by its heartbeat on a link."""
+
+    system_id: int
+    link_id: int
+    telemetry: VehicleTelemetry
+    last_heard_s: float
+    lost: bool = False
+
+
+@dataclass
+class LinkEntry:
+    id: int
+    url: str
+    link: MavlinkLink
+    task: asyncio.Task[None] | None = None
+
+
+@dataclass
+class Run:
+    """A mission run in flight (its lasting record is in the store)."""
+
+    record: StoredRun
+    mission_id: int
+    mission: Mission
+    state: RunState = RunState.STARTING
+    start_vehicle_time_s: float | None = None
+    mission_time_s: float = 0.0
+    last: Guidance | None = None
+    min_separation_m: float | None = None
+    min_clearance_m: float | None = None
+    formed: bool = False
+    abort: asyncio.Event = field(default_factory=asyncio.Event)
+    lost_ids: set[int] = field(default_factory=set)
+    commanded_speed: dict[int, float] = field(default_factory=dict)
+    leader_pos: Any = None  # ICS position at the last tick
+    tick_latency_s: deque[float] = field(default_factory=lambda: deque(maxlen=10_000))
+    task: asyncio.Task[None] | None = None
+
+
+def passes_within(start: Any, end: Any, point: Any, radius: float) -> bool:
+    """Whether the segment start → end (or the point ``end`` alone when ``start`` is None)
+    comes within ``radius`` of ``point``: telemetry at 10 Hz can step over a 10 m sphere."""
+    if start is None:
+        return bool(np.linalg.norm(end - point) <= radius)
+    seg = end - start
+    length2 = float(seg @ seg)
+    s = 0.0 if length2 == 0.0 else min(max(float((point - start) @ seg) / length2, 0.0), 1.0)
+    return bool(np.linalg.norm(start + s * seg - point) <= radius)
+
+
+def _min(a: float | None, b: float | None) -> float | None:
+    if a is None:
+        return b
+    if b is None:
+        return a
+    return min(a, b)
+
+
+class FormationService:
+    """Links, vehicles, missions and runs; see the module docstring."""
+
+    def __init__(self, settings: Settings, store: Store) -> None:
+        self.settings = settings
+        self.store = store
+        self._links: dict[int, LinkEntry] = {}
+        self._next_link_id = 1
+        self._vehicles: dict[int, Vehicle] = {}
+        self._runs: dict[int, Run] = {}  # mission id → its current or last run
+        self._telemetry_event = asyncio.Event()
+        self._subscribers: set[asyncio.Queue[dict[str, Any]]] = set()
+        self._tasks: asyncio.TaskGroup | None = None
+        for stale in store.interrupted_runs():  # a previous process stopped mid-flight
+            store.update_run(stale.id, RunState.FAILED, ended=True, outcome="service restarted")
+
+    # Lifetime ----------------------------------------------------------------------------
+    @contextlib.asynccontextmanager
+    async def running(self) -> AsyncIterator[FormationService]:
+        """Run the background tasks (links, heartbeats, watchdog) for the body's duration."""
+        async with asyncio.TaskGroup() as tg:
+            self._tasks = tg
+            background = [tg.create_task(self._heartbeats()), tg.create_task(self._watchdog())]
+            for url in self.settings.links:
+                await self.add_link(url)
+            try:
+                yield self
+            finally:
+                for run in self._runs.values():
+                    if run.task is not None and not run.task.done():
+                        run.abort.set()
+                        run.task.cancel()
+                for entry in list(self._links.values()):
+                    entry.link.close()
+                    if entry.task is not None:
+                        entry.task.cancel()
+                for task in background:
+                    task.cancel()
+                self._tasks = None
+
+    def _spawn(self, coro: Any) -> asyncio.Task[Any]:
+        if self._tasks is None:
+            raise ServiceError("the service is not running")
+        return self._tasks.create_task(coro)
+
+    # Links -------------------------------------------------------------------------------
+    async def add_link(self, url: str) -> dict[str, Any]:
+        try:
+            parse_link_url(url)
+        except (ValueError, NotImplementedError) as exc:
+            raise ServiceError(f"url: {exc}") from None
+        if any(e.url == url for e in self._links.values()):
+            raise Conflict(f"url: a link to {url} exists already")
+        link_id = self._next_link_id
+        self._next_link_id += 1
+        tlog = None
+        if self.settings.tlog_dir is not None:
+            tlog = Path(self.settings.tlog_dir) / f"link{link_id}-{int(time.time())}.tlog"
+            tlog.parent.mkdir(parents=True, exist_ok=True)
+
+        def on_message(_link: MavlinkLink, msg: Any) -> None:
+            self._on_message(link_id, msg)
+
+        link = MavlinkLink(
+            url,
+            on_message,
+            source_system=self.settings.system_id,
+            tlog_path=tlog,
+        )
+        entry = LinkEntry(link_id, url, link)
+        entry.task = self._spawn(link.run())
+        self._links[link_id] = entry
+        log.info("link %d: %s", link_id, url)
+        return self._link_info(entry)
+
+    def links(self) -> list[dict[str, Any]]:
+        return [self._link_info(e) for e in self._links.values()]
+
+    async def remove_link(self, link_id: int) -> None:
+        entry = self._links.pop(link_id, None)
+        if entry is None:
+            raise NotFound(f"link {link_id} does not exist")
+        entry.link.close()
+        if entry.task is not None:
+            entry.task.cancel()
+
+    def _link_info(self, entry: LinkEntry) -> dict[str, Any]:
+        vehicles = sorted(v.system_id for v in self._vehicles.values() if v.link_id == entry.id)
+        return {
+            "id": entry.id,
+            "url": entry.url,
+            "connected": entry.link.connected,
+            "vehicles": vehicles,
+        }
+
+    # Vehicles ----------------------------------------------------------------------------
+    def _on_message(self, link_id: int, msg: Any) -> None:
+        sysid = int(msg.get_srcSystem())
+        if sysid == self.settings.system_id or msg.get_srcComponent() != 1:
+            return  # our own echo, or a component that is not the autopilot
+        now = time.monotonic()
+        vehicle = self._vehicles.get(sysid)
+        if vehicle is None:
+            if msg.get_type() != "HEARTBEAT" or msg.type == 6:  # MAV_TYPE_GCS
+                return  # vehicles are discovered by their heartbeats
+            vehicle = Vehicle(sysid, link_id, apply(None, msg, now), now)
+            self._vehicles[sysid] = vehicle
+            log.info("vehicle %d discovered on link %d", sysid, link_id)
+            self._spawn(self._request_streams(vehicle))
+        else:
+            vehicle.telemetry = apply(vehicle.telemetry, msg, now)
+            vehicle.link_id = link_id
+        vehicle.last_heard_s = now
+        if vehicle.lost and msg.get_type() == "HEARTBEAT":
+            vehicle.lost = False
+            log.info("vehicle %d is back", sysid)
+        if msg.get_type() == "GLOBAL_POSITION_INT":
+            self._telemetry_event.set()
+
+    async def _request_streams(self, vehicle: Vehicle) -> None:
+        """Ask a new vehicle for the telemetry the planner needs (and the legacy streams)."""
+        for msg_id, factor in STREAMED.items():
+            interval_us = int(1e6 / (self.settings.stream_rate_hz * factor))
+            await self._send(
+                vehicle.system_id,
+                commands.set_message_interval(vehicle.system_id, msg_id, interval_us),
+            )
+        await self._send(
+            vehicle.system_id,
+            commands.request_data_streams(vehicle.system_id, int(self.settings.stream_rate_hz)),
+        )
+
+    async def _send(self, system_id: int, msg: Any) -> None:
+        vehicle = self._vehicles.get(system_id)
+        if vehicle is None:
+            return
+        entry = self._links.get(vehicle.link_id)
+        if entry is not None:
+            await entry.link.send(msg)
+
+    async def _heartbeats(self) -> None:
+        while True:
+            for entry in list(self._links.values()):
+                await entry.link.send(commands.gcs_heartbeat())
+            await asyncio.sleep(1.0 / self.settings.heartbeat_hz)
+
+    async def _watchdog(self) -> None:
+        while True:
+            now = time.monotonic()
+            for v in self._vehicles.values():
+                if not v.lost and now - v.last_heard_s > self.settings.vehicle_timeout_s:
+                    v.lost = True
+                    log.warning(
+                        "vehicle %d lost (silent %.1f s)", v.system_id, now - v.last_heard_s
+                    )
+            await asyncio.sleep(0.2)
+
+    def vehicles(self) -> list[dict[str, Any]]:
+        now = time.monotonic()
+        out = []
+        for v in sorted(self._vehicles.values(), key=lambda v: v.system_id):
+            t = v.telemetry
+            out.append(
+                {
+                    "system_id": v.system_id,
+                    "link_id": v.link_id,
+                    "mode": mode_name(t.custom_mode) if t.custom_mode is not None else None,
+                    "armed": t.armed,
+                    "lost": v.lost,
+                    "seconds_since_heard": round(now - v.last_heard_s, 3),
+                    "position": {
+                        "lat_deg": t.lat_deg,
+                        "lon_deg": t.lon_deg,
+                        "alt_amsl_m": t.alt_amsl_m,
+                    },
+                    "attitude": {
+                        "roll_rad": t.roll_rad,
+                        "pitch_rad": t.pitch_rad,
+                        "yaw_rad": t.yaw_rad,
+                    },
+                    "airspeed_m_s": t.airspeed_m_s,
+                    "groundspeed_m_s": t.groundspeed_m_s,
+                }
+            )
+        return out
+
+    def vehicle_enu(self, vehicle: Vehicle, mission: Mission) -> tuple[float, float, float] | None:
+        t = vehicle.telemetry
+        if t.lat_deg is None or t.lon_deg is None or t.alt_amsl_m is None:
+            return None
+        return geodetic_to_enu(t.lat_deg, t.lon_deg, t.alt_amsl_m, mission.origin)
+
+    # Missions ----------------------------------------------------------------------------
+    def create_mission(self, mission: Mission) -> StoredMission:
+        return self.store.add_mission(mission)
+
+    def missions(self) -> list[StoredMission]:
+        return self.store.missions()
+
+    def mission(self, mission_id: int) -> StoredMission:
+        try:
+            return self.store.mission(mission_id)
+        except KeyError:
+            raise NotFound(f"mission {mission_id} does not exist") from None
+
+    def replace_obstacles(self, mission_id: int, obstacles: list[Obstacle]) -> StoredMission:
+        """New obstacle set; a running mission uses it from its next tick on."""
+        stored = self.mission(mission_id)
+        doc = stored.mission.model_dump()
+        doc["obstacles"] = [o.model_dump() for o in obstacles]
+        try:
+            mission = Mission.model_validate(doc)
+        except ValueError as exc:
+            raise ServiceError(str(exc)) from None
+        run = self._runs.get(mission_id)
+        if run is not None and run.state not in FINISHED:
+            run.mission = mission
+        return self.store.replace_mission(mission_id, mission)
+
+    # Runs --------------------------------------------------------------------------------
+    def _active_run(self) -> Run | None:
+        return next((r for r in self._runs.values() if r.state not in FINISHED), None)
+
+    async def start(self, mission_id: int) -> dict[str, Any]:
+        stored = self.mission(mission_id)
+        active = self._active_run()
+        if active is not None:
+            raise Conflict(
+                f"mission {active.mission_id} is {active.state}; abort it first",
+                {"mission_id": active.mission_id, "state": active.state},
+            )
+        ids = [v.id for v in stored.mission.vehicles]
+        missing = [i for i in ids if i not in self._vehicles or self._vehicles[i].lost]
+        if missing:
+            raise Conflict(f"vehicles not connected: {missing}", {"missing_ids": missing})
+        record = self.store.add_run(mission_id, RunState.STARTING)
+        run = Run(record=record, mission_id=mission_id, mission=stored.mission)
+        self._runs[mission_id] = run
+        self._event(run, "run_started")
+        run.task = self._spawn(self._fly(run))
+        return self.status(mission_id)
+
+    async def abort(self, mission_id: int) -> dict[str, Any]:
+        self.mission(mission_id)
+        run = self._runs.get(mission_id)
+        if run is None or run.state in FINISHED:
+            raise Conflict(
+                f"mission {mission_id} is not running",
+                {"state": run.state if run else RunState.PENDING},
+            )
+        run.abort.set()
+        await self._loiter_all(run)
+        self._finish(run, RunState.ABORTED, "aborted by the operator")
+        if run.task is not None:
+            run.task.cancel()
+        return self.status(mission_id)
+
+    def status(self, mission_id: int) -> dict[str, Any]:
+        self.mission(mission_id)
+        run = self._runs.get(mission_id)
+        if run is None:
+            past = self.store.runs(mission_id)
+            if not past:
+                return {"mission_id": mission_id, "state": RunState.PENDING, "run_id": None}
+            last = past[-1]
+            return {
+                "mission_id": mission_id,
+                "state": last.state,
+                "run_id": last.id,
+                "outcome": last.outcome,
+                "summary": last.summary,
+            }
+        g = run.last
+        per_vehicle = []
+        if g is not None:
+            for i, vid in enumerate(g.ids):
+                per_vehicle.append(
+                    {
+                        "id": vid,
+                        "ppf_state": g.state[i],
+                        "avoiding": g.avoiding[i],
+                        "formed": g.formed[i] if i else None,
+                        "local_target_distance_m": g.local_target_distance_m[i],
+                        "lost": vid in run.lost_ids,
+                    }
+                )
+        return {
+            "mission_id": mission_id,
+            "run_id": run.record.id,
+            "state": run.state,
+            "mission_time_s": round(run.mission_time_s, 3),
+            "formation_formed": run.formed,
+            "min_separation_m": run.min_separation_m,
+            "min_obstacle_clearance_m": run.min_clearance_m,
+            "vehicles": per_vehicle,
+        }
+
+    def events(self, mission_id: int) -> list[dict[str, Any]]:
+        self.mission(mission_id)
+        out = []
+        for r in self.store.runs(mission_id):
+            for e in self.store.events(r.id):
+                out.append(
+                    {
+                        "run_id": e.run_id,
+                        "mission_time_s": e.mission_time_s,
+                        "kind": e.kind,
+                        "vehicle_id": e.vehicle_id,
+                        "detail": e.detail,
+                    }
+                )
+        return out
+
+    def runs(self) -> list[StoredRun]:
+        return self.store.runs()
+
+    def tick_latencies(self, mission_id: int) -> list[float]:
+        run = self._runs.get(mission_id)
+        return list(run.tick_latency_s) if run else []
+
+    # Live stream -------------------------------------------------------------------------
+    def subscribe(self) -> asyncio.Queue[dict[str, Any]]:
+        q: asyncio.Queue[dict[str, Any]] = asyncio.Queue(maxsize=100)
+        self._subscribers.add(q)
+        return q
+
+    def unsubscribe(self, q: asyncio.Queue[dict[str, Any]]) -> None:
+        self._subscribers.discard(q)
+
+    def snapshot(self) -> dict[str, Any]:
+        run = self._active_run() or (list(self._runs.values())[-1] if self._runs else None)
+        return {
+            "vehicles": self.vehicles(),
+            "mission": self.status(run.mission_id) if run else None,
+            "target": list(run.mission.target) if run else None,
+            "obstacles": [o.model_dump() for o in run.mission.obstacles] if run else [],
+        }
+
+    def _publish(self) -> None:
+        if not self._subscribers:
+            return
+        snap = self.snapshot()
+        for q in self._subscribers:
+            with contextlib.suppress(asyncio.QueueFull):
+                q.put_nowait(snap)
+
+    # Flying a run --------------------------------------------------------------------------
+    def _event(self, run: Run, kind: str, vehicle_id: int | None = None, **detail: Any) -> None:
+        self.store.add_event(
+            run.record.id,
+            kind,
+            mission_time_s=round(run.mission_time_s, 3),
+            vehicle_id=vehicle_id,
+            detail=detail or None,
+        )
+        log.info(
+            "mission %d t=%.1f s: %s%s %s",
+            run.mission_id,
+            run.mission_time_s,
+            kind,
+            f" (vehicle {vehicle_id})" if vehicle_id else "",
+            detail or "",
+        )
+
+    def _finish(self, run: Run, state: RunState, outcome: str) -> None:
+        if run.state in FINISHED:
+            return
+        run.state = state
+        summary = {
+            "mission_time_s": run.mission_time_s,
+            "min_separation_m": run.min_separation_m,
+            "min_obstacle_clearance_m": run.min_clearance_m,
+        }
+        self.store.update_run(run.record.id, state, ended=True, outcome=outcome, summary=summary)
+        self._event(run, f"run_{state}", outcome=outcome)
+        self._publish()
+
+    async def _loiter_all(self, run: Run) -> None:
+        for v in run.mission.vehicles:
+            await self._send(v.id, commands.set_mode(v.id, PlaneMode.LOITER))
+
+    def _vehicle_time_s(self, run: Run) -> float | None:
+        leader = self._vehicles.get(run.mission.leader.id)
+        if leader is None or leader.telemetry.time_boot_ms is None:
+            return None
+        return leader.telemetry.time_boot_ms / 1000.0
+
+    async def _launch(self, run: Run) -> None:
+        """Vehicles on the ground take off in TAKEOFF mode (ArduPlane does not take off in
+        GUIDED); airborne ones go straight to GUIDED."""
+        for v in run.mission.vehicles:
+            t = self._vehicles[v.id].telemetry
+            if self._on_ground(t):
+                for msg in commands.takeoff(v.id, TAKEOFF_ALT_M):  # TKOFF_ALT, TAKEOFF, arm
+                    await self._send(v.id, msg)
+                self._event(run, "takeoff", v.id)
+            elif not t.armed:
+                await self._send(v.id, commands.arm(v.id, True))
+        deadline = time.monotonic() + 120.0
+        while any(self._on_ground(self._vehicles[v.id].telemetry) for v in run.mission.vehicles):
+            if time.monotonic() > deadline:
+                raise ServiceError("vehicles did not climb after takeoff")
+            await asyncio.sleep(0.2)
+        for v in run.mission.vehicles:  # now every one is airborne: fly GUIDED
+            await self._send(v.id, commands.set_mode(v.id, PlaneMode.GUIDED))
+
+    @staticmethod
+    def _on_ground(t: VehicleTelemetry) -> bool:
+        """Low above home and slow: on the ground (the built-in SITL spawns in the air)."""
+        low = t.relative_alt_m is not None and t.relative_alt_m < ON_GROUND_ALT_M
+        slow = t.groundspeed_m_s is None or t.groundspeed_m_s < ON_GROUND_SPEED_M_S
+        return low and slow
+
+    async def _fly(self, run: Run) -> None:
+        try:
+            await self._launch(run)
+            run.state = RunState.RUNNING
+            self.store.update_run(run.record.id, RunState.RUNNING)
+            self._event(run, "run_running")
+            await self._tick_loop(run)
+        except asyncio.CancelledError:
+            raise
+        except Exception as exc:  # a run must never take the service down
+            log.exception("mission %d failed", run.mission_id)
+            await self._loiter_all(run)
+            self._finish(run, RunState.FAILED, f"error: {exc}")
+
+    async def _tick_loop(self, run: Run) -> None:
+        period = 1.0 / self.settings.tick_hz
+        sample_period = 1.0 / self.settings.telemetry_sample_hz
+        last_tick: float | None = None
+        last_sample = -math.inf
+        while not run.abort.is_set():
+            self._telemetry_event.clear()
+            try:
+                async with asyncio.timeout(1.0):
+                    await self._telemetry_event.wait()
+            except TimeoutError:
+                pass
+            received = time.perf_counter()
+            now_v = self._vehicle_time_s(run)
+            if now_v is None:
+                continue
+            if run.start_vehicle_time_s is None:
+                run.start_vehicle_time_s = now_v
+            if last_tick is not None and now_v - last_tick < period * 0.999:
+                continue
+            last_tick = now_v
+            run.mission_time_s = now_v - run.start_vehicle_time_s
+            done = await self._tick(run)
+            run.tick_latency_s.append(time.perf_counter() - received)
+            if run.mission_time_s - last_sample >= sample_period:
+                last_sample = run.mission_time_s
+                self._sample(run)
+            self._publish()
+            if done:
+                return
+
+    def _states(self, run: Run) -> tuple[dict[int, VehicleState], set[int]]:
+        states: dict[int, VehicleState] = {}
+        active: set[int] = set()
+        for v in run.mission.vehicles:
+            vehicle = self._vehicles.get(v.id)
+            if vehicle is None:
+                continue
+            t = vehicle.telemetry
+            pos = self.vehicle_enu(vehicle, run.mission)
+            if pos is None or t.vn_m_s is None or t.ve_m_s is None or t.vd_m_s is None:
+                continue
+            states[v.id] = state_from_velocity(pos, t.vn_m_s, t.ve_m_s, t.vd_m_s)
+            if not vehicle.lost:
+                active.add(v.id)
+        return states, active
+
+    async def _tick(self, run: Run) -> bool:
+        """One planning tick; True when the run has ended."""
+        mission = run.mission
+        leader_id = mission.leader.id
+        for v in mission.vehicles:
+            vehicle = self._vehicles.get(v.id)
+            if vehicle is not None and vehicle.lost and v.id not in run.lost_ids:
+                run.lost_ids.add(v.id)
+                self._event(run, "vehicle_lost", v.id)
+        if leader_id in run.lost_ids:
+            await self._loiter_all(run)
+            self._finish(run, RunState.FAILED, "leader lost")
+            return True
+
+        states, active = self._states(run)
+        if leader_id not in states:
+            return False
+        positions = np.array([states[i].pos_m for i in sorted(active)], dtype=float)
+        obstacles = obstacles_from_mission(mission).at(run.mission_time_s)
+        run.min_separation_m = _min(run.min_separation_m, separations(positions))
+        run.min_clearance_m = _min(run.min_clearance_m, clearance(positions, obstacles))
+
+        leader_pos = np.array(states[leader_id].pos_m)
+        previous, run.leader_pos = run.leader_pos, leader_pos
+        if passes_within(
+            previous, leader_pos, np.array(mission.target), mission.limits.target_accuracy
+        ):
+            await self._loiter_all(run)
+            self._finish(run, RunState.COMPLETED, "leader reached the target")
+            return True
+
+        scene = scene_now(mission, states, active, obstacles)
+        g = guidance(
+            scene,
+            lookahead_s=self.settings.lookahead_s,
+            dt=self.settings.planner_dt_s,
+            carrot_m=self.settings.carrot_m,
+        )
+        self._note_changes(run, g)
+        run.last = g
+        for i, vid in enumerate(g.ids):
+            if vid not in active:
+                continue
+            x, y, z = (float(c) for c in g.guided_point_m[i])
+            lat, lon, alt = enu_to_geodetic(x, y, z, mission.origin)
+            await self._send(vid, commands.reposition(vid, lat, lon, alt))
+            speed = float(g.speed_m_s[i])
+            if abs(run.commanded_speed.get(vid, -1.0) - speed) >= 0.5:
+                run.commanded_speed[vid] = speed
+                await self._send(vid, commands.change_speed(vid, speed))
+        return False
+
+    def _note_changes(self, run: Run, g: Guidance) -> None:
+        """Events for what changed since the last tick."""
+        before = run.last
+        wingmen_formed = all(
+            f for i, f in enumerate(g.formed) if i and g.ids[i] not in run.lost_ids
+        )
+        if wingmen_formed != run.formed:
+            run.formed = wingmen_formed
+            self._event(run, "formation_formed" if wingmen_formed else "formation_broken")
+        if before is None:
+            return
+        for i, vid in enumerate(g.ids):
+            if g.avoiding[i] != before.avoiding[i]:
+                self._event(run, "avoidance_entered" if g.avoiding[i] else "avoidance_left", vid)
+            if g.state[i] == "s2" and before.state[i] != "s2":
+                self._event(run, "local_minimum_escape", vid)
+
+    def _sample(self, run: Run) -> None:
+        rows = []
+        for v in run.mission.vehicles:
+            vehicle = self._vehicles.get(v.id)
+            if vehicle is None:
+                continue
+            t = vehicle.telemetry
+            pos = self.vehicle_enu(vehicle, run.mission)
+            if pos is None or t.lat_deg is None or t.lon_deg is None or t.alt_amsl_m is None:
+                continue
+            speed = t.groundspeed_m_s if t.groundspeed_m_s is not None else float("nan")
+            rows.append((run.mission_time_s, v.id, t.lat_deg, t.lon_deg, t.alt_amsl_m, *pos, speed))
+        if rows:
+            self.store.add_telemetry(run.record.id, rows)
