@@ -66,9 +66,21 @@ def scene_now(
     states: dict[int, VehicleState],
     active_ids: set[int],
     obstacles: Obstacles,
+    margin_m: float = 0.0,
 ) -> Scene:
-    """The mission's scene with the vehicles where telemetry says they are."""
+    """The mission's scene with the vehicles where telemetry says they are.
+
+    ``margin_m`` widens both safe distances: flown closed loop, an aircraft lags its plan
+    (and the leader leaves PPF for its final approach), so the plan keeps a margin for it.
+    """
     base = scene_from_mission(mission)
+    base = replace(
+        base,
+        limits=base.limits._replace(
+            safe_distance_uav=base.limits.safe_distance_uav + margin_m,
+            safe_distance_obstacle=base.limits.safe_distance_obstacle + margin_m,
+        ),
+    )
     fleet = base.fleet.copy()
     lim = base.limits
     for i, vid in enumerate(fleet.ids.tolist()):

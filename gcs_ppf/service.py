@@ -45,6 +45,8 @@ log = logging.getLogger("gcs_ppf.service")
 ON_GROUND_ALT_M = 5.0  # below this height above home and …
 ON_GROUND_SPEED_M_S = 5.0  # … slower than this, a vehicle is on the ground
 TAKEOFF_ALT_M = 50.0
+LOITER_AHEAD_M = 800.0  # after the mission each vehicle circles a point this far ahead …
+LOITER_STACK_M = 100.0  # … at its own height: vehicle k of the mission this much above
 STREAMED = {  # message id → rate factor of settings.stream_rate_hz
     33: 1.0,  # GLOBAL_POSITION_INT
     30: 1.0,  # ATTITUDE
@@ -534,6 +536,22 @@ class FormationService:
         for v in run.mission.vehicles:
             await self._send(v.id, commands.set_mode(v.id, PlaneMode.LOITER))
 
+    async def _loiter_stacked(self, run: Run, states: dict[int, VehicleState]) -> None:
+        """After the mission: each vehicle circles a point ahead of it, vehicle k of the
+        mission ``LOITER_STACK_M``·k above the target, so the circles of a formation that
+        flies close together do not cross at one height (plain LOITER would)."""
+        mission = run.mission
+        for k, v in enumerate(mission.vehicles):
+            s = states.get(v.id)
+            if s is None:
+                await self._send(v.id, commands.set_mode(v.id, PlaneMode.LOITER))
+                continue
+            x = s.pos_m[0] + LOITER_AHEAD_M * math.cos(s.yaw_rad)
+            y = s.pos_m[1] + LOITER_AHEAD_M * math.sin(s.yaw_rad)
+            z = mission.target[2] + LOITER_STACK_M * k
+            lat, lon, alt = enu_to_geodetic(x, y, z, mission.origin)
+            await self._send(v.id, commands.reposition(v.id, lat, lon, alt))
+
     def _vehicle_time_s(self, run: Run) -> float | None:
         leader = self._vehicles.get(run.mission.leader.id)
         if leader is None or leader.telemetry.time_boot_ms is None:
@@ -654,11 +672,11 @@ class FormationService:
         if passes_within(
             previous, leader_pos, np.array(mission.target), mission.limits.target_accuracy
         ):
-            await self._loiter_all(run)
+            await self._loiter_stacked(run, states)
             self._finish(run, RunState.COMPLETED, "leader reached the target")
             return True
 
-        scene = scene_now(mission, states, active, obstacles)
+        scene = scene_now(mission, states, active, obstacles, self.settings.planning_margin_m)
         g = guidance(
             scene,
             lookahead_s=self.settings.lookahead_s,

@@ -1,0 +1,122 @@
+"""The REST API with its lifespan running: bad input answers 4xx and changes nothing."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+from api.app import create_app
+from gcs_ppf.settings import Settings
+from tests.conftest import EXAMPLES
+
+
+@pytest.fixture
+def client(tmp_path: Path) -> Iterator[TestClient]:
+    settings = Settings(db=tmp_path / "gcs.db", tlog_dir=None)
+    with TestClient(create_app(settings)) as c:
+        yield c
+
+
+def table3() -> dict[str, Any]:
+    doc: dict[str, Any] = json.loads((EXAMPLES / "paper_table3.json").read_text())
+    return doc
+
+
+def test_mission_round_trip(client: TestClient) -> None:
+    created = client.post("/missions", json=table3())
+    assert created.status_code == 201
+    mid = created.json()["id"]
+    assert client.get(f"/missions/{mid}").json()["mission"]["target"] == [6000.0, 7000.0, 300.0]
+    assert [m["id"] for m in client.get("/missions").json()] == [mid]
+    assert client.get(f"/missions/{mid}/status").json()["state"] == "pending"
+
+
+def test_offline_plan_from_the_api(client: TestClient) -> None:
+    mid = client.post("/missions", json=table3()).json()["id"]
+    plan = client.post(f"/missions/{mid}/plan").json()
+    assert plan["metrics"]["reached"] is True
+    assert plan["metrics"]["collisions"] == 0
+    assert set(plan["trajectories"]) == {"1", "2", "3", "4", "5"}
+
+
+@pytest.mark.parametrize(
+    ("body", "field"),
+    [
+        ({"target": [0, 0, "x"]}, "target"),
+        ({**table3(), "colour": "red"}, "colour"),
+        ({**table3(), "vehicles": []}, "vehicles"),
+    ],
+)
+def test_bad_missions_are_422_with_the_field(
+    client: TestClient, body: dict[str, Any], field: str
+) -> None:
+    r = client.post("/missions", json=body)
+    assert r.status_code == 422
+    assert field in json.dumps(r.json()["detail"])
+    assert client.get("/missions").json() == []
+
+
+def test_malformed_json_is_422(client: TestClient) -> None:
+    r = client.post("/missions", content=b"{not json", headers={"content-type": "application/json"})
+    assert r.status_code == 422
+    assert client.get("/missions").json() == []
+
+
+def test_unknown_ids_are_404(client: TestClient) -> None:
+    for method, url in [("get", "/missions/9"), ("get", "/missions/9/status"),
+                        ("get", "/missions/9/events"), ("post", "/missions/9/start"),
+                        ("post", "/missions/9/abort"), ("delete", "/links/4")]:  # fmt: skip
+        r = client.request(method.upper(), url)
+        assert r.status_code == 404, url
+        assert "9" in r.json()["detail"] or "4" in r.json()["detail"]
+    assert client.get("/missions/abc").status_code == 422
+
+
+def test_start_without_vehicles_is_409_naming_them(client: TestClient) -> None:
+    mid = client.post("/missions", json=table3()).json()["id"]
+    r = client.post(f"/missions/{mid}/start")
+    assert r.status_code == 409
+    assert r.json()["info"]["missing_ids"] == [1, 2, 3, 4, 5]
+    assert client.get(f"/missions/{mid}/status").json()["state"] == "pending"
+    assert client.get("/runs").json() == []
+
+
+def test_abort_when_not_running_is_409(client: TestClient) -> None:
+    mid = client.post("/missions", json=table3()).json()["id"]
+    assert client.post(f"/missions/{mid}/abort").status_code == 409
+
+
+def test_obstacles_replaced_or_rejected_whole(client: TestClient) -> None:
+    mid = client.post("/missions", json=table3()).json()["id"]
+    bad = client.put(f"/missions/{mid}/obstacles", json=[{"center": [0, 0, 0], "radius": -1}])
+    assert bad.status_code == 422
+    inside = client.put(f"/missions/{mid}/obstacles",
+                        json=[{"center": [1500, 2000, 300], "radius": 100}])  # fmt: skip
+    assert inside.status_code == 400
+    assert "vehicles[0].position" in inside.json()["detail"]
+    assert len(client.get(f"/missions/{mid}").json()["mission"]["obstacles"]) == 4
+    ok = client.put(f"/missions/{mid}/obstacles", json=[{"center": [0, 0, 0], "radius": 50}])
+    assert ok.status_code == 200
+    assert len(ok.json()["mission"]["obstacles"]) == 1
+
+
+def test_links_validate_their_url(client: TestClient) -> None:
+    assert client.post("/links", json={"url": "carrier-pigeon:1"}).status_code == 400
+    r = client.post("/links", json={"url": "tcp:127.0.0.1:9"})
+    assert r.status_code == 201
+    assert client.post("/links", json={"url": "tcp:127.0.0.1:9"}).status_code == 409
+    assert [link["url"] for link in client.get("/links").json()] == ["tcp:127.0.0.1:9"]
+    assert client.delete(f"/links/{r.json()['id']}").status_code == 204
+    assert client.get("/links").json() == []
+
+
+def test_websocket_sends_a_snapshot(client: TestClient) -> None:
+    with client.websocket_connect("/ws/telemetry") as ws:
+        snap = ws.receive_json()
+    assert snap["vehicles"] == []
+    assert "mission" in snap
