@@ -3,8 +3,9 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 OUT    := out/paper_table3
+SPEEDUP ?= 1
 
-.PHONY: install run test lint bench clean
+.PHONY: install run plan sitl test lint bench sitl-bench clean
 
 $(STAMP): pyproject.toml
 	python3 -m venv $(VENV)
@@ -16,6 +17,16 @@ install: $(STAMP)
 
 run: install
 	$(VENV)/bin/gcs-ppf plan examples/paper_table3.json --out $(OUT)
+	$(VENV)/bin/gcs-ppf demo examples/paper_table3.json --speedup $(SPEEDUP)
+
+plan: install
+	$(VENV)/bin/gcs-ppf plan examples/paper_table3.json --out $(OUT)
+
+sitl: install
+	$(PY) -m sitl examples/paper_table3.json
+
+sitl-bench: install
+	$(PY) -m sitl.benchmark
 
 lint: install
 	$(VENV)/bin/ruff check .

@@ -43,6 +43,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--sweep-dt", action="store_true", help="also time the plan for Δt = 0.1 … 0.005 s (Fig. 9)"
     )
     plan.add_argument("--no-plots", action="store_true", help="write metrics and CSV only")
+    demo = sub.add_parser("demo", help="fly a mission live: built-in SITL + service (make run)")
+    demo.add_argument("mission", type=Path, help="mission document (JSON)")
+    demo.add_argument("--speedup", type=float, default=1.0, help="SITL time factor")
+    demo.add_argument("--port", type=int, default=8000, help="port of the service's API")
+    demo.add_argument("--base-port", type=int, default=5760, help="TCP port of vehicle 0")
+    demo.add_argument(
+        "--workdir", type=Path, default=Path("out/demo"), help="logs, tlogs and database"
+    )
     serve = sub.add_parser("serve", help="run the ground-station service (REST API, MAVLink)")
     serve.add_argument(
         "--link",
@@ -258,6 +266,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         return plan_command(args)
     if args.command == "serve":
         return serve_command(args)
+    if args.command == "demo":
+        from gcs_ppf.demo import run_demo
+
+        try:
+            mission = load_mission_file(args.mission)
+        except MissionError as exc:
+            print(f"gcs-ppf: error: invalid mission {args.mission}: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        return run_demo(
+            args.mission,
+            mission,
+            speedup=args.speedup,
+            port=args.port,
+            base_port=args.base_port,
+            workdir=args.workdir,
+        )
     return EXIT_BAD_INPUT  # pragma: no cover - argparse rejects unknown commands
 
 

@@ -7,6 +7,7 @@ the vehicles really flew; the safety checks use its record, not the service's st
 from __future__ import annotations
 
 import json
+import math
 import os
 import socket
 import subprocess
@@ -190,6 +191,15 @@ def test_table3_flown_closed_loop_is_safe_and_survives_a_restart(tmp_path: Path)
         clearance = np.linalg.norm(pos[flying] - np.array(o.center), axis=-1) - o.radius
         assert clearance.min() >= lim.safe_distance_obstacle
 
+    # Figures for the record: flown time, and how far the flight strayed from the offline
+    # plan made from the same start (the vehicles' state when the mission started).
+    deviation = deviation_from_offline_plan(mission, tracks, start_s, final["mission_time_s"])
+    print(
+        f"\nflown: mission time {final['mission_time_s']:.1f} s, min separation "
+        f"{gaps[flying].min():.1f} m, largest deviation from the offline plan "
+        f"{deviation:.0f} m"
+    )
+
     # A restarted service still has the mission and the finished run.
     with process(serve[: -2 * len(ports)], tmp_path / "gcs2.log", env):
         wait_for(lambda: _up(api), 60, "the restarted service")
@@ -199,6 +209,29 @@ def test_table3_flown_closed_loop_is_safe_and_survives_a_restart(tmp_path: Path)
         assert [(r["mission_id"], r["state"]) for r in runs] == [(mid, "completed")]
         status, events = http("GET", f"{api}/missions/{mid}/events")
         assert events[-1]["kind"] == "run_completed"
+
+
+def deviation_from_offline_plan(
+    mission: Mission, tracks: dict[int, np.ndarray], start_s: float, duration_s: float
+) -> float:
+    """Largest distance between flown and offline-planned positions over the run."""
+    from gcs_ppf.offline import plan_mission
+
+    doc = mission.model_dump()
+    for v in doc["vehicles"]:
+        tr = tracks[v["id"]]
+        k = int(np.searchsorted(tr[:, 0], start_s))
+        a, b = tr[k], tr[min(k + 5, len(tr) - 1)]
+        vel = (b[1:4] - a[1:4]) / max(b[0] - a[0], 1e-3)
+        v["position"] = tuple(a[1:4])
+        v["yaw"] = math.atan2(vel[1], vel[0])
+        v["pitch"] = math.atan2(vel[2], math.hypot(vel[0], vel[1]))
+        v["speed"] = min(max(float(np.linalg.norm(vel)), mission.limits.v_min),
+                         mission.limits.v_max)  # fmt: skip
+    plan = plan_mission(Mission.model_validate(doc)).trajectory
+    t = plan.t[plan.t <= duration_s]
+    flown = resample(tracks, start_s + t)
+    return float(np.linalg.norm(flown - plan.pos[: t.shape[0]], axis=-1).max())
 
 
 def _up(api: str) -> bool:
