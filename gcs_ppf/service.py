@@ -166,6 +166,7 @@ class FormationService:
         self._vehicles: dict[int, Vehicle] = {}
         self._runs: dict[int, Run] = {}  # mission id → its current or last run
         self._telemetry_event = asyncio.Event()
+        self._telemetry_received_s = 0.0  # perf_counter of the latest position message
         self._subscribers: set[asyncio.Queue[dict[str, Any]]] = set()
         self._tasks: asyncio.TaskGroup | None = None
         for stale in store.interrupted_runs():  # a previous process stopped mid-flight
@@ -272,6 +273,7 @@ class FormationService:
             vehicle.lost = False
             log.info("vehicle %d is back", sysid)
         if msg.get_type() == "GLOBAL_POSITION_INT":
+            self._telemetry_received_s = time.perf_counter()
             self._telemetry_event.set()
 
     async def _request_streams(self, vehicle: Vehicle) -> None:
@@ -449,6 +451,7 @@ class FormationService:
             "formation_formed": run.formed,
             "min_separation_m": run.min_separation_m,
             "min_obstacle_clearance_m": run.min_clearance_m,
+            "tick_latency_ms": self._latency(run),
             "vehicles": per_vehicle,
         }
 
@@ -471,9 +474,17 @@ class FormationService:
     def runs(self) -> list[StoredRun]:
         return self.store.runs()
 
-    def tick_latencies(self, mission_id: int) -> list[float]:
-        run = self._runs.get(mission_id)
-        return list(run.tick_latency_s) if run else []
+    @staticmethod
+    def _latency(run: Run) -> dict[str, float] | None:
+        """Tick latency (telemetry received → commands sent) percentiles, ms."""
+        if not run.tick_latency_s:
+            return None
+        ms = np.array(run.tick_latency_s) * 1e3
+        return {
+            "p50": round(float(np.percentile(ms, 50)), 3),
+            "p99": round(float(np.percentile(ms, 99)), 3),
+            "ticks": int(ms.size),
+        }
 
     # Live stream -------------------------------------------------------------------------
     def subscribe(self) -> asyncio.Queue[dict[str, Any]]:
@@ -527,6 +538,7 @@ class FormationService:
             "mission_time_s": run.mission_time_s,
             "min_separation_m": run.min_separation_m,
             "min_obstacle_clearance_m": run.min_clearance_m,
+            "tick_latency_ms": self._latency(run),
         }
         self.store.update_run(run.record.id, state, ended=True, outcome=outcome, summary=summary)
         self._event(run, f"run_{state}", outcome=outcome)
@@ -610,7 +622,7 @@ class FormationService:
                     await self._telemetry_event.wait()
             except TimeoutError:
                 pass
-            received = time.perf_counter()
+            received = self._telemetry_received_s
             now_v = self._vehicle_time_s(run)
             if now_v is None:
                 continue
