@@ -22,7 +22,7 @@ class Settings(BaseSettings):
     tick_hz: float = Field(default=10.0, gt=0.0, le=100.0, description="per vehicle second")
     lookahead_s: float = Field(default=3.0, gt=0.0, le=30.0)
     planning_margin_m: float = Field(
-        default=50.0, ge=0.0, description="added to both safe distances when planning online"
+        default=100.0, ge=0.0, description="added to both safe distances when planning online"
     )
     carrot_m: float = Field(default=1500.0, gt=0.0, description="guided point beyond the plan")
     planner_dt_s: float = Field(default=0.02, gt=0.0, le=0.5)
