@@ -31,6 +31,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("mission", type=Path, help="mission document (JSON, CONVENTIONS §3)")
     p.add_argument("--speedup", type=float, default=1.0, help="simulated seconds per wall second")
     p.add_argument("--base-port", type=int, default=5760, help="TCP port of vehicle 0 (+10 each)")
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address the vehicles' TCP servers listen on (0.0.0.0 in containers)",
+    )
     p.add_argument("--out", type=parse_udp, default=None, help="also stream to udp:HOST:PORT")
     p.add_argument("--seed", type=int, default=0, help="seed of noise and packet loss")
     p.add_argument("--tlog", type=Path, default=None, help="write DIR/vehicle<ID>.tlog")
@@ -67,6 +72,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     cfg = ServerConfig(
         base_port=args.base_port,
+        host=args.host,
         speedup=speedup,
         out=args.out,
         seed=args.seed,
