@@ -246,9 +246,9 @@ def test_table3_flown_closed_loop_is_safe_and_survives_a_restart(tmp_path: Path)
 @pytest.mark.integration
 @pytest.mark.xfail(
     strict=False,
-    reason="known gap (issue 4 left open): the new obstacle is always avoided (clearance "
-    "about 216 m), but in 1 of 4 runs two vehicles re-planning around it closed to 37.7 m, "
-    "under the 50 m safe distance",
+    reason="known gap (issue 4 left open): the new obstacle is avoided (clearance 216-234 m "
+    "when it passes), but 2 of 6 runs failed a check, one with two vehicles re-planning "
+    "around it at 37.7 m, under the 50 m safe distance",
 )
 def test_an_obstacle_moved_into_the_path_mid_run_is_avoided(tmp_path: Path) -> None:
     """PUT …/obstacles while flying: a new sphere on the leader's way to the target."""
