@@ -12,7 +12,7 @@ import contextlib
 from collections.abc import AsyncIterator
 from typing import Annotated, Any
 
-from fastapi import Depends, FastAPI, Request, WebSocket, WebSocketDisconnect, status
+from fastapi import Depends, FastAPI, Path, Request, WebSocket, WebSocketDisconnect, status
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
 
@@ -82,6 +82,9 @@ def get_service(request: Request) -> FormationService:
 
 
 Service = Annotated[FormationService, Depends(get_service)]
+# Ids are SQLite integers: anything outside 1 … 2⁶³−1 cannot exist (422, not a server error).
+MissionId = Annotated[int, Path(ge=1, le=2**63 - 1)]
+LinkId = Annotated[int, Path(ge=1, le=2**63 - 1)]
 ERRORS: dict[int | str, dict[str, Any]] = {
     404: {"model": ErrorBody},
     409: {"model": ErrorBody},
@@ -125,7 +128,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         return service.links()
 
     @app.delete("/links/{link_id}", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)
-    async def delete_link(link_id: int, service: Service) -> None:
+    async def delete_link(link_id: LinkId, service: Service) -> None:
         await service.remove_link(link_id)
 
     @app.get("/vehicles")
@@ -141,11 +144,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         return [_summary(m) for m in service.missions()]
 
     @app.get("/missions/{mission_id}", responses=ERRORS)
-    async def get_mission(mission_id: int, service: Service) -> MissionDetail:
+    async def get_mission(mission_id: MissionId, service: Service) -> MissionDetail:
         return _detail(service.mission(mission_id))
 
     @app.post("/missions/{mission_id}/plan", responses=ERRORS)
-    async def plan(mission_id: int, service: Service, every_s: float = 1.0) -> dict[str, Any]:
+    async def plan(mission_id: MissionId, service: Service, every_s: float = 1.0) -> dict[str, Any]:
         """The offline plan from the same planner: metrics (CONVENTIONS §4) and the
         trajectories decimated to one point every ``every_s`` seconds."""
         from gcs_ppf.offline import plan_mission
@@ -168,26 +171,26 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @app.put("/missions/{mission_id}/obstacles", responses=ERRORS)
     async def put_obstacles(
-        mission_id: int, obstacles: list[Obstacle], service: Service
+        mission_id: MissionId, obstacles: list[Obstacle], service: Service
     ) -> MissionDetail:
         return _detail(service.replace_obstacles(mission_id, obstacles))
 
     @app.post(
         "/missions/{mission_id}/start", status_code=status.HTTP_202_ACCEPTED, responses=ERRORS
     )
-    async def start(mission_id: int, service: Service) -> dict[str, Any]:
+    async def start(mission_id: MissionId, service: Service) -> dict[str, Any]:
         return await service.start(mission_id)
 
     @app.post("/missions/{mission_id}/abort", responses=ERRORS)
-    async def abort(mission_id: int, service: Service) -> dict[str, Any]:
+    async def abort(mission_id: MissionId, service: Service) -> dict[str, Any]:
         return await service.abort(mission_id)
 
     @app.get("/missions/{mission_id}/status", responses=ERRORS)
-    async def mission_status(mission_id: int, service: Service) -> dict[str, Any]:
+    async def mission_status(mission_id: MissionId, service: Service) -> dict[str, Any]:
         return service.status(mission_id)
 
     @app.get("/missions/{mission_id}/events", responses=ERRORS)
-    async def mission_events(mission_id: int, service: Service) -> list[dict[str, Any]]:
+    async def mission_events(mission_id: MissionId, service: Service) -> list[dict[str, Any]]:
         return service.events(mission_id)
 
     @app.get("/runs")
