@@ -21,7 +21,7 @@ from gcs_ppf.mission import Mission
 FINISHED = ("completed", "aborted", "failed")
 
 
-def _http(method: str, url: str, body: Any = None) -> tuple[int, Any]:
+def http_json(method: str, url: str, body: Any = None) -> tuple[int, Any]:
     data = None if body is None else json.dumps(body).encode()
     req = urllib.request.Request(url, data=data, method=method,
                                  headers={"content-type": "application/json"})  # fmt: skip
@@ -36,7 +36,7 @@ def _wait_vehicles(api: str, n: int, timeout_s: float) -> bool:
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         try:
-            status, vehicles = _http("GET", f"{api}/vehicles")
+            status, vehicles = http_json("GET", f"{api}/vehicles")
             if status == 200 and len(vehicles) >= n:
                 return True
         except OSError:
@@ -71,16 +71,16 @@ def run_demo(mission_path: Path, mission: Mission, *, speedup: float, port: int,
             print(f"the service did not see every vehicle; see {workdir}/gcs.log")
             return 1
         print(f"service: {api}  (API docs at {api}/docs, live state at ws://…/ws/telemetry)")
-        status, created = _http("POST", f"{api}/missions", json.loads(mission_path.read_text()))
+        status, created = http_json("POST", f"{api}/missions", json.loads(mission_path.read_text()))
         if status != 201:
             print(f"mission rejected ({status}): {created}")
             return 1
         mid = created["id"]
-        status, _ = _http("POST", f"{api}/missions/{mid}/start")
+        status, _ = http_json("POST", f"{api}/missions/{mid}/start")
         print(f"mission {mid} {mission.name!r} started")
         last_print = 0.0
         while True:
-            _, s = _http("GET", f"{api}/missions/{mid}/status")
+            _, s = http_json("GET", f"{api}/missions/{mid}/status")
             now = time.monotonic()
             if now - last_print >= 1.0 or s["state"] in FINISHED:
                 last_print = now

@@ -19,7 +19,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from gcs_ppf.demo import _http, _wait_vehicles
+from gcs_ppf.demo import _wait_vehicles, http_json
 
 
 def formation_mission(n: int) -> dict[str, Any]:
@@ -50,11 +50,11 @@ def measure(n: int, seconds: float, port: int, base_port: int) -> dict[str, Any]
         try:
             if not _wait_vehicles(api, n, 90.0):
                 raise RuntimeError("vehicles not discovered")
-            _, created = _http("POST", f"{api}/missions", formation_mission(n))
-            _http("POST", f"{api}/missions/{created['id']}/start")
+            _, created = http_json("POST", f"{api}/missions", formation_mission(n))
+            http_json("POST", f"{api}/missions/{created['id']}/start")
             time.sleep(seconds)
-            _, status = _http("GET", f"{api}/missions/{created['id']}/status")
-            _http("POST", f"{api}/missions/{created['id']}/abort")
+            _, status = http_json("GET", f"{api}/missions/{created['id']}/status")
+            http_json("POST", f"{api}/missions/{created['id']}/abort")
             return {"vehicles": n, **(status.get("tick_latency_ms") or {})}
         finally:
             for p in procs:

@@ -14,8 +14,6 @@ import subprocess
 import sys
 import threading
 import time
-import urllib.error
-import urllib.request
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -26,6 +24,7 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
+from gcs_ppf.demo import http_json as http
 from gcs_ppf.geodesy import geodetic_to_enu
 from gcs_ppf.mission import Mission
 from tests.conftest import EXAMPLES, ROOT
@@ -84,17 +83,6 @@ class Listener:
         self._stop.set()
         for t in self._threads:
             t.join(timeout=5)
-
-
-def http(method: str, url: str, body: Any = None) -> tuple[int, Any]:
-    data = None if body is None else json.dumps(body).encode()
-    req = urllib.request.Request(url, data=data, method=method,
-                                 headers={"content-type": "application/json"})  # fmt: skip
-    try:
-        with urllib.request.urlopen(req, timeout=30) as r:
-            return r.status, json.loads(r.read() or b"null")
-    except urllib.error.HTTPError as e:
-        return e.code, json.loads(e.read() or b"null")
 
 
 @contextmanager
@@ -246,8 +234,8 @@ def test_table3_flown_closed_loop_is_safe_and_survives_a_restart(tmp_path: Path)
 @pytest.mark.integration
 @pytest.mark.xfail(
     strict=False,
-    reason="known gap (issue 4 left open): the new obstacle is avoided (clearance 216-234 m "
-    "when it passes), but 2 of 6 runs failed a check, one with two vehicles re-planning "
+    reason="known gap (issue 4 left open): the new obstacle is avoided (clearance 216-246 m "
+    "when it passes), but 2 of 8 runs failed a check, one with two vehicles re-planning "
     "around it at 37.7 m, under the 50 m safe distance",
 )
 def test_an_obstacle_moved_into_the_path_mid_run_is_avoided(tmp_path: Path) -> None:
