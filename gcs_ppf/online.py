@@ -16,10 +16,8 @@ import numpy as np
 from gcs_ppf.frames import local_target_point
 from gcs_ppf.geodesy import velocity_ned_to_enu
 from gcs_ppf.mission import Mission
-from gcs_ppf.planner import advance
+from gcs_ppf.planner import STATE_NAMES, advance
 from gcs_ppf.scene import FloatArray, Obstacles, Scene, scene_from_mission
-
-STATE_NAMES = {1: "s1", 2: "s2", 3: "s3"}
 
 
 @dataclass(frozen=True)

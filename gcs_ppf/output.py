@@ -10,9 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from gcs_ppf.planner import Trajectory
-
-STATE_NAMES = {1: "s1", 2: "s2", 3: "s3"}
+from gcs_ppf.planner import STATE_NAMES, Trajectory
 
 
 def write_trajectory_csv(trajectory: Trajectory, path: Path) -> None:

@@ -17,6 +17,7 @@ from gcs_ppf.rollout import APF, PPF, run_fleet
 from gcs_ppf.scene import BoolArray, FloatArray, IntArray, Scene
 
 Method = Literal["ppf", "apf"]
+STATE_NAMES = {1: "s1", 2: "s2", 3: "s3"}  # PPF state codes of Trajectory.state
 StateArray = NDArray[np.int8]
 
 

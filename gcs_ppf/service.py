@@ -13,7 +13,7 @@ import logging
 import math
 import time
 from collections import deque
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Iterator
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
@@ -641,20 +641,24 @@ class FormationService:
             if done:
                 return
 
+    def _located(self, run: Run) -> Iterator[tuple[Vehicle, tuple[float, float, float]]]:
+        """The run's vehicles that have reported a position, with it in the ICS."""
+        for v in run.mission.vehicles:
+            vehicle = self._vehicles.get(v.id)
+            pos = None if vehicle is None else self.vehicle_enu(vehicle, run.mission)
+            if vehicle is not None and pos is not None:
+                yield vehicle, pos
+
     def _states(self, run: Run) -> tuple[dict[int, VehicleState], set[int]]:
         states: dict[int, VehicleState] = {}
         active: set[int] = set()
-        for v in run.mission.vehicles:
-            vehicle = self._vehicles.get(v.id)
-            if vehicle is None:
-                continue
+        for vehicle, pos in self._located(run):
             t = vehicle.telemetry
-            pos = self.vehicle_enu(vehicle, run.mission)
-            if pos is None or t.vn_m_s is None or t.ve_m_s is None or t.vd_m_s is None:
+            if t.vn_m_s is None or t.ve_m_s is None or t.vd_m_s is None:
                 continue
-            states[v.id] = state_from_velocity(pos, t.vn_m_s, t.ve_m_s, t.vd_m_s)
+            states[vehicle.system_id] = state_from_velocity(pos, t.vn_m_s, t.ve_m_s, t.vd_m_s)
             if not vehicle.lost:
-                active.add(v.id)
+                active.add(vehicle.system_id)
         return states, active
 
     async def _tick(self, run: Run) -> bool:
@@ -728,15 +732,14 @@ class FormationService:
 
     def _sample(self, run: Run) -> None:
         rows = []
-        for v in run.mission.vehicles:
-            vehicle = self._vehicles.get(v.id)
-            if vehicle is None:
-                continue
+        for vehicle, pos in self._located(run):
             t = vehicle.telemetry
-            pos = self.vehicle_enu(vehicle, run.mission)
-            if pos is None or t.lat_deg is None or t.lon_deg is None or t.alt_amsl_m is None:
+            if t.lat_deg is None or t.lon_deg is None or t.alt_amsl_m is None:
                 continue
             speed = t.groundspeed_m_s if t.groundspeed_m_s is not None else float("nan")
-            rows.append((run.mission_time_s, v.id, t.lat_deg, t.lon_deg, t.alt_amsl_m, *pos, speed))
+            rows.append(
+                (run.mission_time_s, vehicle.system_id, t.lat_deg, t.lon_deg, t.alt_amsl_m,
+                 *pos, speed)
+            )  # fmt: skip
         if rows:
             self.store.add_telemetry(run.record.id, rows)
