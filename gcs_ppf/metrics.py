@@ -43,6 +43,7 @@ class FlightContext:
     obstacles: Obstacles  # at t = 0
     target_accuracy: float
     collision_radius: float
+    ground: float | None = None  # ICS z of the ground, None: free space
 
 
 def direction_vectors(pitch: FloatArray, yaw: FloatArray) -> FloatArray:
@@ -118,6 +119,14 @@ def compute_metrics(
         obstacle_contacts_per_vehicle = np.zeros(n)
         clearance = np.full(n, np.inf)
     separation = gaps.min(axis=(0, 2)) if n > 1 else np.full(n, np.inf)
+    if context.ground is not None:  # the ground is an obstacle too
+        height = tr.pos[:, :, 2] - context.ground  # [K,N]
+        obstacle_contacts_per_vehicle = obstacle_contacts_per_vehicle + _contacts(
+            height, context.collision_radius
+        )
+        ground_clearance = height.min(axis=0)
+    else:
+        ground_clearance = np.full(n, np.inf)
 
     # Kinematics from differences of consecutive records.
     pitch_rate = np.abs(np.diff(tr.pitch, axis=0)) / dt_safe
@@ -145,6 +154,7 @@ def compute_metrics(
         "max_decel_m_s2": np.maximum(-extreme(accel, np.min), 0.0),
         "min_separation_m": separation,
         "min_obstacle_clearance_m": clearance,
+        "min_ground_clearance_m": ground_clearance,
         "collisions": vehicle_contacts + obstacle_contacts_per_vehicle,
         "path_length_m": path_km * 1000.0,
         "heading_change_deg_per_km": turn.sum(axis=0) / np.maximum(path_km, 1e-9),
@@ -174,6 +184,9 @@ def compute_metrics(
         "formation_time_s": formation_time,
         "min_separation_m": min_sep,
         "min_obstacle_clearance_m": min_clear,
+        "min_ground_clearance_m": (
+            float(ground_clearance.min()) if context.ground is not None else None
+        ),
         "collisions": int(pair_contacts.sum() / 2 + obstacle_contacts_per_vehicle.sum()),
         "max_pitch_rate_rad_s": float(per["max_pitch_rate_rad_s"].max()),
         "max_yaw_rate_rad_s": float(per["max_yaw_rate_rad_s"].max()),

@@ -120,6 +120,10 @@ class Mission(_Strict):
     limits: Limits = Limits()
     planner: PlannerSettings = PlannerSettings()
     target: Vec3
+    ground: float | None = None
+    """ICS z (metres) of flat ground that vehicles keep ``limits.safe_distance_obstacle``
+    above; None (default) is the paper's free space.  The service falls back on the
+    ground under the vehicles' homes (see ``gcs_ppf.online``)."""
     vehicles: list[Vehicle] = Field(min_length=1, max_length=1000)
     obstacles: list[Obstacle] = Field(default_factory=list, max_length=10_000)
 
@@ -168,6 +172,19 @@ def mission_problems(mission: Mission) -> list[str]:
                 )
         if _distance(mission.target, o.center) < o.radius + lim.target_accuracy:
             problems.append(f"target: inside obstacles[{j}]")
+
+    if mission.ground is not None:
+        for k, v in enumerate(mission.vehicles):
+            if v.position[2] < mission.ground + lim.collision_radius:
+                problems.append(
+                    f"vehicles[{k}].position: below the ground + collision_radius "
+                    f"({mission.ground + lim.collision_radius:g} m)"
+                )
+        if mission.target[2] < mission.ground + lim.safe_distance_obstacle:
+            problems.append(
+                f"target: below the ground + limits.safe_distance_obstacle "
+                f"({mission.ground + lim.safe_distance_obstacle:g} m)"
+            )
 
     # Slots are places in the leader's VCS; the leader itself sits at the VCS origin.
     slots = [((0.0, 0.0, 0.0), "the leader")] + [

@@ -44,6 +44,7 @@ def flight_context(mission: Mission, scene: Scene) -> FlightContext:
         obstacles=scene.obstacles,
         target_accuracy=mission.limits.target_accuracy,
         collision_radius=mission.limits.collision_radius,
+        ground=mission.ground,
     )
 
 

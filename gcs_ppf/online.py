@@ -65,18 +65,23 @@ def scene_now(
     active_ids: set[int],
     obstacles: Obstacles,
     margin_m: float = 0.0,
+    home_ground_m: float | None = None,
 ) -> Scene:
     """The mission's scene with the vehicles where telemetry says they are.
 
     ``margin_m`` widens both safe distances: flown closed loop, an aircraft lags its plan
     (and the leader leaves PPF for its final approach), so the plan keeps a margin for it.
+    The ground is the mission's, or else ``home_ground_m`` (ICS z of the ground under the
+    vehicles' homes, see ``home_ground``): real aircraft do not fly in free space.
     """
     base = scene_from_mission(mission)
+    ground = mission.ground if mission.ground is not None else home_ground_m
     base = replace(
         base,
         limits=base.limits._replace(
             safe_distance_uav=base.limits.safe_distance_uav + margin_m,
             safe_distance_obstacle=base.limits.safe_distance_obstacle + margin_m,
+            ground=-math.inf if ground is None else ground,
         ),
     )
     fleet = base.fleet.copy()
@@ -91,6 +96,13 @@ def scene_now(
         fleet.yaw[i] = s.yaw_rad
         fleet.speed[i] = min(max(s.speed_m_s, lim.v_min), lim.v_max)
     return replace(base, fleet=fleet, obstacles=obstacles)
+
+
+def home_ground(heights: list[tuple[float, float]]) -> float | None:
+    """ICS z of the ground from (ICS z, height above home) of each vehicle: the highest of
+    their homes (ArduPlane's relative altitude is above home; the terrain is taken as flat
+    there, which is what ArduPlane itself assumes without terrain data)."""
+    return max((z - above_home for z, above_home in heights), default=None)
 
 
 FINAL_APPROACH_TURN_RADII = 5.0  # within this many turn radii, with the target ahead …

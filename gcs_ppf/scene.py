@@ -7,6 +7,7 @@ rank and is ignored by them (the leader has rank 0 unless a mission says otherwi
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -73,7 +74,8 @@ class Scene:
     limits: KernelLimits
 
 
-def kernel_limits(limits: Limits) -> KernelLimits:
+def kernel_limits(limits: Limits, ground: float | None = None) -> KernelLimits:
+    """The kernel's limits; ``ground`` None (the paper's free space) becomes −∞."""
     return KernelLimits(
         v_min=limits.v_min,
         v_max=limits.v_max,
@@ -84,6 +86,7 @@ def kernel_limits(limits: Limits) -> KernelLimits:
         target_accuracy=limits.target_accuracy,
         safe_distance_uav=limits.safe_distance_uav,
         safe_distance_obstacle=limits.safe_distance_obstacle,
+        ground=-math.inf if ground is None else ground,
     )
 
 
@@ -121,5 +124,5 @@ def scene_from_mission(mission: Mission) -> Scene:
         fleet=fleet,
         obstacles=obstacles_from_mission(mission),
         target=np.array(mission.target, dtype=float),
-        limits=kernel_limits(lim),
+        limits=kernel_limits(lim, mission.ground),
     )

@@ -32,6 +32,7 @@ from gcs_ppf.online import (
     VehicleState,
     clearance,
     guidance,
+    home_ground,
     scene_now,
     separations,
     state_from_velocity,
@@ -692,7 +693,18 @@ class FormationService:
             self._finish(run, RunState.COMPLETED, "leader reached the target")
             return True
 
-        scene = scene_now(mission, states, active, obstacles, self.settings.planning_margin_m)
+        if run.mission_time_s > mission.planner.max_time:
+            await self._loiter_all(run)
+            self._finish(run, RunState.FAILED, "planner.max_time passed before the target")
+            return True
+
+        ground = home_ground(
+            [(pos[2], v.telemetry.relative_alt_m) for v, pos in self._located(run)
+             if v.telemetry.relative_alt_m is not None]
+        )  # fmt: skip
+        scene = scene_now(
+            mission, states, active, obstacles, self.settings.planning_margin_m, ground
+        )
         g = guidance(
             scene,
             lookahead_s=self.settings.lookahead_s,

@@ -56,6 +56,9 @@ class KernelLimits(NamedTuple):
     target_accuracy: float
     safe_distance_uav: float
     safe_distance_obstacle: float
+    ground: float
+    """ICS z of the ground (flat), kept ``safe_distance_obstacle`` below every vehicle;
+    −∞ for the paper's free space."""
 
 
 @njit(cache=True)
@@ -136,6 +139,27 @@ def from_vcs(
 
 
 @njit(cache=True)
+def lowest_climb(height: float, speed: float, lim: KernelLimits) -> float:
+    """sin of the steepest descent allowed ``height`` metres above the ground's keep-out.
+
+    Pulling up at the full pitch rate ω from a flight-path angle γ < 0 traces an arc of
+    radius ρ = v/ω and loses ρ(1 − cos γ) of height, so a vehicle still levels out above
+    the keep-out if cos γ ≥ 1 − height/ρ.  ρ is taken at the speed the vehicle could reach
+    while pulling up (a quarter turn at full acceleration).  Inside the keep-out (height
+    < 0) the vehicle must climb, the steeper the deeper, up to ``MAX_FOLLOW_PITCH``.
+    """
+    omega = lim.max_pitch_rate
+    v = min(speed + lim.accel * AVOIDANCE_TURN_ANGLE / omega, lim.v_max)
+    rho = v / omega
+    if height >= rho:  # even straight down levels out in time
+        return -1.0
+    if height >= 0.0:
+        c = 1.0 - height / rho
+        return -math.sqrt(1.0 - c * c)
+    return min(-height / rho, math.sin(MAX_FOLLOW_PITCH))
+
+
+@njit(cache=True)
 def limit_climb(
     dx: float,
     dy: float,
@@ -146,22 +170,28 @@ def limit_climb(
     in_plane: bool,
     cy: float,
     sy: float,
+    lowest: float,
 ) -> tuple[float, float, float]:
-    """The wanted ICS direction d, no steeper than ``MAX_AVOID_PITCH``.
+    """The wanted ICS direction d, no steeper than ``MAX_AVOID_PITCH`` and descending no
+    more steeply than ``lowest`` (the sine of the lowest flight-path angle allowed, see
+    ``lowest_climb``; −1 for no ground).
 
     Pitch stops at ±π/2 (Eq. 1) and near it yaw no longer turns the flight direction, so
     a vehicle asked to steepen past the vertical would hang there, unable to turn.  When d
     slides along a static obstacle (``in_plane``: d lies in the plane normal to the
     repulsion n), the limited direction is the nearest one in that plane, so it still does
-    not close on the obstacle; otherwise d keeps its heading and takes the limit angle.
+    not close on the obstacle; otherwise (or when no direction in the plane is allowed)
+    d keeps its heading and takes the limit angle.
     """
     norm = math.sqrt(dx * dx + dy * dy + dz * dz)
     if norm == 0.0:
         return dx, dy, dz
     dx, dy, dz = dx / norm, dy / norm, dz / norm
     top = math.sin(MAX_AVOID_PITCH)
-    if abs(dz) <= top:
+    low = min(max(lowest, -top), top)
+    if low <= dz <= top:
         return dx, dy, dz
+    z_new = min(max(dz, low), top)
     n = math.sqrt(nx * nx + ny * ny + nz * nz)
     e1n = math.sqrt(nx * nx + ny * ny)
     if in_plane and n > 0.0 and e1n > 1e-9 * n:
@@ -170,16 +200,15 @@ def limit_climb(
         e2x, e2y, e2z = -nz * e1y, nz * e1x, nx * e1y - ny * e1x  # n × e1: steepest
         if e2z < 0.0:
             e2x, e2y, e2z = -e2x, -e2y, -e2z
-        a = dx * e1x + dy * e1y
-        b = dx * e2x + dy * e2y + dz * e2z
-        b_max = top / e2z
-        b_new = min(max(b, -b_max), b_max)
-        a_new = math.copysign(math.sqrt(max(1.0 - b_new * b_new, 0.0)), a if a != 0.0 else 1.0)
-        return (a_new * e1x + b_new * e2x, a_new * e1y + b_new * e2y, b_new * e2z)
+        b_new = z_new / e2z
+        if -1.0 <= b_new <= 1.0:
+            a = dx * e1x + dy * e1y
+            a_new = math.copysign(math.sqrt(max(1.0 - b_new * b_new, 0.0)), a if a != 0.0 else 1.0)
+            return (a_new * e1x + b_new * e2x, a_new * e1y + b_new * e2y, b_new * e2z)
     h = math.sqrt(dx * dx + dy * dy)
     hx, hy = (dx / h, dy / h) if h > 0.0 else (cy, sy)
-    c = math.cos(MAX_AVOID_PITCH)
-    return c * hx, c * hy, math.copysign(top, dz)
+    c = math.cos(MAX_AVOID_PITCH) if abs(z_new) == top else math.sqrt(1.0 - z_new * z_new)
+    return c * hx, c * hy, z_new
 
 
 @njit(cache=True)
@@ -510,22 +539,27 @@ def fleet_step(
                 k_proj = fvx / (f_norm * f_norm)
                 fvx, fvy, fvz = 1.0 - k_proj * fvx, -k_proj * fvy, -k_proj * fvz
 
-        # No steeper than MAX_AVOID_PITCH (see ``limit_climb``), then back into the VCS.
+        # No steeper than MAX_AVOID_PITCH, no descent it could not level out of above the
+        # ground (see ``limit_climb``, ``lowest_climb``), then back into the VCS.
+        height = pz - lim.ground - lim.safe_distance_obstacle - INFLUENCE_STEPS * vi * dt
+        lowest = lowest_climb(height, vi, lim)
         dx, dy, dz = from_vcs(fvx, fvy, fvz, cp, sp, cy, sy)
-        dx, dy, dz = limit_climb(dx, dy, dz, rx, ry, rz, tangent, cy, sy)
+        dx, dy, dz = limit_climb(dx, dy, dz, rx, ry, rz, tangent, cy, sy, lowest)
         fvx, fvy, fvz = to_vcs(dx, dy, dz, cp, sp, cy, sy)
 
         # Trend matrix f (Eq. 19, erratum 2): pitch follows F_v^z, yaw follows F_v^y.
         elevation = math.atan2(fvz, math.sqrt(fvx * fvx + fvy * fvy))
         wanted = math.sqrt(fvx * fvx + fvy * fvy + fvz * fvz)
         azimuth = math.atan2(fvy, fvx) if abs(fvy) > SIDEWAYS_EPS * wanted else 0.0
-        if fvx < 0.0 or abs(pitch[i]) > MAX_FOLLOW_PITCH:
+        if fvx < 0.0 or abs(pitch[i]) > MAX_FOLLOW_PITCH or lowest > -1.0:
             # Wanted direction behind, or a steep vehicle: the sign of F_v^z would pitch
             # the nose on through the vertical (a loop; and a steep vehicle that yaws keeps
             # steepening, its z_v tilted away from the wanted direction's vertical plane),
             # which Eq. 1's pitch range [−π/2, π/2] rules out and where yaw loses its hold.
             # Go for the wanted elevation in the ICS instead and turn round by yaw (to the
-            # left when straight behind).
+            # left when straight behind).  Near the ground too: while the vehicle yaws,
+            # F_v^z is not the flight-path angle still to climb, and the ground's limit
+            # (``lowest_climb``) is on the flight-path angle.
             elevation = math.atan2(dz, math.sqrt(dx * dx + dy * dy)) - pitch[i]
             if fvx < 0.0 and azimuth == 0.0:
                 azimuth = math.pi

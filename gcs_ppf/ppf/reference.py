@@ -147,6 +147,18 @@ def reference_step(
         np.where(closing_in, -k * fvz, np.where(hold, 0.0, fvz)),
     )
 
+    # No descent that could not level out above the ground's keep-out: pulling up at
+    # ω_θ on an arc of radius v/ω_θ loses ρ(1 − cos γ) (the kernel's lowest_climb).
+    height = pos[:, 2] - lim.ground - lim.safe_distance_obstacle - INFLUENCE_STEPS * speed * dt
+    quarter_turn = AVOIDANCE_TURN_ANGLE / lim.max_pitch_rate
+    rho_up = np.minimum(speed + lim.accel * quarter_turn, lim.v_max) / lim.max_pitch_rate
+    r = np.minimum(height / rho_up, 1.0)
+    lowest = np.where(
+        r >= 0.0,
+        -np.sqrt(1.0 - (1.0 - np.maximum(r, 0.0)) ** 2),
+        np.minimum(-r, math.sin(MAX_FOLLOW_PITCH)),
+    )
+
     # No steeper than MAX_AVOID_PITCH (the kernel's limit_climb, vehicle by vehicle).
     px_ = cp * fvx - sp * fvz  # VCS → ICS
     d = np.stack([cy * px_ - sy * fvy, sy * px_ + cy * fvy, sp * fvx + cp * fvz], axis=1)
@@ -161,6 +173,7 @@ def reference_step(
             bool(closing_in[i]),
             cy[i],
             sy[i],
+            float(lowest[i]),
         )
     bx = cy * d[:, 0] + sy * d[:, 1]  # ICS → VCS
     fvx, fvy, fvz = cp * bx + sp * d[:, 2], -sy * d[:, 0] + cy * d[:, 1], -sp * bx + cp * d[:, 2]
@@ -168,7 +181,8 @@ def reference_step(
     # Eq. 19 (erratum 2), saturated.
     elevation = np.arctan2(fvz, np.hypot(fvx, fvy))
     behind = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1])) - pitch
-    elevation = np.where((fvx < 0) | (np.abs(pitch) > MAX_FOLLOW_PITCH), behind, elevation)
+    ics = (fvx < 0) | (np.abs(pitch) > MAX_FOLLOW_PITCH) | (lowest > -1.0)
+    elevation = np.where(ics, behind, elevation)
     wanted = np.sqrt(fvx**2 + fvy**2 + fvz**2)
     azimuth = np.where(np.abs(fvy) > SIDEWAYS_EPS * wanted, np.arctan2(fvy, fvx), 0.0)
     azimuth = np.where((fvx < 0) & (azimuth == 0.0), math.pi, azimuth)

@@ -8,7 +8,9 @@ the teammate rules can hold:
 * every start and the target lie outside every influence sphere at v_max;
 * vehicles start at least ``START_GAP`` apart and their slots are at least the safe
   distance apart (the mission validator's rule);
-* obstacles do not move (moving obstacles are tested head-on in tests/scenarios).
+* obstacles do not move (moving obstacles are tested head-on in tests/scenarios);
+* with ``ground``, the ground lies below every start and the target by more than the
+  safe distance plus a pull-up from the start pitch (obstacles may reach into it).
 """
 
 from __future__ import annotations
@@ -23,6 +25,10 @@ from gcs_ppf.mission import Limits, Mission
 from gcs_ppf.ppf.kernel import influence_radius
 
 START_GAP = 300.0
+#: Height a start needs above the ground's keep-out: levelling out from the steepest start
+#: pitch (0.3 rad) at v_max on a pull-up arc of radius v_max/ω loses 573·(1 − cos 0.3) = 26 m,
+#: plus three steps of travel.
+GROUND_MARGIN = 40.0
 LIM = Limits()
 OMEGA = min(LIM.max_pitch_rate, LIM.max_yaw_rate)
 
@@ -35,7 +41,9 @@ def influence_at_v_max(radius: float) -> float:
 
 
 @st.composite
-def feasible_missions(draw: st.DrawFn, max_wingmen: int = 4, max_obstacles: int = 4) -> Mission:
+def feasible_missions(
+    draw: st.DrawFn, max_wingmen: int = 4, max_obstacles: int = 4, ground: bool = False
+) -> Mission:
     n_wingmen = draw(st.integers(0, max_wingmen))
     starts = [(draw(coord) - 6000.0, draw(coord), draw(height)) for _ in range(n_wingmen + 1)]
     for a in range(len(starts)):
@@ -69,8 +77,15 @@ def feasible_missions(draw: st.DrawFn, max_wingmen: int = 4, max_obstacles: int 
         "speed": draw(st.floats(LIM.v_min, LIM.v_max)),
         **({"slot": slots[k - 1]} if k else {}),
     } for k in range(n_wingmen + 1)]  # fmt: skip
+    extra: dict[str, Any] = {}
+    if ground:  # below every start by more than a pull-up from the start pitch needs
+        lowest = min(p[2] for p in [*starts, target])
+        extra["ground"] = (
+            lowest - LIM.safe_distance_obstacle - GROUND_MARGIN - draw(st.floats(0.0, 400.0))
+        )
     return Mission.model_validate(
         {
+            **extra,
             "planner": {"max_time": 90.0},
             "target": target,
             "vehicles": vehicles,

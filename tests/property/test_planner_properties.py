@@ -28,3 +28,14 @@ def test_safety_distances_hold(mission: Mission) -> None:
 @given(feasible_missions(max_wingmen=0))
 def test_a_lone_leader_reaches_its_target(mission: Mission) -> None:
     assert plan_mission(mission).metrics["reached"]
+
+
+@given(feasible_missions(ground=True))
+def test_the_ground_is_kept_at_the_safe_distance(mission: Mission) -> None:
+    m = plan_mission(mission).metrics
+    assert m["min_ground_clearance_m"] >= mission.limits.safe_distance_obstacle
+    if m["min_obstacle_clearance_m"] is not None:
+        assert m["min_obstacle_clearance_m"] >= mission.limits.safe_distance_obstacle
+    if m["min_separation_m"] is not None:
+        assert m["min_separation_m"] >= mission.limits.safe_distance_uav
+    assert m["collisions"] == 0

@@ -74,7 +74,21 @@ BAD: dict[str, tuple[Callable[[Doc], None], str]] = {
     "bad method": (_set(["planner", "method"], "rrt"), "planner.method"),
     "string for number": (_set(["limits", "accel"], "fast"), "limits.accel"),
     "v_min above v_max": (_set(["limits", "v_min"], 400.0), "limits.v_min"),
+    "vehicle under the ground": (_set(["ground"], 10.0), "vehicles[1].position"),
+    "leader too near the ground": (_set(["ground"], 290.0), "vehicles[0].position"),
+    "infinite ground": (_set(["ground"], -math.inf), "ground"),
 }
+
+
+def test_target_closer_to_the_ground_than_the_safe_distance() -> None:
+    doc = copy.deepcopy(table3_doc())
+    doc["ground"] = -200.0
+    doc["target"] = [6000.0, 7000.0, -180.0]
+    with pytest.raises(MissionError) as err:
+        load_mission(json.dumps(doc))
+    assert err.value.field == "target"
+    doc["target"] = [6000.0, 7000.0, -175.0]  # exactly the safe distance up: fine
+    assert load_mission(json.dumps(doc)).ground == -200.0
 
 
 @pytest.mark.parametrize("case", sorted(BAD))

@@ -12,6 +12,7 @@ from gcs_ppf.online import (
     VehicleState,
     clearance,
     guidance,
+    home_ground,
     scene_now,
     separations,
     state_from_velocity,
@@ -71,3 +72,16 @@ def test_separation_and_clearance(table3: Mission) -> None:
     assert separations(pos[:1]) is None
     obstacles = obstacles_from_mission(table3)
     assert clearance(np.array([[3000.0, 3000.0, 500.0]]), obstacles) == pytest.approx(50.0)
+
+
+def test_the_ground_is_the_missions_or_else_under_the_vehicles_homes(table3: Mission) -> None:
+    states = _states_at_start(table3)
+    ids = {v.id for v in table3.vehicles}
+    obstacles = obstacles_from_mission(table3)
+    assert scene_now(table3, states, ids, obstacles).limits.ground == -math.inf
+    homes = home_ground([(300.0, 310.0), (200.0, 190.0)])  # one home at −10, one at 10
+    assert homes == pytest.approx(10.0)  # the higher one
+    assert home_ground([]) is None
+    assert scene_now(table3, states, ids, obstacles, 0.0, homes).limits.ground == homes
+    own = table3.model_copy(update={"ground": -50.0})
+    assert scene_now(own, states, ids, obstacles, 0.0, homes).limits.ground == -50.0

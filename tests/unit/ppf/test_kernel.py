@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -13,8 +14,10 @@ from gcs_ppf.planner import advance
 from gcs_ppf.ppf.kernel import (
     MAX_AVOID_PITCH,
     S2_LOCAL_MINIMUM,
+    KernelLimits,
     braking_speed,
     influence_radius,
+    lowest_climb,
     to_vcs,
     trend,
 )
@@ -24,13 +27,19 @@ OMEGA = math.pi / 6
 
 
 def solo(
-    position: list[float], yaw: float, target: list[float], obstacles: list[dict[str, Any]]
+    position: list[float],
+    yaw: float,
+    target: list[float],
+    obstacles: list[dict[str, Any]],
+    **extra: Any,
 ) -> Mission:
+    vehicle = {"id": 1, "role": "leader", "position": position, "yaw": yaw}
     return Mission.model_validate(
         {
             "target": target,
-            "vehicles": [{"id": 1, "role": "leader", "position": position, "yaw": yaw}],
+            "vehicles": [{**vehicle, **extra.pop("vehicle", {})}],
             "obstacles": obstacles,
+            **extra,
         }
     )
 
@@ -124,3 +133,93 @@ def test_advance_does_not_mutate_its_input() -> None:
     before = scene.fleet.pos.copy()
     advance(scene, 0.01, 10)
     assert np.array_equal(scene.fleet.pos, before)
+
+
+def _limits(mission: Mission) -> KernelLimits:
+    return scene_from_mission(mission).limits
+
+
+@pytest.mark.parametrize("speed", [100.0, 300.0])
+def test_lowest_climb_is_the_steepest_dive_a_full_rate_pull_up_levels_out_of(
+    speed: float,
+) -> None:
+    """Pulling up at ω_θ from the allowed angle, on an arc of radius ρ at the fastest speed
+    reachable meanwhile, loses exactly the height available; below the keep-out it climbs."""
+    lim = _limits(solo([0, 0, 0], 0.0, [1000, 0, 0], []))
+    v = min(speed + lim.accel * (math.pi / 2) / lim.max_pitch_rate, lim.v_max)
+    rho = v / lim.max_pitch_rate
+    for height in (0.0, 10.0, 0.3 * rho, 0.9 * rho):
+        gamma = math.asin(lowest_climb(height, speed, lim))
+        assert gamma <= 0.0
+        assert rho * (1.0 - math.cos(gamma)) == pytest.approx(height, abs=1e-6)
+    assert lowest_climb(rho, speed, lim) == -1.0
+    assert lowest_climb(math.inf, speed, lim) == -1.0
+    assert 0.0 < lowest_climb(-30.0, speed, lim) < lowest_climb(-60.0, speed, lim)
+
+
+def _dive(ground: float | None, speed: float, pitch: float) -> Any:
+    """A leader at 400 m diving at a target deep under the ground (the kernel takes any
+    arrays; a mission would refuse such a target)."""
+    mission = solo(
+        [0.0, 0.0, 400.0],
+        0.0,
+        [9000.0, 0.0, 300.0],
+        [],
+        vehicle={"pitch": pitch, "speed": speed},
+        **({} if ground is None else {"ground": ground}),
+    )
+    scene = replace(scene_from_mission(mission), target=np.array([9000.0, 0.0, -5000.0]))
+    return advance(scene, 0.01, 3000).trajectory
+
+
+@pytest.mark.parametrize("speed", [100.0, 300.0])
+@pytest.mark.parametrize("pitch", [-math.pi / 3, -math.pi / 4, -0.2, 0.3])
+def test_a_dive_levels_out_above_the_ground(speed: float, pitch: float) -> None:
+    """Diving at a target under the ground, the leader levels out no lower than the safe
+    distance above it and flies on there; in free space the same dive goes through it."""
+    tr = _dive(0.0, speed, pitch)
+    assert tr.pos[:, 0, 2].min() >= 25.0
+    assert tr.pos[-1, 0, 2] <= 25.0 + 3 * 0.01 * 300.0 + 1.0  # it stays low, not climbing
+    assert _dive(None, speed, pitch).pos[:, 0, 2].min() < 0.0
+
+
+def test_a_wingman_whose_slot_is_under_the_ground_stays_above_it() -> None:
+    mission = Mission.model_validate({
+        "ground": 0.0,
+        "target": [20000.0, 0.0, 150.0],
+        "vehicles": [
+            {"id": 1, "role": "leader", "position": [0.0, 0.0, 150.0]},
+            {"id": 2, "role": "wingman", "position": [-300.0, 300.0, 150.0],
+             "slot": [-100.0, 100.0, -200.0]},
+        ],
+    })  # fmt: skip
+    run = advance(scene_from_mission(mission), 0.01, 4000)
+    assert run.trajectory.pos[:, 1, 2].min() >= 25.0
+    free = advance(scene_from_mission(mission.model_copy(update={"ground": None})), 0.01, 4000)
+    assert free.trajectory.pos[:, 1, 2].min() < 0.0
+
+
+def test_a_vehicle_inside_the_ground_keep_out_climbs_out() -> None:
+    """Put 5 m above the ground (as a vehicle that sank there would be), it climbs back."""
+    scene = scene_from_mission(solo([0.0, 0.0, 100.0], 0.0, [9000.0, 0.0, 30.0], [], ground=0.0))
+    scene.fleet.pos[0, 2] = 5.0
+    tr = advance(scene, 0.01, 1000).trajectory
+    assert np.all(np.diff(tr.pos[:, 0, 2]) >= 0.0)
+    assert tr.pos[-1, 0, 2] >= 25.0
+
+
+def test_an_obstacle_standing_on_the_ground_is_passed_beside_or_above() -> None:
+    """Head-on at a sphere whose bottom touches the ground: the way under is closed."""
+    mission = solo(
+        [-3000.0, 0.0, 300.0],
+        0.0,
+        [3000.0, 0.0, 300.0],
+        [{"center": [0.0, 0.0, 300.0], "radius": 300.0}],
+        ground=0.0,
+        vehicle={"pitch": -0.1},
+    )
+    tr = advance(scene_from_mission(mission), 0.01, 6000).trajectory
+    assert tr.pos[:, 0, 2].min() >= 25.0
+    clear = np.linalg.norm(tr.pos[:, 0] - np.array([0.0, 0.0, 300.0]), axis=1) - 300.0
+    assert clear.min() >= 25.0
+    assert np.linalg.norm(tr.pos[-1, 0] - np.array([3000.0, 0.0, 300.0])) <= 10.0
