@@ -40,6 +40,7 @@ from gcs_ppf.online import (
 from gcs_ppf.scene import obstacles_from_mission
 from gcs_ppf.settings import Settings
 from gcs_ppf.store import Store, StoredMission, StoredRun
+from gcs_ppf.vehicle_clock import VehicleClock
 
 log = logging.getLogger("gcs_ppf.service")
 
@@ -105,6 +106,7 @@ class Vehicle:
     telemetry: VehicleTelemetry
     last_heard_s: float
     lost: bool = False
+    clock: VehicleClock = field(default_factory=VehicleClock)
 
 
 @dataclass
@@ -270,6 +272,9 @@ class FormationService:
             vehicle.telemetry = apply(vehicle.telemetry, msg, now)
             vehicle.link_id = link_id
         vehicle.last_heard_s = now
+        boot_ms = getattr(msg, "time_boot_ms", None)
+        if isinstance(boot_ms, int):
+            vehicle.clock.observe(now, boot_ms)
         if vehicle.lost and msg.get_type() == "HEARTBEAT":
             vehicle.lost = False
             log.info("vehicle %d is back", sysid)
@@ -307,12 +312,14 @@ class FormationService:
     async def _watchdog(self) -> None:
         while True:
             now = time.monotonic()
-            for v in self._vehicles.values():
-                if not v.lost and now - v.last_heard_s > self.settings.vehicle_timeout_s:
+            for v in self._vehicles.values():  # the timeout is in vehicle seconds
+                silent = v.clock.vehicle_seconds(now - v.last_heard_s)
+                if not v.lost and silent > self.settings.vehicle_timeout_s:
                     v.lost = True
                     log.warning(
-                        "vehicle %d lost (silent %.1f s)", v.system_id, now - v.last_heard_s
-                    )
+                        "vehicle %d lost (silent %.1f s of its time, %.1f s of ours)",
+                        v.system_id, silent, now - v.last_heard_s,
+                    )  # fmt: skip
             await asyncio.sleep(0.2)
 
     def vehicles(self) -> list[dict[str, Any]]:

@@ -26,7 +26,9 @@ class Settings(BaseSettings):
     )
     carrot_m: float = Field(default=1500.0, gt=0.0, description="guided point beyond the plan")
     planner_dt_s: float = Field(default=0.02, gt=0.0, le=0.5)
-    vehicle_timeout_s: float = Field(default=5.0, gt=0.0)
+    vehicle_timeout_s: float = Field(
+        default=5.0, gt=0.0, description="silence, in the vehicle's own seconds, that makes it lost"
+    )
     heartbeat_hz: float = Field(default=1.0, gt=0.0)
     telemetry_sample_hz: float = Field(default=2.0, gt=0.0)
     stream_rate_hz: float = Field(default=10.0, gt=0.0)
