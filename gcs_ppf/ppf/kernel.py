@@ -234,6 +234,41 @@ def follow_direction(
 
 
 @njit(cache=True)
+def away_from_obstacles(
+    pitch: float,
+    yaw: float,
+    f_pitch: float,
+    f_yaw: float,
+    ox: float,
+    oy: float,
+    oz: float,
+    lim: KernelLimits,
+    dt: float,
+) -> float:
+    """The yaw trend, reversed if it would turn a vehicle closing on the obstacles that
+    repel it (repulsion (ox, oy, oz)) further towards them while the other sense would not.
+
+    Eq. 19 turns by the sense of F_v^y.  With a teammate's repulsion added to an obstacle's
+    the sum can point behind the vehicle, and the short way round can pass through the
+    obstacle (the vehicle sandwiched between the two).  The obstacle is the certain danger:
+    the turn never makes the closing on it worse when the other way does not.
+    """
+    o = math.sqrt(ox * ox + oy * oy + oz * oz)
+    if o == 0.0 or f_yaw == 0.0:
+        return f_yaw
+    cp = math.cos(pitch)
+    now = cp * (math.cos(yaw) * ox + math.sin(yaw) * oy) + math.sin(pitch) * oz
+    if now >= 0.0:  # not closing
+        return f_yaw
+    th = pitch + f_pitch * lim.max_pitch_rate * dt
+    ct, st = math.cos(th), math.sin(th)
+    turn = f_yaw * lim.max_yaw_rate * dt
+    after = ct * (math.cos(yaw + turn) * ox + math.sin(yaw + turn) * oy) + st * oz
+    other = ct * (math.cos(yaw - turn) * ox + math.sin(yaw - turn) * oy) + st * oz
+    return -f_yaw if after < now and other > after else f_yaw
+
+
+@njit(cache=True)
 def _closing_speed(
     dx: float, dy: float, dz: float, d: float, ux: float, uy: float, uz: float
 ) -> float:
@@ -439,6 +474,9 @@ def fleet_step(
         # repels only while the two close on each other and, within a quarter turn's time,
         # would come nearer than the safe distance plus what turning at full rate could
         # take off it (closest point of approach); mates flying alongside do not.
+        tx = 0.0  # repulsion by teammates
+        ty = 0.0
+        tz = 0.0
         for k in range(n):
             if k == i or not active[k] or rank[k] >= rank[i]:
                 continue
@@ -481,14 +519,19 @@ def fleet_step(
                 mz = dz - wz * t_cpa
                 miss = math.sqrt(mx * mx + my * my + mz * mz)
                 if miss > 1e-6 * d:
-                    rx += EPSILON_1 * mx / miss
-                    ry += EPSILON_1 * my / miss
-                    rz += EPSILON_1 * mz / miss
+                    tx += EPSILON_1 * mx / miss
+                    ty += EPSILON_1 * my / miss
+                    tz += EPSILON_1 * mz / miss
                 else:
-                    rx += EPSILON_1 * dx / d
-                    ry += EPSILON_1 * dy / d
-                    rz += EPSILON_1 * dz / d
+                    tx += EPSILON_1 * dx / d
+                    ty += EPSILON_1 * dy / d
+                    tz += EPSILON_1 * dz / d
                 moving_threat = True
+
+        ox, oy, oz = rx, ry, rz  # the obstacles' repulsion alone (see away_from_obstacles)
+        rx += tx
+        ry += ty
+        rz += tz
 
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0
         avoiding[i] = repelled
@@ -565,6 +608,7 @@ def fleet_step(
                 azimuth = math.pi
         f_pitch = trend(elevation, lim.max_pitch_rate, dt)
         f_yaw = trend(azimuth, lim.max_yaw_rate, dt)
+        f_yaw = away_from_obstacles(pitch[i], yaw[i], f_pitch, f_yaw, ox, oy, oz, lim, dt)
 
         # Speed trend f_l (Eq. 19).
         if along_field > 0.0:

@@ -100,6 +100,7 @@ def reference_step(
     miss_vec = d_m - w * t_cpa[..., None]
     miss = np.linalg.norm(miss_vec, axis=-1)
     push = np.where((miss > 1e-6 * np.sqrt(d2))[..., None], _unit(miss_vec), _unit(d_m))
+    obstacles_rep = rep
     rep = rep + EPSILON_1 * (push * threat[..., None]).sum(1)
     moving |= threat.any(1)
     repelled = (rep != 0).any(1)
@@ -188,6 +189,21 @@ def reference_step(
     azimuth = np.where((fvx < 0) & (azimuth == 0.0), math.pi, azimuth)
     f_pitch = np.clip(elevation / (lim.max_pitch_rate * dt), -1, 1)
     f_yaw = np.clip(azimuth / (lim.max_yaw_rate * dt), -1, 1)
+    # Never turn further towards a repelling obstacle when the other sense does not
+    # (the kernel's away_from_obstacles).
+    o = obstacles_rep
+    now = (u * o).sum(1)
+    th = pitch + f_pitch * lim.max_pitch_rate * dt
+    turn = f_yaw * lim.max_yaw_rate * dt
+
+    def towards(psi: FloatArray) -> FloatArray:
+        along: FloatArray = np.cos(th) * (np.cos(psi) * o[:, 0] + np.sin(psi) * o[:, 1])
+        along = along + np.sin(th) * o[:, 2]
+        return along
+
+    after, other = towards(yaw + turn), towards(yaw - turn)
+    reverse = (now < 0) & (f_yaw != 0) & (after < now) & (other > after)
+    f_yaw = np.where(reverse, -f_yaw, f_yaw)
     f_speed = np.sign(along_field)
 
     # Eq. 21–24: the leader waits; wingmen brake to arrive at the leader's speed.

@@ -25,6 +25,7 @@ import pytest
 from pymavlink import mavutil
 
 from gcs_ppf.demo import http_json as http
+from gcs_ppf.frames import local_target_point
 from gcs_ppf.geodesy import geodetic_to_enu
 from gcs_ppf.mission import Mission
 from gcs_ppf.store import Store
@@ -224,9 +225,12 @@ def test_table3_flown_closed_loop_is_safe_and_survives_a_restart(tmp_path: Path)
     deviation = deviation_from_offline_plan(
         flight.mission, flight.tracks, start_s, flight.final["mission_time_s"]
     )
+    best, closest = formation_offsets(flight, start_s)
     print(
         f"\nflown: mission time {flight.final['mission_time_s']:.1f} s, min separation "
-        f"{separation:.1f} m, largest deviation from the offline plan {deviation:.0f} m"
+        f"{separation:.1f} m, largest deviation from the offline plan {deviation:.0f} m; "
+        f"formation: closest {closest:.0f} m (worst wingman), each wingman's best "
+        + ", ".join(f"{vid}: {d:.0f} m" for vid, d in best.items())
     )
 
     # A restarted service still has the mission and the finished run.
@@ -239,6 +243,21 @@ def test_table3_flown_closed_loop_is_safe_and_survives_a_restart(tmp_path: Path)
         assert [(r["mission_id"], r["state"]) for r in runs] == [(mid, "completed")]
         _, events = http("GET", f"{api}/missions/{mid}/events")
         assert events[-1]["kind"] == "run_completed"
+
+
+@pytest.mark.integration
+def test_table2_flown_closed_loop_and_how_near_the_formation_comes(tmp_path: Path) -> None:
+    """The paper's formation scene (no obstacles; offline the formation forms at 27 s):
+    safe and complete; how near the wingmen come to their slots is printed (the gap)."""
+    flight = fly(tmp_path, json.loads((EXAMPLES / "paper_table2.json").read_text()))
+    assert flight.final["state"] == "completed", flight.final
+    start_s, separation, _ = check_safety(flight)
+    best, closest = formation_offsets(flight, start_s)
+    print(
+        f"\nTable 2 flown: mission time {flight.final['mission_time_s']:.1f} s, min separation "
+        f"{separation:.1f} m; formation: closest {closest:.0f} m (worst wingman), each "
+        "wingman's best " + ", ".join(f"{vid}: {d:.0f} m" for vid, d in best.items())
+    )
 
 
 @pytest.mark.integration
@@ -257,8 +276,10 @@ def test_an_obstacle_moved_into_the_path_mid_run_is_avoided(tmp_path: Path) -> N
     assert flight.final["state"] == "completed", flight.final
     flight.mission = flight.mission.model_copy(update={"obstacles": Mission.model_validate(
         {**doc, "obstacles": new}).obstacles})  # fmt: skip
-    _, _, clearance = check_safety(flight)
-    print(f"\nobstacle added mid-run: min clearance {clearance:.1f} m")
+    _, separation, clearance = check_safety(flight)
+    print(
+        f"\nobstacle added mid-run: min clearance {clearance:.1f} m, separation {separation:.1f} m"
+    )
     # It stood in the way: the straight line from the leader's start to the target
     # passes through it.
     start, target = np.array(doc["vehicles"][0]["position"]), np.array(doc["target"])
@@ -287,6 +308,30 @@ def test_a_wingman_lost_mid_run_leaves_and_the_rest_continue(tmp_path: Path) -> 
     last_heard = flight.tracks[3][-1, 0] - start_s
     assert lost_at is not None
     assert 5.0 - 0.2 <= lost_at - last_heard <= 5.0 + 3.0, (lost_at, last_heard)
+
+
+def formation_offsets(flight: Flight, start_s: float) -> tuple[dict[int, float], float]:
+    """From the listener's record: each wingman's smallest distance to its local target
+    point (Eq. 6, the leader's flight-path attitude from its track) over the run, and the
+    smallest over time of the worst wingman's distance (within the target accuracy: formed).
+    """
+    mission, tracks = flight.mission, flight.tracks
+    ids = sorted(tracks)
+    t = np.arange(start_s, start_s + flight.final["mission_time_s"], 0.1)
+    pos = resample(tracks, t)
+    lead = ids.index(mission.leader.id)
+    vel = np.gradient(pos[:, lead], t, axis=0)
+    pitch = np.arctan2(vel[:, 2], np.hypot(vel[:, 0], vel[:, 1]))
+    yaw = np.arctan2(vel[:, 1], vel[:, 0])
+    offsets = {}
+    for w in mission.wingmen:
+        assert w.slot is not None
+        slot = np.array(w.slot)
+        points = np.array([local_target_point(pos[k, lead], float(pitch[k]), float(yaw[k]), slot)
+                           for k in range(len(t))])  # fmt: skip
+        offsets[w.id] = np.linalg.norm(points - pos[:, ids.index(w.id)], axis=1)
+    worst = np.max(np.stack(list(offsets.values())), axis=0)
+    return {vid: float(d.min()) for vid, d in offsets.items()}, float(worst.min())
 
 
 def deviation_from_offline_plan(
