@@ -125,6 +125,7 @@ class Run:
     mission_id: int
     mission: Mission
     state: RunState = RunState.STARTING
+    outcome: str | None = None  # why it ended
     start_vehicle_time_s: float | None = None
     mission_time_s: float = 0.0
     last: Guidance | None = None
@@ -455,6 +456,7 @@ class FormationService:
             "mission_id": mission_id,
             "run_id": run.record.id,
             "state": run.state,
+            "outcome": run.outcome,
             "mission_time_s": round(run.mission_time_s, 3),
             "formation_formed": run.formed,
             "min_separation_m": run.min_separation_m,
@@ -542,6 +544,7 @@ class FormationService:
         if run.state in FINISHED:
             return
         run.state = state
+        run.outcome = outcome
         summary = {
             "mission_time_s": run.mission_time_s,
             "min_separation_m": run.min_separation_m,

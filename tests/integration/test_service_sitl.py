@@ -155,7 +155,8 @@ class Flight:
 
 def fly(tmp_path: Path, mission_doc: dict[str, Any], *, sitl_extra: Sequence[str] = (),
         env_extra: dict[str, str] | None = None,
-        during: Callable[[str, int], None] | None = None) -> Flight:  # fmt: skip
+        during: Callable[[str, int], None] | None = None,
+        after: Callable[[str, int], None] | None = None) -> Flight:  # fmt: skip
     """Start SITL and service, fly ``mission_doc`` to its end, record it independently."""
     mission = Mission.model_validate(mission_doc)
     path = tmp_path / "mission.json"
@@ -181,6 +182,8 @@ def fly(tmp_path: Path, mission_doc: dict[str, Any], *, sitl_extra: Sequence[str
             if during is not None:
                 during(api, mid)
             final = wait_for(lambda: _finished(api, mid), 120, "the mission to finish")
+            if after is not None:
+                after(api, mid)
     return Flight(mission, api, mid, final, tracks_enu(listener, mission), serve, env)
 
 
@@ -308,6 +311,31 @@ def test_a_wingman_lost_mid_run_leaves_and_the_rest_continue(tmp_path: Path) -> 
     last_heard = flight.tracks[3][-1, 0] - start_s
     assert lost_at is not None
     assert 5.0 - 0.2 <= lost_at - last_heard <= 5.0 + 3.0, (lost_at, last_heard)
+
+
+@pytest.mark.integration
+def test_a_run_that_outlasts_planner_max_time_fails_and_the_vehicles_loiter(
+    tmp_path: Path,
+) -> None:
+    doc = json.loads(MISSION.read_text())
+    doc["planner"]["max_time"] = 10.0  # the leader needs some 90 s
+
+    def all_loiter(api: str, mid: int) -> None:
+        def modes() -> bool:
+            _, vehicles = http("GET", f"{api}/vehicles")
+            return {v["mode"] for v in vehicles} == {"LOITER"}
+
+        wait_for(modes, 10, "every vehicle in LOITER")
+
+    flight = fly(tmp_path, doc, after=all_loiter)
+    assert flight.final["state"] == "failed", flight.final
+    assert "max_time" in (flight.final["outcome"] or ""), flight.final
+    run = Store(tmp_path / "gcs.db").runs(flight.mission_id)[0]
+    assert run.state == "failed"
+    events = Store(tmp_path / "gcs.db").events(run.id)
+    ended = next(e for e in events if e.kind == "run_failed")
+    assert ended.mission_time_s is not None
+    assert 10.0 <= ended.mission_time_s <= 11.0
 
 
 def formation_offsets(flight: Flight, start_s: float) -> tuple[dict[int, float], float]:
