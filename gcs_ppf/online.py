@@ -9,7 +9,7 @@ the plan asks for.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -57,6 +57,7 @@ class Guidance:
     formed: list[bool]
     local_target_distance_m: list[float | None]  # None for the leader
     leader_arrives_within_lookahead: bool
+    resolving: list[bool] = field(default_factory=list)  # vertical conflict resolution
 
 
 def scene_now(

@@ -14,13 +14,14 @@ import math
 import time
 from collections import deque
 from collections.abc import AsyncIterator, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from gcs_ppf import separation_guard
 from gcs_ppf.geodesy import enu_to_geodetic, geodetic_to_enu
 from gcs_ppf.links import MavlinkLink, parse_link_url
 from gcs_ppf.mavlink import commands
@@ -721,6 +722,16 @@ class FormationService:
             dt=self.settings.planner_dt_s,
             carrot_m=self.settings.carrot_m,
         )
+        if self.settings.guard_horizon_s > 0.0:
+            points, resolving = separation_guard.resolve(
+                scene,
+                g.guided_point_m,
+                distance_m=mission.limits.safe_distance_uav + self.settings.guard_margin_m,
+                horizon_s=self.settings.guard_horizon_s,
+                resolution_m=self.settings.guard_resolution_m,
+                previous=run.last.resolving if run.last is not None else None,
+            )
+            g = replace(g, guided_point_m=points, resolving=resolving)
         self._note_changes(run, g)
         run.last = g
         for i, vid in enumerate(g.ids):
@@ -749,6 +760,9 @@ class FormationService:
         for i, vid in enumerate(g.ids):
             if g.avoiding[i] != before.avoiding[i]:
                 self._event(run, "avoidance_entered" if g.avoiding[i] else "avoidance_left", vid)
+            if g.resolving and before.resolving and g.resolving[i] != before.resolving[i]:
+                kind = "conflict_resolution_" + ("began" if g.resolving[i] else "ended")
+                self._event(run, kind, vid)
             if g.state[i] == "s2" and before.state[i] != "s2":
                 self._event(run, "local_minimum_escape", vid)
 

@@ -26,6 +26,18 @@ class Settings(BaseSettings):
     )
     carrot_m: float = Field(default=1500.0, gt=0.0, description="guided point beyond the plan")
     planner_dt_s: float = Field(default=0.02, gt=0.0, le=0.5)
+    guard_horizon_s: float = Field(
+        default=4.0,
+        ge=0.0,
+        le=30.0,
+        description="separation guard look-ahead (0: off)",
+    )
+    guard_margin_m: float = Field(
+        default=50.0, ge=0.0, description="the guard acts below safe_distance_uav plus this"
+    )
+    guard_resolution_m: float = Field(
+        default=150.0, gt=0.0, description="altitude change of a vertical resolution"
+    )
     vehicle_timeout_s: float = Field(
         default=5.0, gt=0.0, description="silence, in the vehicle's own seconds, that makes it lost"
     )

@@ -1,0 +1,82 @@
+"""The separation guard: vertical resolutions from telemetry, outside the planner."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from gcs_ppf.mission import Mission
+from gcs_ppf.scene import Scene, scene_from_mission
+from gcs_ppf.separation_guard import closest_approach, resolve
+
+
+def pair(wingman: list[float], yaw: float, ground: float | None = None) -> Scene:
+    """The leader at the origin flying east at 100 m/s; a wingman at ``wingman``."""
+    doc = {
+        "target": [20000.0, 0.0, 300.0],
+        "vehicles": [
+            {"id": 1, "role": "leader", "position": [0.0, 0.0, 300.0]},
+            {"id": 2, "role": "wingman", "position": wingman, "yaw": yaw,
+             "slot": [-100.0, 100.0, 0.0]},
+        ],
+        **({} if ground is None else {"ground": ground}),
+    }  # fmt: skip
+    return scene_from_mission(Mission.model_validate(doc))
+
+
+def guard(scene: Scene) -> tuple[np.ndarray, list[bool]]:
+    guided = scene.fleet.pos + np.array([1500.0, 0.0, 0.0])
+    return resolve(scene, guided, distance_m=100.0, horizon_s=4.0, resolution_m=150.0)
+
+
+def test_closest_approach_within_the_horizon() -> None:
+    d, w = np.array([100.0, 0.0, 0.0]), np.array([-50.0, 0.0, 0.0])
+    assert closest_approach(d, w, 10.0) == pytest.approx(0.0)
+    assert closest_approach(d, w, 1.0) == pytest.approx(50.0)
+    assert closest_approach(d, -w, 10.0) == pytest.approx(100.0)  # moving apart
+    assert closest_approach(d, np.zeros(3), 10.0) == pytest.approx(100.0)
+
+
+def test_a_converging_wingman_above_the_leader_climbs_and_the_leader_keeps_its_plan() -> None:
+    scene = pair([200.0, 150.0, 330.0], -math.pi / 2)  # crossing ahead of the leader
+    points, resolving = guard(scene)
+    assert resolving == [False, True]
+    assert points[1, 2] == pytest.approx(330.0 + 150.0)
+    assert np.allclose(points[0], scene.fleet.pos[0] + [1500.0, 0.0, 0.0])
+    assert np.allclose(points[1, :2], scene.fleet.pos[1, :2] + [1500.0, 0.0])  # course kept
+
+
+def test_below_it_descends_but_not_into_the_ground_and_never_towards_the_other() -> None:
+    points, _ = guard(pair([200.0, 150.0, 270.0], -math.pi / 2))
+    assert points[1, 2] == pytest.approx(270.0 - 150.0)
+    points, _ = guard(pair([200.0, 150.0, 270.0], -math.pi / 2, ground=100.0))
+    assert points[1, 2] == pytest.approx(100.0 + 25.0)  # down to the ground's keep-out
+    points, _ = guard(pair([200.0, 150.0, 270.0], -math.pi / 2, ground=245.0))
+    assert points[1, 2] == pytest.approx(270.0)  # at the keep-out: holds, does not climb
+
+
+def test_no_conflict_no_resolution() -> None:
+    alongside = pair([0.0, 200.0, 300.0], 0.0)  # parallel, 200 m off
+    assert guard(alongside)[1] == [False, False]
+    away = pair([0.0, 120.0, 300.0], math.pi / 2)  # close but leaving
+    assert guard(away)[1] == [False, False]
+    lost = replace(alongside, fleet=alongside.fleet.copy())
+    lost.fleet.active[1] = False
+    assert guard(lost)[1] == [False, False]
+
+
+def test_a_resolution_in_force_holds_until_the_miss_clears_the_release_margin() -> None:
+    scene = pair([0.0, 120.0, 330.0], 0.0)  # alongside at 120 m: no new conflict below 100
+    guided = scene.fleet.pos.copy()
+
+    def resolving(s: Scene, previous: list[bool] | None) -> list[bool]:
+        return resolve(
+            s, guided, distance_m=100.0, horizon_s=4.0, resolution_m=150.0, previous=previous
+        )[1]
+
+    assert resolving(scene, None) == [False, False]
+    assert resolving(scene, [False, True]) == [False, True]
+    assert resolving(pair([0.0, 160.0, 330.0], 0.0), [False, True]) == [False, False]
