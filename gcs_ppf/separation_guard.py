@@ -49,10 +49,11 @@ def resolve(
     """The guided points [N,3] with vertical resolutions applied, and which vehicles got one.
 
     A vehicle resolves against every active vehicle of higher priority (lower rank), as in
-    the planner; the leader never does.  A resolution in force (``previous``, the last
-    tick's answer) holds until the predicted miss exceeds ``distance_m + release_m``, so
-    that it does not flicker on and off as the vehicle climbs away and the plan brings it
-    back.
+    the planner, and against any it is overtaking (ahead of it and slower): as in the rules
+    of the air, the overtaking aircraft gives way too, for the one ahead cannot see it come.
+    A resolution in force (``previous``, the last tick's answer) holds until the predicted
+    miss exceeds ``distance_m + release_m``, so that it does not flicker on and off as the
+    vehicle climbs away and the plan brings it back.
     """
     fleet = scene.fleet
     lim = scene.limits
@@ -64,9 +65,12 @@ def resolve(
         if not fleet.active[i]:
             continue
         for k in range(fleet.pos.shape[0]):
-            if k == i or not fleet.active[k] or fleet.rank[k] >= fleet.rank[i]:
+            if k == i or not fleet.active[k]:
                 continue
             d = fleet.pos[i] - fleet.pos[k]
+            overtaking = float(d @ vel[i]) < 0.0 and fleet.speed[i] > fleet.speed[k]
+            if fleet.rank[k] >= fleet.rank[i] and not overtaking:
+                continue
             held = previous is not None and i < len(previous) and previous[i]
             threshold = distance_m + (release_m if held else 0.0)
             if closest_approach(d, vel[i] - vel[k], horizon_s) >= threshold:

@@ -80,3 +80,24 @@ def test_a_resolution_in_force_holds_until_the_miss_clears_the_release_margin() 
     assert resolving(scene, None) == [False, False]
     assert resolving(scene, [False, True]) == [False, True]
     assert resolving(pair([0.0, 160.0, 330.0], 0.0), [False, True]) == [False, False]
+
+
+def test_the_overtaking_vehicle_gives_way_too() -> None:
+    """The leader (priority) closes on a slower wingman from behind and below: both move
+    apart vertically, the leader down, the wingman up."""
+    doc = {
+        "target": [20000.0, 0.0, 300.0],
+        "vehicles": [
+            {"id": 1, "role": "leader", "position": [0.0, 0.0, 300.0], "speed": 200.0},
+            {"id": 2, "role": "wingman", "position": [300.0, 10.0, 320.0], "speed": 100.0,
+             "slot": [-100.0, 100.0, 0.0]},
+        ],
+    }  # fmt: skip
+    scene = scene_from_mission(Mission.model_validate(doc))
+    points, resolving = guard(scene)
+    assert resolving == [True, True]
+    assert points[0, 2] == pytest.approx(300.0 - 150.0)
+    assert points[1, 2] == pytest.approx(320.0 + 150.0)
+    ahead = replace(scene, fleet=scene.fleet.copy())
+    ahead.fleet.speed[0] = 100.0  # same speed: no overtaking, no conflict
+    assert guard(ahead)[1] == [False, False]
