@@ -28,12 +28,13 @@ def velocities(scene: Scene) -> FloatArray:
     return out
 
 
-def closest_approach(d: FloatArray, w: FloatArray, horizon_s: float) -> float:
-    """Smallest distance within ``horizon_s`` of two points at offset ``d`` moving apart at
-    relative velocity ``w`` (straight lines)."""
-    w2 = float(w @ w)
-    t = 0.0 if w2 == 0.0 else min(max(-float(d @ w) / w2, 0.0), horizon_s)
-    return float(np.linalg.norm(d + w * t))
+def closest_approach(d: FloatArray, w: FloatArray, horizon_s: float) -> FloatArray:
+    """Smallest distance within ``horizon_s`` of points at offsets ``d`` [..., 3] moving
+    at relative velocities ``w`` [..., 3] (straight lines); shape [...]."""
+    w2 = (w**2).sum(-1)
+    t = np.clip(-(d * w).sum(-1) / np.where(w2 > 0.0, w2, 1.0), 0.0, horizon_s)
+    out: FloatArray = np.linalg.norm(d + w * np.where(w2 > 0.0, t, 0.0)[..., None], axis=-1)
+    return out
 
 
 def resolve(
@@ -57,29 +58,24 @@ def resolve(
     """
     fleet = scene.fleet
     lim = scene.limits
+    n = fleet.pos.shape[0]
     vel = velocities(scene)
+    d = fleet.pos[:, None] - fleet.pos[None]  # [i, k]: i's offset from k
+    miss = closest_approach(d, vel[:, None] - vel[None], horizon_s)
+    overtaking = ((d * vel[:, None]).sum(-1) < 0.0) & (fleet.speed[:, None] > fleet.speed[None])
+    gives_way = (fleet.rank[None] < fleet.rank[:, None]) | overtaking
+    pairs = gives_way & fleet.active[:, None] & fleet.active[None] & ~np.eye(n, dtype=bool)
+    held = np.zeros(n, dtype=bool)
+    if previous is not None:
+        held[: min(n, len(previous))] = previous[:n]
+    conflict = pairs & (miss < (distance_m + np.where(held, release_m, 0.0))[:, None])
     out = guided.copy()
-    resolving = [False] * fleet.pos.shape[0]
     floor = lim.ground + lim.safe_distance_obstacle
-    for i in range(fleet.pos.shape[0]):
-        if not fleet.active[i]:
-            continue
-        for k in range(fleet.pos.shape[0]):
-            if k == i or not fleet.active[k]:
-                continue
-            d = fleet.pos[i] - fleet.pos[k]
-            overtaking = float(d @ vel[i]) < 0.0 and fleet.speed[i] > fleet.speed[k]
-            if fleet.rank[k] >= fleet.rank[i] and not overtaking:
-                continue
-            held = previous is not None and i < len(previous) and previous[i]
-            threshold = distance_m + (release_m if held else 0.0)
-            if closest_approach(d, vel[i] - vel[k], horizon_s) >= threshold:
-                continue
-            z = float(fleet.pos[i, 2])
-            if z >= fleet.pos[k, 2]:
-                out[i, 2] = z + resolution_m
-            else:  # down, but not into the ground's keep-out (and never towards the other)
-                out[i, 2] = min(z, max(z - resolution_m, floor))
-            resolving[i] = True
-            break
-    return out, resolving
+    for i in np.flatnonzero(conflict.any(axis=1)):
+        k = int(np.argmax(conflict[i]))  # the first conflicting vehicle
+        z = float(fleet.pos[i, 2])
+        if z >= fleet.pos[k, 2]:
+            out[i, 2] = z + resolution_m
+        else:  # down, but not into the ground's keep-out (and never towards the other)
+            out[i, 2] = min(z, max(z - resolution_m, floor))
+    return out, [bool(c) for c in conflict.any(axis=1)]
