@@ -16,8 +16,9 @@ from fastapi import Depends, FastAPI, Path, Request, WebSocket, WebSocketDisconn
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
 
+from gcs_ppf.errors import ServiceError
 from gcs_ppf.mission import Mission, Obstacle
-from gcs_ppf.service import FormationService, ServiceError
+from gcs_ppf.service import FormationService
 from gcs_ppf.settings import Settings
 from gcs_ppf.store import Store, StoredMission, StoredRun
 
@@ -121,19 +122,19 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @app.post("/links", status_code=status.HTTP_201_CREATED, responses=ERRORS)
     async def add_link(body: LinkRequest, service: Service) -> dict[str, Any]:
-        return await service.add_link(body.url)
+        return await service.fleet.add_link(body.url)
 
     @app.get("/links")
     async def list_links(service: Service) -> list[dict[str, Any]]:
-        return service.links()
+        return service.fleet.links()
 
     @app.delete("/links/{link_id}", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)
     async def delete_link(link_id: LinkId, service: Service) -> None:
-        await service.remove_link(link_id)
+        await service.fleet.remove_link(link_id)
 
     @app.get("/vehicles")
     async def list_vehicles(service: Service) -> list[dict[str, Any]]:
-        return service.vehicles()
+        return service.fleet.vehicles()
 
     @app.post("/missions", status_code=status.HTTP_201_CREATED)
     async def create_mission(mission: Mission, service: Service) -> MissionDetail:

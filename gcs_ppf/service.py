@@ -1,8 +1,9 @@
-"""The ground-station service: links, vehicles, missions and runs (the imperative shell).
+"""The ground-station service: missions and their runs (the imperative shell).
 
-It owns the clocks, the sockets and the tasks; planning is ``gcs_ppf.online`` (pure), the
-wire is ``gcs_ppf.links`` and ``gcs_ppf.mavlink``, storage is ``gcs_ppf.store``.  Routes
-in ``api/`` call the public methods here and nothing else.
+It owns the clocks and the tasks; the vehicles and their links are ``gcs_ppf.fleet``,
+planning is ``gcs_ppf.online`` (pure) with ``gcs_ppf.separation_guard``, the wire is
+``gcs_ppf.links`` and ``gcs_ppf.mavlink``, storage is ``gcs_ppf.store``.  Routes in
+``api/`` call the public methods here and of ``fleet``, nothing else.
 """
 
 from __future__ import annotations
@@ -16,17 +17,17 @@ from collections import deque
 from collections.abc import AsyncIterator, Iterator
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from gcs_ppf import separation_guard
-from gcs_ppf.geodesy import enu_to_geodetic, geodetic_to_enu
-from gcs_ppf.links import MavlinkLink, parse_link_url
+from gcs_ppf.errors import Conflict, NotFound, ServiceError
+from gcs_ppf.fleet import Fleet, Vehicle
+from gcs_ppf.geodesy import enu_to_geodetic
 from gcs_ppf.mavlink import commands
-from gcs_ppf.mavlink.ardupilot import PlaneMode, mode_name
-from gcs_ppf.mavlink.telemetry import VehicleTelemetry, apply
+from gcs_ppf.mavlink.ardupilot import PlaneMode
+from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission, Obstacle
 from gcs_ppf.online import (
     Guidance,
@@ -41,7 +42,6 @@ from gcs_ppf.online import (
 from gcs_ppf.scene import obstacles_from_mission
 from gcs_ppf.settings import Settings
 from gcs_ppf.store import Store, StoredMission, StoredRun
-from gcs_ppf.vehicle_clock import VehicleClock
 
 log = logging.getLogger("gcs_ppf.service")
 
@@ -50,32 +50,6 @@ ON_GROUND_SPEED_M_S = 5.0  # … slower than this, a vehicle is on the ground
 TAKEOFF_ALT_M = 50.0
 LOITER_AHEAD_M = 800.0  # after the mission each vehicle circles a point this far ahead …
 LOITER_STACK_M = 100.0  # … at its own height: vehicle k of the mission this much above
-STREAMED = {  # message id → rate factor of settings.stream_rate_hz
-    33: 1.0,  # GLOBAL_POSITION_INT
-    30: 1.0,  # ATTITUDE
-    74: 0.5,  # VFR_HUD
-    2: 0.2,  # SYSTEM_TIME
-    1: 0.2,  # SYS_STATUS
-}
-
-
-class ServiceError(Exception):
-    """A request the service cannot honour; ``status`` is the HTTP status that fits."""
-
-    status = 400
-
-    def __init__(self, message: str, detail: dict[str, Any] | None = None) -> None:
-        super().__init__(message)
-        self.message = message
-        self.detail = detail or {}
-
-
-class NotFound(ServiceError):
-    status = 404
-
-
-class Conflict(ServiceError):
-    status = 409
 
 
 class RunState(StrEnum):
@@ -96,26 +70,6 @@ class RunState(StrEnum):
 
 
 FINISHED = {RunState.COMPLETED, RunState.ABORTED, RunState.FAILED}
-
-
-@dataclass
-class Vehicle:
-    """A vehicle discovered by its heartbeat on a link."""
-
-    system_id: int
-    link_id: int
-    telemetry: VehicleTelemetry
-    last_heard_s: float
-    lost: bool = False
-    clock: VehicleClock = field(default_factory=VehicleClock)
-
-
-@dataclass
-class LinkEntry:
-    id: int
-    url: str
-    link: MavlinkLink
-    task: asyncio.Task[None] | None = None
 
 
 @dataclass
@@ -166,12 +120,8 @@ class FormationService:
     def __init__(self, settings: Settings, store: Store) -> None:
         self.settings = settings
         self.store = store
-        self._links: dict[int, LinkEntry] = {}
-        self._next_link_id = 1
-        self._vehicles: dict[int, Vehicle] = {}
+        self.fleet = Fleet(settings, self._spawn)
         self._runs: dict[int, Run] = {}  # mission id → its current or last run
-        self._telemetry_event = asyncio.Event()
-        self._telemetry_received_s = 0.0  # perf_counter of the latest position message
         self._subscribers: set[asyncio.Queue[dict[str, Any]]] = set()
         self._tasks: asyncio.TaskGroup | None = None
         for stale in store.interrupted_runs():  # a previous process stopped mid-flight
@@ -183,9 +133,12 @@ class FormationService:
         """Run the background tasks (links, heartbeats, watchdog) for the body's duration."""
         async with asyncio.TaskGroup() as tg:
             self._tasks = tg
-            background = [tg.create_task(self._heartbeats()), tg.create_task(self._watchdog())]
+            background = [
+                tg.create_task(self.fleet.heartbeats()),
+                tg.create_task(self.fleet.watchdog()),
+            ]
             for url in self.settings.links:
-                await self.add_link(url)
+                await self.fleet.add_link(url)
             try:
                 yield self
             finally:
@@ -193,10 +146,7 @@ class FormationService:
                     if run.task is not None and not run.task.done():
                         run.abort.set()
                         run.task.cancel()
-                for entry in list(self._links.values()):
-                    entry.link.close()
-                    if entry.task is not None:
-                        entry.task.cancel()
+                self.fleet.close()
                 for task in background:
                     task.cancel()
                 self._tasks = None
@@ -205,159 +155,6 @@ class FormationService:
         if self._tasks is None:
             raise ServiceError("the service is not running")
         return self._tasks.create_task(coro)
-
-    # Links -------------------------------------------------------------------------------
-    async def add_link(self, url: str) -> dict[str, Any]:
-        try:
-            parse_link_url(url)
-        except (ValueError, NotImplementedError) as exc:
-            raise ServiceError(f"url: {exc}") from None
-        if any(e.url == url for e in self._links.values()):
-            raise Conflict(f"url: a link to {url} exists already")
-        link_id = self._next_link_id
-        self._next_link_id += 1
-        tlog = None
-        if self.settings.tlog_dir is not None:
-            tlog = Path(self.settings.tlog_dir) / f"link{link_id}-{int(time.time())}.tlog"
-            tlog.parent.mkdir(parents=True, exist_ok=True)
-
-        def on_message(_link: MavlinkLink, msg: Any) -> None:
-            self._on_message(link_id, msg)
-
-        link = MavlinkLink(
-            url,
-            on_message,
-            source_system=self.settings.system_id,
-            tlog_path=tlog,
-        )
-        entry = LinkEntry(link_id, url, link)
-        entry.task = self._spawn(link.run())
-        self._links[link_id] = entry
-        log.info("link %d: %s", link_id, url)
-        return self._link_info(entry)
-
-    def links(self) -> list[dict[str, Any]]:
-        return [self._link_info(e) for e in self._links.values()]
-
-    async def remove_link(self, link_id: int) -> None:
-        entry = self._links.pop(link_id, None)
-        if entry is None:
-            raise NotFound(f"link {link_id} does not exist")
-        entry.link.close()
-        if entry.task is not None:
-            entry.task.cancel()
-
-    def _link_info(self, entry: LinkEntry) -> dict[str, Any]:
-        vehicles = sorted(v.system_id for v in self._vehicles.values() if v.link_id == entry.id)
-        return {
-            "id": entry.id,
-            "url": entry.url,
-            "connected": entry.link.connected,
-            "vehicles": vehicles,
-        }
-
-    # Vehicles ----------------------------------------------------------------------------
-    def _on_message(self, link_id: int, msg: Any) -> None:
-        sysid = int(msg.get_srcSystem())
-        if sysid == self.settings.system_id or msg.get_srcComponent() != 1:
-            return  # our own echo, or a component that is not the autopilot
-        now = time.monotonic()
-        vehicle = self._vehicles.get(sysid)
-        if vehicle is None:
-            if msg.get_type() != "HEARTBEAT" or msg.type == 6:  # MAV_TYPE_GCS
-                return  # vehicles are discovered by their heartbeats
-            vehicle = Vehicle(sysid, link_id, apply(None, msg, now), now)
-            self._vehicles[sysid] = vehicle
-            log.info("vehicle %d discovered on link %d", sysid, link_id)
-            self._spawn(self._request_streams(vehicle))
-        else:
-            vehicle.telemetry = apply(vehicle.telemetry, msg, now)
-            vehicle.link_id = link_id
-        vehicle.last_heard_s = now
-        boot_ms = getattr(msg, "time_boot_ms", None)
-        if isinstance(boot_ms, int):
-            vehicle.clock.observe(now, boot_ms)
-        if vehicle.lost and msg.get_type() == "HEARTBEAT":
-            vehicle.lost = False
-            log.info("vehicle %d is back", sysid)
-        if msg.get_type() == "GLOBAL_POSITION_INT":
-            self._telemetry_received_s = time.perf_counter()
-            self._telemetry_event.set()
-
-    async def _request_streams(self, vehicle: Vehicle) -> None:
-        """Ask a new vehicle for the telemetry the planner needs (and the legacy streams)."""
-        for msg_id, factor in STREAMED.items():
-            interval_us = int(1e6 / (self.settings.stream_rate_hz * factor))
-            await self._send(
-                vehicle.system_id,
-                commands.set_message_interval(vehicle.system_id, msg_id, interval_us),
-            )
-        await self._send(
-            vehicle.system_id,
-            commands.request_data_streams(vehicle.system_id, int(self.settings.stream_rate_hz)),
-        )
-
-    async def _send(self, system_id: int, msg: Any) -> None:
-        vehicle = self._vehicles.get(system_id)
-        if vehicle is None:
-            return
-        entry = self._links.get(vehicle.link_id)
-        if entry is not None:
-            await entry.link.send(msg)
-
-    async def _heartbeats(self) -> None:
-        while True:
-            for entry in list(self._links.values()):
-                await entry.link.send(commands.gcs_heartbeat())
-            await asyncio.sleep(1.0 / self.settings.heartbeat_hz)
-
-    async def _watchdog(self) -> None:
-        while True:
-            now = time.monotonic()
-            for v in self._vehicles.values():  # the timeout is in vehicle seconds
-                silent = v.clock.vehicle_seconds(now - v.last_heard_s)
-                if not v.lost and silent > self.settings.vehicle_timeout_s:
-                    v.lost = True
-                    log.warning(
-                        "vehicle %d lost (silent %.1f s of its time, %.1f s of ours)",
-                        v.system_id, silent, now - v.last_heard_s,
-                    )  # fmt: skip
-            await asyncio.sleep(0.2)
-
-    def vehicles(self) -> list[dict[str, Any]]:
-        now = time.monotonic()
-        out = []
-        for v in sorted(self._vehicles.values(), key=lambda v: v.system_id):
-            t = v.telemetry
-            out.append(
-                {
-                    "system_id": v.system_id,
-                    "link_id": v.link_id,
-                    "mode": mode_name(t.custom_mode) if t.custom_mode is not None else None,
-                    "armed": t.armed,
-                    "lost": v.lost,
-                    "seconds_since_heard": round(now - v.last_heard_s, 3),
-                    "position": {
-                        "lat_deg": t.lat_deg,
-                        "lon_deg": t.lon_deg,
-                        "alt_amsl_m": t.alt_amsl_m,
-                    },
-                    "attitude": {
-                        "roll_rad": t.roll_rad,
-                        "pitch_rad": t.pitch_rad,
-                        "yaw_rad": t.yaw_rad,
-                    },
-                    "airspeed_m_s": t.airspeed_m_s,
-                    "groundspeed_m_s": t.groundspeed_m_s,
-                }
-            )
-        return out
-
-    def vehicle_enu(self, vehicle: Vehicle, mission: Mission) -> tuple[float, float, float] | None:
-        t = vehicle.telemetry
-        if t.lat_deg is None or t.lon_deg is None or t.alt_amsl_m is None:
-            return None
-        return geodetic_to_enu(t.lat_deg, t.lon_deg, t.alt_amsl_m, mission.origin)
 
     # Missions ----------------------------------------------------------------------------
     def create_mission(self, mission: Mission) -> StoredMission:
@@ -399,7 +196,7 @@ class FormationService:
                 {"mission_id": active.mission_id, "state": active.state},
             )
         ids = [v.id for v in stored.mission.vehicles]
-        missing = [i for i in ids if i not in self._vehicles or self._vehicles[i].lost]
+        missing = [i for i in ids if i not in self.fleet.by_id or self.fleet.by_id[i].lost]
         if missing:
             raise Conflict(f"vehicles not connected: {missing}", {"missing_ids": missing})
         record = self.store.add_run(mission_id, RunState.STARTING)
@@ -509,7 +306,7 @@ class FormationService:
     def snapshot(self) -> dict[str, Any]:
         run = self._active_run() or (list(self._runs.values())[-1] if self._runs else None)
         return {
-            "vehicles": self.vehicles(),
+            "vehicles": self.fleet.vehicles(),
             "mission": self.status(run.mission_id) if run else None,
             "target": list(run.mission.target) if run else None,
             "obstacles": [o.model_dump() for o in run.mission.obstacles] if run else [],
@@ -558,7 +355,7 @@ class FormationService:
 
     async def _loiter_all(self, run: Run) -> None:
         for v in run.mission.vehicles:
-            await self._send(v.id, commands.set_mode(v.id, PlaneMode.LOITER))
+            await self.fleet.send(v.id, commands.set_mode(v.id, PlaneMode.LOITER))
 
     async def _loiter_stacked(self, run: Run, states: dict[int, VehicleState]) -> None:
         """After the mission: each vehicle circles a point ahead of it, vehicle k of the
@@ -568,16 +365,16 @@ class FormationService:
         for k, v in enumerate(mission.vehicles):
             s = states.get(v.id)
             if s is None:
-                await self._send(v.id, commands.set_mode(v.id, PlaneMode.LOITER))
+                await self.fleet.send(v.id, commands.set_mode(v.id, PlaneMode.LOITER))
                 continue
             x = s.pos_m[0] + LOITER_AHEAD_M * math.cos(s.yaw_rad)
             y = s.pos_m[1] + LOITER_AHEAD_M * math.sin(s.yaw_rad)
             z = mission.target[2] + LOITER_STACK_M * k
             lat, lon, alt = enu_to_geodetic(x, y, z, mission.origin)
-            await self._send(v.id, commands.reposition(v.id, lat, lon, alt))
+            await self.fleet.send(v.id, commands.reposition(v.id, lat, lon, alt))
 
     def _vehicle_time_s(self, run: Run) -> float | None:
-        leader = self._vehicles.get(run.mission.leader.id)
+        leader = self.fleet.by_id.get(run.mission.leader.id)
         if leader is None or leader.telemetry.time_boot_ms is None:
             return None
         return leader.telemetry.time_boot_ms / 1000.0
@@ -586,20 +383,20 @@ class FormationService:
         """Vehicles on the ground take off in TAKEOFF mode (ArduPlane does not take off in
         GUIDED); airborne ones go straight to GUIDED."""
         for v in run.mission.vehicles:
-            t = self._vehicles[v.id].telemetry
+            t = self.fleet.by_id[v.id].telemetry
             if self._on_ground(t):
                 for msg in commands.takeoff(v.id, TAKEOFF_ALT_M):  # TKOFF_ALT, TAKEOFF, arm
-                    await self._send(v.id, msg)
+                    await self.fleet.send(v.id, msg)
                 self._event(run, "takeoff", v.id)
             elif not t.armed:
-                await self._send(v.id, commands.arm(v.id, True))
+                await self.fleet.send(v.id, commands.arm(v.id, True))
         deadline = time.monotonic() + 120.0
-        while any(self._on_ground(self._vehicles[v.id].telemetry) for v in run.mission.vehicles):
+        while any(self._on_ground(self.fleet.by_id[v.id].telemetry) for v in run.mission.vehicles):
             if time.monotonic() > deadline:
                 raise ServiceError("vehicles did not climb after takeoff")
             await asyncio.sleep(0.2)
         for v in run.mission.vehicles:  # now every one is airborne: fly GUIDED
-            await self._send(v.id, commands.set_mode(v.id, PlaneMode.GUIDED))
+            await self.fleet.send(v.id, commands.set_mode(v.id, PlaneMode.GUIDED))
 
     @staticmethod
     def _on_ground(t: VehicleTelemetry) -> bool:
@@ -628,13 +425,13 @@ class FormationService:
         last_tick: float | None = None
         last_sample = -math.inf
         while not run.abort.is_set():
-            self._telemetry_event.clear()
+            self.fleet.telemetry_event.clear()
             try:
                 async with asyncio.timeout(1.0):
-                    await self._telemetry_event.wait()
+                    await self.fleet.telemetry_event.wait()
             except TimeoutError:
                 pass
-            received = self._telemetry_received_s
+            received = self.fleet.telemetry_received_s
             now_v = self._vehicle_time_s(run)
             if now_v is None:
                 continue
@@ -656,8 +453,8 @@ class FormationService:
     def _located(self, run: Run) -> Iterator[tuple[Vehicle, tuple[float, float, float]]]:
         """The run's vehicles that have reported a position, with it in the ICS."""
         for v in run.mission.vehicles:
-            vehicle = self._vehicles.get(v.id)
-            pos = None if vehicle is None else self.vehicle_enu(vehicle, run.mission)
+            vehicle = self.fleet.by_id.get(v.id)
+            pos = None if vehicle is None else Fleet.vehicle_enu(vehicle, run.mission)
             if vehicle is not None and pos is not None:
                 yield vehicle, pos
 
@@ -678,7 +475,7 @@ class FormationService:
         mission = run.mission
         leader_id = mission.leader.id
         for v in mission.vehicles:
-            vehicle = self._vehicles.get(v.id)
+            vehicle = self.fleet.by_id.get(v.id)
             if vehicle is not None and vehicle.lost and v.id not in run.lost_ids:
                 run.lost_ids.add(v.id)
                 self._event(run, "vehicle_lost", v.id)
@@ -739,11 +536,11 @@ class FormationService:
                 continue
             x, y, z = (float(c) for c in g.guided_point_m[i])
             lat, lon, alt = enu_to_geodetic(x, y, z, mission.origin)
-            await self._send(vid, commands.reposition(vid, lat, lon, alt))
+            await self.fleet.send(vid, commands.reposition(vid, lat, lon, alt))
             speed = float(g.speed_m_s[i])
             if abs(run.commanded_speed.get(vid, -1.0) - speed) >= 0.5:
                 run.commanded_speed[vid] = speed
-                await self._send(vid, commands.change_speed(vid, speed))
+                await self.fleet.send(vid, commands.change_speed(vid, speed))
         return False
 
     def _note_changes(self, run: Run, g: Guidance) -> None:
