@@ -474,9 +474,7 @@ def fleet_step(
         # repels only while the two close on each other and, within a quarter turn's time,
         # would come nearer than the safe distance plus what turning at full rate could
         # take off it (closest point of approach); mates flying alongside do not.
-        tx = 0.0  # repulsion by teammates
-        ty = 0.0
-        tz = 0.0
+        ox, oy, oz = rx, ry, rz  # the obstacles' repulsion alone (see away_from_obstacles)
         for k in range(n):
             if k == i or not active[k] or rank[k] >= rank[i]:
                 continue
@@ -519,19 +517,14 @@ def fleet_step(
                 mz = dz - wz * t_cpa
                 miss = math.sqrt(mx * mx + my * my + mz * mz)
                 if miss > 1e-6 * d:
-                    tx += EPSILON_1 * mx / miss
-                    ty += EPSILON_1 * my / miss
-                    tz += EPSILON_1 * mz / miss
+                    rx += EPSILON_1 * mx / miss
+                    ry += EPSILON_1 * my / miss
+                    rz += EPSILON_1 * mz / miss
                 else:
-                    tx += EPSILON_1 * dx / d
-                    ty += EPSILON_1 * dy / d
-                    tz += EPSILON_1 * dz / d
+                    rx += EPSILON_1 * dx / d
+                    ry += EPSILON_1 * dy / d
+                    rz += EPSILON_1 * dz / d
                 moving_threat = True
-
-        ox, oy, oz = rx, ry, rz  # the obstacles' repulsion alone (see away_from_obstacles)
-        rx += tx
-        ry += ty
-        rz += tz
 
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0
         avoiding[i] = repelled
