@@ -443,7 +443,8 @@ def fleet_step(
         ry = 0.0
         rz = 0.0
         moving_threat = False  # a repelling obstacle or teammate that moves
-        hold_course = False  # a teammate conflict was only just avoided
+        hold_course = False  # a teammate conflict was only just avoided …
+        hx, hy, hz = 0.0, 0.0, 0.0  # … and the miss vectors of those conflicts
         rho = vi / omega
         for c in range(near_start[i], near_start[i + 1]):
             j = near_obstacles[c]
@@ -504,26 +505,28 @@ def fleet_step(
             radius += speed[k] * AVOIDANCE_TURN_ANGLE / omega
             if d > radius or d == 0.0:
                 continue
+            # A moving obstacle repels from where it will be at the closest approach:
+            # along the miss vector, which is what widens the miss; radially when the
+            # two would meet head-on (then s2 decides the way out).
+            mx = dx - wx * t_cpa
+            my = dy - wy * t_cpa
+            mz = dz - wz * t_cpa
+            miss = math.sqrt(mx * mx + my * my + mz * mz)
+            if miss > 1e-6 * d:
+                mx, my, mz = mx / miss, my / miss, mz / miss
+            else:
+                mx, my, mz = dx / d, dy / d, dz / d
             if miss2 >= threshold * threshold:
                 # Just clear of a conflict: hold course rather than turn back into it
                 # (otherwise the turn flips every step along the conflict's edge).
                 hold_course = True
+                hx += mx
+                hy += my
+                hz += mz
             else:
-                # A moving obstacle repels from where it will be at the closest approach:
-                # along the miss vector, which is what widens the miss; radially when the
-                # two would meet head-on (then s2 decides the way out).
-                mx = dx - wx * t_cpa
-                my = dy - wy * t_cpa
-                mz = dz - wz * t_cpa
-                miss = math.sqrt(mx * mx + my * my + mz * mz)
-                if miss > 1e-6 * d:
-                    rx += EPSILON_1 * mx / miss
-                    ry += EPSILON_1 * my / miss
-                    rz += EPSILON_1 * mz / miss
-                else:
-                    rx += EPSILON_1 * dx / d
-                    ry += EPSILON_1 * dy / d
-                    rz += EPSILON_1 * dz / d
+                rx += EPSILON_1 * mx
+                ry += EPSILON_1 * my
+                rz += EPSILON_1 * mz
                 moving_threat = True
 
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0
@@ -532,8 +535,6 @@ def fleet_step(
         # Attraction (Eq. 14): unit vector to the target point, zero while repelled.
         if repelled:
             fx, fy, fz = rx, ry, rz  # Eq. 15 with |F_g| = 0
-        elif hold_course:
-            fx, fy, fz = direction[i, 0], direction[i, 1], direction[i, 2]
         else:
             if i == 0:
                 gx = target[0] - px
@@ -546,6 +547,12 @@ def fleet_step(
                 gy = local_target[i, 1] + lead * direction[0, 1] - py
                 gz = local_target[i, 2] + lead * direction[0, 2] - pz
             fx, fy, fz = follow_direction(gx, gy, gz, cy, sy)
+            # Hold course only if following would turn back into the conflict: take off
+            # more of the miss than flying on would (a wingman whose slot lies away from
+            # the conflict turns for it at once).
+            ux, uy, uz = direction[i, 0], direction[i, 1], direction[i, 2]
+            if hold_course and fx * hx + fy * hy + fz * hz < ux * hx + uy * hy + uz * hz:
+                fx, fy, fz = ux, uy, uz
 
         # Into the VCS (Eq. 16–18).
         fvx, fvy, fvz = to_vcs(fx, fy, fz, cp, sp, cy, sy)

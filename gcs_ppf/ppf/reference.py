@@ -119,7 +119,10 @@ def reference_step(
     follow = np.concatenate(
         [np.cos(elevation)[:, None] * heading, np.sin(elevation)[:, None]], axis=1
     )
-    field = np.where(repelled[:, None], rep, np.where(hold_course[:, None], u, follow))
+    # Hold course only where following would turn back into the conflict.
+    held = (push * (near & ~threat)[..., None]).sum(1)
+    hold = hold_course & ((follow * held).sum(1) < (u * held).sum(1))  # it would turn back
+    field = np.where(repelled[:, None], rep, np.where(hold[:, None], u, follow))
     field = np.where((np.linalg.norm(field, axis=1) > 0)[:, None], field, u)
 
     # Eq. 16–18 into the VCS.
