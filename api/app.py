@@ -66,15 +66,7 @@ def _detail(m: StoredMission) -> MissionDetail:
 
 
 def _run(r: StoredRun) -> RunSummary:
-    return RunSummary(
-        id=r.id,
-        mission_id=r.mission_id,
-        state=r.state,
-        started_s=r.started_s,
-        ended_s=r.ended_s,
-        outcome=r.outcome,
-        summary=r.summary,
-    )
+    return RunSummary.model_validate(r, from_attributes=True)
 
 
 def get_service(request: Request) -> FormationService:
