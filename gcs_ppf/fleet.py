@@ -21,7 +21,7 @@ from gcs_ppf.geodesy import geodetic_to_enu
 from gcs_ppf.links import MavlinkLink, parse_link_url
 from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import mode_name
-from gcs_ppf.mavlink.telemetry import VehicleTelemetry, apply
+from gcs_ppf.mavlink.telemetry import PITCH_LIMIT_PARAMS, VehicleTelemetry, apply
 from gcs_ppf.mission import Mission
 from gcs_ppf.settings import Settings
 from gcs_ppf.vehicle_clock import VehicleClock
@@ -168,6 +168,14 @@ class Fleet:
             vehicle.system_id,
             commands.request_data_streams(vehicle.system_id, int(self.settings.stream_rate_hz)),
         )
+        await self.request_pitch_limits(vehicle.system_id)
+
+    async def request_pitch_limits(self, system_id: int) -> None:
+        """Ask for the airframe's pitch limits (the planner keeps its climbs within them);
+        ArduPlane answers for the names it has (``PTCH_LIM_*_DEG`` or, before 4.5,
+        ``LIM_PITCH_*``)."""
+        for name in PITCH_LIMIT_PARAMS:
+            await self.send(system_id, commands.param_request_read(system_id, name))
 
     async def send(self, system_id: int, msg: Any) -> None:
         """Send ``msg`` on the link the vehicle was last heard on (if any)."""
@@ -224,6 +232,7 @@ class Fleet:
                     },
                     "airspeed_m_s": t.airspeed_m_s,
                     "groundspeed_m_s": t.groundspeed_m_s,
+                    "pitch_limits_deg": {"max": t.pitch_max_deg, "min": t.pitch_min_deg},
                 }
             )
         return out

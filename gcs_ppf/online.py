@@ -47,11 +47,17 @@ def state_from_velocity(
 
 @dataclass(frozen=True)
 class Guidance:
-    """What one planning tick decided, per vehicle in scene order (leader first)."""
+    """What one planning tick decided, per vehicle in scene order (leader first).
+
+    Two ways to fly it (``gcs_ppf.settings.Settings.guidance``): to the guided point, or on
+    the course with the guided point's altitude, approached at the climb rate.
+    """
 
     ids: list[int]
-    guided_point_m: FloatArray  # [N,3] ICS
+    guided_point_m: FloatArray  # [N,3] ICS; z is the planned altitude
     speed_m_s: FloatArray  # [N]
+    course_rad: FloatArray  # [N] ICS yaw to fly now
+    climb_rate_m_s: FloatArray  # [N] vertical speed towards the altitude (inf: all it can)
     state: list[str]  # PPF state of the first planned step
     avoiding: list[bool]
     formed: list[bool]
@@ -67,6 +73,7 @@ def scene_now(
     obstacles: Obstacles,
     margin_m: float = 0.0,
     home_ground_m: float | None = None,
+    pitch_limits_rad: tuple[float, float] | None = None,
 ) -> Scene:
     """The mission's scene with the vehicles where telemetry says they are.
 
@@ -74,6 +81,8 @@ def scene_now(
     (and the leader leaves PPF for its final approach), so the plan keeps a margin for it.
     The ground is the mission's, or else ``home_ground_m`` (ICS z of the ground under the
     vehicles' homes, see ``home_ground``): real aircraft do not fly in free space.
+    ``pitch_limits_rad`` (steepest climb, steepest dive, both positive; see
+    ``fleet_pitch_limits``) keeps the planned flight paths within what the airframes fly.
     """
     base = scene_from_mission(mission)
     ground = mission.ground if mission.ground is not None else home_ground_m
@@ -85,6 +94,11 @@ def scene_now(
             ground=-math.inf if ground is None else ground,
         ),
     )
+    if pitch_limits_rad is not None:
+        climb, dive = pitch_limits_rad
+        base = replace(
+            base, limits=base.limits._replace(max_climb_angle=climb, max_dive_angle=dive)
+        )
     fleet = base.fleet.copy()
     lim = base.limits
     for i, vid in enumerate(fleet.ids.tolist()):
@@ -104,6 +118,21 @@ def home_ground(heights: list[tuple[float, float]]) -> float | None:
     their homes (ArduPlane's relative altitude is above home; the terrain is taken as flat
     there, which is what ArduPlane itself assumes without terrain data)."""
     return max((z - above_home for z, above_home in heights), default=None)
+
+
+def fleet_pitch_limits(
+    limits_deg: list[tuple[float | None, float | None]],
+) -> tuple[float, float] | None:
+    """The steepest climb and dive (rad, positive) every vehicle can fly, from each one's
+    (max, min) pitch limits in degrees (ArduPlane's PTCH_LIM_MAX_DEG, PTCH_LIM_MIN_DEG);
+    limits not (yet) known are left out; None if none is known."""
+    climbs = [hi for hi, _ in limits_deg if hi is not None and hi > 0.0]
+    dives = [-lo for _, lo in limits_deg if lo is not None and lo < 0.0]
+    if not climbs and not dives:
+        return None
+    climb = math.radians(min(climbs)) if climbs else math.pi / 2
+    dive = math.radians(min(dives)) if dives else math.pi / 2
+    return climb, dive
 
 
 FINAL_APPROACH_TURN_RADII = 5.0  # within this many turn radii, with the target ahead …
@@ -139,33 +168,43 @@ def guidance(
     lookahead_s: float,
     dt: float,
     carrot_m: float = 1500.0,
-    speed_lead_s: float = 0.5,
+    lead_s: float = 0.5,
+    climb_rate_floor_m_s: float = 1.0,
 ) -> Guidance:
-    """Run PPF ``lookahead_s`` ahead from ``scene`` and read off each vehicle's guided point
-    and speed (its planned speed ``speed_lead_s`` on).
+    """Run PPF ``lookahead_s`` ahead from ``scene`` and read off, for each vehicle, its speed,
+    course and climb rate as planned ``lead_s`` on, and its guided point.
 
     The guided point is the planned position ``lookahead_s`` ahead carried ``carrot_m``
     further along the planned heading, at the planned altitude.  A fixed wing in GUIDED flies
     to its point and circles it once near (ArduPlane's loiter), so a point only a few seconds
     ahead would be circled; far out on the planned heading it steers the aircraft onto the
-    plan instead, and the leader flies through its target rather than circling it.
+    plan instead, and the leader flies through its target rather than circling it.  Flown
+    as course and altitude instead, the vehicle turns when the plan turns rather than when
+    the direction to a far point does: the carrot's lag left wingmen 25–50 m off their
+    slots, the course flies them in (``tests/integration``).  The climb rate is the
+    planned vertical speed plus ``climb_rate_floor_m_s``, so a level plan still corrects
+    a small altitude error; the leader on its final approach or go-around climbs as it can.
     """
     steps = max(1, round(lookahead_s / dt))
     run = advance(scene, dt, steps)
     tr = run.trajectory
-    k_speed = min(len(tr) - 1, max(0, round(speed_lead_s / dt) - 1))
+    k_lead = min(len(tr) - 1, max(0, round(lead_s / dt) - 1))
     fleet = scene.fleet
     ids = fleet.ids.tolist()
     ahead = tr.pos[-1].copy()
     yaw = tr.yaw[-1].copy()
+    course = tr.yaw[k_lead].copy()
+    climb = np.abs(tr.speed[k_lead] * np.sin(tr.pitch[k_lead])) + climb_rate_floor_m_s
     approach = leader_approach(scene)
     if run.arrived or approach == "final":  # through the target, on the line of sight
         ahead[0] = scene.target
         to_target = scene.target - fleet.pos[0]
-        yaw[0] = math.atan2(to_target[1], to_target[0])
+        yaw[0] = course[0] = math.atan2(to_target[1], to_target[0])
+        climb[0] = math.inf
     elif approach == "go_around":  # straight on at the target's altitude, then come back
         ahead[0] = (fleet.pos[0, 0], fleet.pos[0, 1], scene.target[2])
-        yaw[0] = fleet.yaw[0]
+        yaw[0] = course[0] = fleet.yaw[0]
+        climb[0] = math.inf
     guided = ahead + carrot_m * np.stack([np.cos(yaw), np.sin(yaw), np.zeros_like(yaw)], axis=1)
     guided[~fleet.active] = fleet.pos[~fleet.active]
     gaps = [
@@ -178,7 +217,9 @@ def guidance(
     return Guidance(
         ids=ids,
         guided_point_m=guided,
-        speed_m_s=tr.speed[k_speed].copy(),
+        speed_m_s=tr.speed[k_lead].copy(),
+        course_rad=course,
+        climb_rate_m_s=climb,
         state=[STATE_NAMES[int(s)] for s in tr.state[0]],
         avoiding=[bool(a) for a in tr.avoiding[0]],
         formed=[bool(f) for f in tr.formed[0]],

@@ -33,6 +33,7 @@ from gcs_ppf.online import (
     Guidance,
     VehicleState,
     clearance,
+    fleet_pitch_limits,
     guidance,
     home_ground,
     scene_now,
@@ -372,6 +373,8 @@ class FormationService:
             z = mission.target[2] + LOITER_STACK_M * k
             lat, lon, alt = enu_to_geodetic(x, y, z, mission.origin)
             await self.fleet.send(v.id, commands.reposition(v.id, lat, lon, alt))
+            if self.settings.guidance == "course":  # the guided altitude outlives the course
+                await self.fleet.send(v.id, commands.guided_change_altitude(v.id, alt, 0.0))
 
     def _vehicle_time_s(self, run: Run) -> float | None:
         leader = self.fleet.by_id.get(run.mission.leader.id)
@@ -397,6 +400,8 @@ class FormationService:
             await asyncio.sleep(0.2)
         for v in run.mission.vehicles:  # now every one is airborne: fly GUIDED
             await self.fleet.send(v.id, commands.set_mode(v.id, PlaneMode.GUIDED))
+            if self.fleet.by_id[v.id].telemetry.pitch_max_deg is None:  # asked again
+                await self.fleet.request_pitch_limits(v.id)
 
     @staticmethod
     def _on_ground(t: VehicleTelemetry) -> bool:
@@ -510,9 +515,13 @@ class FormationService:
             [(pos[2], v.telemetry.relative_alt_m) for v, pos in self._located(run)
              if v.telemetry.relative_alt_m is not None]
         )  # fmt: skip
-        scene = scene_now(
-            mission, states, active, obstacles, self.settings.planning_margin_m, ground
+        pitch_limits = fleet_pitch_limits(
+            [(v.telemetry.pitch_max_deg, v.telemetry.pitch_min_deg) for v, _ in self._located(run)]
         )
+        scene = scene_now(
+            mission, states, active, obstacles, self.settings.planning_margin_m, ground,
+            pitch_limits,
+        )  # fmt: skip
         g = guidance(
             scene,
             lookahead_s=self.settings.lookahead_s,
@@ -531,12 +540,22 @@ class FormationService:
             g = replace(g, guided_point_m=points, resolving=resolving)
         self._note_changes(run, g)
         run.last = g
+        turn_accel = mission.limits.v_max * mission.limits.max_yaw_rate  # the plan limits turns
         for i, vid in enumerate(g.ids):
             if vid not in active:
                 continue
             x, y, z = (float(c) for c in g.guided_point_m[i])
             lat, lon, alt = enu_to_geodetic(x, y, z, mission.origin)
-            await self.fleet.send(vid, commands.reposition(vid, lat, lon, alt))
+            if self.settings.guidance == "point":
+                await self.fleet.send(vid, commands.reposition(vid, lat, lon, alt))
+            else:
+                course_deg = 90.0 - math.degrees(float(g.course_rad[i]))  # ENU yaw → compass
+                rate = float(g.climb_rate_m_s[i])
+                if (g.resolving and g.resolving[i]) or not math.isfinite(rate):
+                    rate = 0.0  # ArduPlane: as fast as it can
+                heading = commands.guided_change_heading(vid, course_deg, turn_accel)
+                await self.fleet.send(vid, heading)
+                await self.fleet.send(vid, commands.guided_change_altitude(vid, alt, rate))
             speed = float(g.speed_m_s[i])
             if abs(run.commanded_speed.get(vid, -1.0) - speed) >= 0.5:
                 run.commanded_speed[vid] = speed

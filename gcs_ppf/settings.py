@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -23,6 +24,12 @@ class Settings(BaseSettings):
     lookahead_s: float = Field(default=3.0, gt=0.0, le=30.0)
     planning_margin_m: float = Field(
         default=100.0, ge=0.0, description="added to both safe distances when planning online"
+    )
+    guidance: Literal["course", "point"] = Field(
+        default="course",
+        description="fly each vehicle by course and altitude (MAV_CMD_GUIDED_CHANGE_HEADING/"
+        "_ALTITUDE, ArduPlane built with AP_PLANE_OFFBOARD_GUIDED_SLEW_ENABLED) or by a guided "
+        "point (DO_REPOSITION, any ArduPlane)",
     )
     carrot_m: float = Field(default=1500.0, gt=0.0, description="guided point beyond the plan")
     planner_dt_s: float = Field(default=0.02, gt=0.0, le=0.5)

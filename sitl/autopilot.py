@@ -58,6 +58,24 @@ class Kinematics:
     landed: bool
 
 
+@dataclass(frozen=True, slots=True)
+class GuidedCourse:
+    """MAV_CMD_GUIDED_CHANGE_HEADING: the course to hold (ENU yaw, rad) and the lateral
+    acceleration that limits the bank of the turn onto it (m/s²)."""
+
+    course_rad: float
+    lateral_accel_m_s2: float
+
+
+@dataclass(frozen=True, slots=True)
+class GuidedAltitude:
+    """MAV_CMD_GUIDED_CHANGE_ALTITUDE: the altitude to reach (ICS z, m) and the vertical
+    speed to change it at (m/s)."""
+
+    z_m: float
+    rate_m_s: float
+
+
 @dataclass
 class Outbox:
     """Messages produced by one event: ``reply`` to the sender, ``broadcast`` to every client."""
@@ -106,6 +124,9 @@ class Autopilot:
         self.mission_current_sent = -1
         self.guided_radius_m: float | None = None  # DO_REPOSITION param3, until a mode change
         self.guided_ccw: bool | None = None
+        # GUIDED's slew targets (MAV_CMD_GUIDED_CHANGE_*), until a mode change.
+        self.guided_course: GuidedCourse | None = None
+        self.guided_altitude: GuidedAltitude | None = None
         self.reboot_requested = False
 
     # ---- geometry ------------------------------------------------------------------------
@@ -150,6 +171,8 @@ class Autopilot:
         self.new_airspeed_m_s = None
         self.guided_radius_m = None
         self.guided_ccw = None
+        self.guided_course = None
+        self.guided_altitude = None
         self.guidance_dirty = True
         here = kin.pos_enu_m
         if mode == PlaneMode.MANUAL:
@@ -237,6 +260,14 @@ class Autopilot:
         guid.direction[i] = self.nav.direction
         guid.speed_cmd_m_s[i] = self.speed_cmd_m_s
         guid.thrust[i] = self.thrust
+        guid.climb_rate_m_s[i] = math.inf
+        if self.mode == PlaneMode.GUIDED and self.guided_course is not None:
+            guid.kind[i] = int(GuidanceKind.COURSE)
+            guid.course_rad[i] = self.guided_course.course_rad
+            guid.lateral_accel_m_s2[i] = self.guided_course.lateral_accel_m_s2
+        if self.mode == PlaneMode.GUIDED and self.guided_altitude is not None:
+            guid.target_enu_m[i, 2] = self.guided_altitude.z_m
+            guid.climb_rate_m_s[i] = self.guided_altitude.rate_m_s
         self.guidance_dirty = False
 
     def write_envelope(self, env: Envelope) -> None:

@@ -13,6 +13,7 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from gcs_ppf import geodesy
 from sitl import messages as mb
 from sitl import mission_protocol as mp
 from sitl import streams as st
@@ -21,6 +22,8 @@ from sitl.autopilot import (
     MAV_SEVERITY_WARNING,
     Autopilot,
     Clock,
+    GuidedAltitude,
+    GuidedCourse,
     Kinematics,
     Outbox,
 )
@@ -49,6 +52,18 @@ MAV_CMD_GET_MESSAGE_INTERVAL = 510
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
 MAV_CMD_REQUEST_MESSAGE = 512
 MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES = 520
+MAV_CMD_GUIDED_CHANGE_SPEED = 43000
+MAV_CMD_GUIDED_CHANGE_ALTITUDE = 43001
+MAV_CMD_GUIDED_CHANGE_HEADING = 43002
+GUIDED_SLEW_COMMANDS = (
+    MAV_CMD_GUIDED_CHANGE_SPEED,
+    MAV_CMD_GUIDED_CHANGE_ALTITUDE,
+    MAV_CMD_GUIDED_CHANGE_HEADING,
+)
+SPEED_TYPE_AIRSPEED = 0
+HEADING_TYPE_COURSE_OVER_GROUND = 0
+HEADING_TYPE_HEADING = 1
+HEADING_TYPE_DEFAULT = 4
 MAV_DO_REPOSITION_FLAGS_CHANGE_MODE = 1
 FORCE_DISARM_MAGIC = 21196
 MAVLINK_MSG_ID_SET_MODE = 11
@@ -316,7 +331,54 @@ def do_reposition(ap: Autopilot, msg: Any, kin: Kinematics, clock: Clock, out: O
     ccw = math.isfinite(msg.param4) and msg.param4 != 0
     if math.isfinite(msg.param3) and msg.param3 > 0:
         ap.guided_radius_m, ap.guided_ccw = float(msg.param3), ccw
+    ap.guided_course = None  # ArduPlane: target_heading_type = GUIDED_HEADING_NONE
+    ap.guidance_dirty = True
     ap.set_nav(ap.loiter(target, ap.guided_radius_m, ap.guided_ccw))
+    return MAV_RESULT_ACCEPTED
+
+
+def guided_slew(ap: Autopilot, msg: Any, kin: Kinematics) -> int:
+    """ArduPlane's ``handle_command_int_guided_slew_commands`` (COMMAND_INT only, GUIDED only).
+
+    CHANGE_HEADING: param1 the heading type (course over ground or heading, the same here:
+    no wind; HEADING_TYPE_DEFAULT cancels), param2 degrees in [0, 360), param3 the lateral
+    acceleration that limits the bank (at least 0.05 m/s²); held until a mode change, a
+    DO_REPOSITION or a cancel.  CHANGE_ALTITUDE: z in ``frame`` (0 and −1 are refused as
+    ArduPlane does), param3 the vertical speed (0: as fast as possible); held until a mode
+    change.  CHANGE_SPEED: param1 airspeed (the only type), param2 within AIRSPEED_MIN..MAX;
+    param3 (the acceleration of the change) is accepted, the airframe's SIM_ACCEL_MAX and
+    SIM_DECEL_MAX limit it here.
+    """
+    if ap.mode != PlaneMode.GUIDED:
+        return MAV_RESULT_FAILED
+    p1, p2, p3 = msg.param1, msg.param2, msg.param3
+    if msg.command == MAV_CMD_GUIDED_CHANGE_SPEED:
+        if not _finite(p1, p2) or int(p1) != SPEED_TYPE_AIRSPEED:
+            return MAV_RESULT_DENIED
+        if not ap.params["AIRSPEED_MIN"] <= p2 <= ap.params["AIRSPEED_MAX"]:
+            return MAV_RESULT_FAILED
+        ap.new_airspeed_m_s = float(p2)
+    elif msg.command == MAV_CMD_GUIDED_CHANGE_ALTITUDE:
+        if not _finite(msg.z) or msg.z in (0.0, -1.0):
+            return MAV_RESULT_DENIED
+        lat, lon, _ = geodesy.enu_to_geodetic(*kin.pos_enu_m, ap.origin)  # the altitude here
+        target = ap.location_to_enu(msg.frame, round(lat * 1e7), round(lon * 1e7), float(msg.z))
+        if target is None:
+            return MAV_RESULT_DENIED
+        rate = abs(p3) if _finite(p3) and p3 != 0.0 else 1000.0
+        ap.guided_altitude = GuidedAltitude(target[2], rate)
+    else:
+        if not _finite(p1, p2) or not 0.0 <= p2 < 360.0:
+            return MAV_RESULT_DENIED
+        kind = int(p1)
+        if kind == HEADING_TYPE_DEFAULT:
+            ap.guided_course = None
+        elif kind in (HEADING_TYPE_COURSE_OVER_GROUND, HEADING_TYPE_HEADING):
+            accel = max(float(p3), 0.05) if _finite(p3) else 0.05
+            ap.guided_course = GuidedCourse(math.radians(90.0 - p2), accel)
+        else:
+            return MAV_RESULT_DENIED
+    ap.guidance_dirty = True
     return MAV_RESULT_ACCEPTED
 
 
@@ -343,6 +405,8 @@ def command(
     if cmd == MAV_CMD_DO_REPOSITION:
         # Sent as COMMAND_LONG, older ArduPlane does not know it; we insist on COMMAND_INT.
         return do_reposition(ap, msg, kin, clock, out) if is_int else MAV_RESULT_UNSUPPORTED
+    if cmd in GUIDED_SLEW_COMMANDS:
+        return guided_slew(ap, msg, kin) if is_int else MAV_RESULT_UNSUPPORTED
     if cmd == MAV_CMD_DO_CHANGE_SPEED:
         if ap.mode not in (PlaneMode.GUIDED, PlaneMode.AUTO) or not _finite(p1, p2):
             return MAV_RESULT_FAILED

@@ -60,6 +60,9 @@ class GuidanceKind(IntEnum):
     flies to the circle), holding the target's altitude."""
     TURN = 3
     """Constant-rate turn (ArduPlane CIRCLE mode), holding the target's altitude."""
+    COURSE = 4
+    """Hold the course ``course_rad`` (ArduPlane GUIDED after MAV_CMD_GUIDED_CHANGE_HEADING),
+    turning no harder than ``lateral_accel_m_s2`` allows, holding the target's altitude."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -121,6 +124,9 @@ class Guidance:
 
     ``direction`` is +1 for clockwise loiters (ArduPlane's positive radius), −1 for
     counter-clockwise. ``thrust`` is False for a disarmed or dead vehicle: it glides at v_min.
+    ``course_rad`` and ``lateral_accel_m_s2`` are read in COURSE only; ``climb_rate_m_s``
+    caps the vertical speed at which the altitude of ``target_enu_m`` is approached (∞: as
+    fast as the flight-path gain and the pitch limits allow).
     """
 
     kind: IntArray
@@ -129,6 +135,9 @@ class Guidance:
     direction: FloatArray
     speed_cmd_m_s: FloatArray
     thrust: BoolArray
+    course_rad: FloatArray
+    lateral_accel_m_s2: FloatArray
+    climb_rate_m_s: FloatArray
 
 
 def initial_state(
@@ -159,6 +168,9 @@ def hold_guidance(state: FleetState) -> Guidance:
         direction=np.ones(n),
         speed_cmd_m_s=state.speed_m_s.copy(),
         thrust=np.ones(n, dtype=np.bool_),
+        course_rad=state.yaw_rad.copy(),
+        lateral_accel_m_s2=np.full(n, np.inf),
+        climb_rate_m_s=np.full(n, np.inf),
     )
 
 
@@ -187,7 +199,11 @@ def commanded_course_rad(state: FleetState, env: Envelope, guid: Guidance) -> Fl
     lam = -np.sign(guid.direction)  # ENU counter-clockwise is +1; ArduPlane +1 is clockwise
     lam = np.where(lam == 0.0, -1.0, lam)
     orbit = gamma + lam * (math.pi / 2 + np.arctan(K_ORBIT * (dist - r_eff) / r_eff))
-    course: FloatArray = np.where(guid.kind == GuidanceKind.ORBIT, orbit, goto)
+    course: FloatArray = np.where(
+        guid.kind == GuidanceKind.ORBIT,
+        orbit,
+        np.where(guid.kind == GuidanceKind.COURSE, guid.course_rad, goto),
+    )
     return course
 
 
@@ -207,10 +223,19 @@ def step(state: FleetState, env: Envelope, guid: Guidance, dt: float) -> FleetSt
         0.0,
         np.where(kind == GuidanceKind.TURN, turn_rate, pursuit_rate),
     )
-    yaw_rate = np.clip(yaw_rate_cmd, -w_yaw, w_yaw)
+    # A course command turns no harder than its lateral acceleration (bank) limit allows.
+    w_turn = np.where(
+        kind == GuidanceKind.COURSE,
+        np.minimum(w_yaw, guid.lateral_accel_m_s2 / np.maximum(v, 1.0)),
+        w_yaw,
+    )
+    yaw_rate = np.clip(yaw_rate_cmd, -w_turn, w_turn)
 
     # Longitudinal: pitch rate from the altitude error (not in HOLD), glide without thrust.
-    dz = guid.target_enu_m[:, 2] - state.pos_enu_m[:, 2]
+    # A climb-rate limit caps the error the gain sees, so the vertical speed K_ALT × error
+    # never exceeds it (ArduPlane's altitude slew: TECS demands at most that height rate).
+    reach = guid.climb_rate_m_s / K_ALT
+    dz = np.clip(guid.target_enu_m[:, 2] - state.pos_enu_m[:, 2], -reach, reach)
     gamma_cmd = np.arctan2(K_ALT * dz, np.maximum(v, 1.0))
     gamma_cmd = np.where(guid.thrust, gamma_cmd, np.minimum(gamma_cmd, GLIDE_PITCH_RAD))
     gamma_cmd = np.clip(gamma_cmd, env.pitch_min_rad, env.pitch_max_rad)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_ppf.mavlink.ardupilot import (
@@ -27,7 +28,10 @@ MAV_CMD_DO_CHANGE_SPEED = 178
 MAV_CMD_DO_REPOSITION = 192
 MAV_CMD_COMPONENT_ARM_DISARM = 400
 MAV_CMD_SET_MESSAGE_INTERVAL = 511
+MAV_CMD_GUIDED_CHANGE_ALTITUDE = 43001
+MAV_CMD_GUIDED_CHANGE_HEADING = 43002
 MAV_FRAME_GLOBAL = 0
+HEADING_TYPE_COURSE_OVER_GROUND = 0
 MAV_DO_REPOSITION_FLAGS_CHANGE_MODE = 1
 SPEED_TYPE_AIRSPEED = 0
 MAV_DATA_STREAM_ALL = 0
@@ -200,6 +204,61 @@ def change_speed(
     )
 
 
+def guided_change_heading(
+    target_system: int,
+    course_deg: float,
+    lateral_accel_m_s2: float,
+    *,
+    target_component: int = AUTOPILOT_COMPONENT_ID,
+) -> MAVLinkMessage:
+    """COMMAND_INT ``MAV_CMD_GUIDED_CHANGE_HEADING`` (ArduPilot dialect, 43002): hold a course.
+
+    ArduPlane (``handle_command_int_guided_slew_commands``, GUIDED only, else FAILED) flies the
+    course over ground param2 (degrees from north, clockwise, in [0, 360)) with param1
+    ``HEADING_TYPE_COURSE_OVER_GROUND``, banking no more than param3, a lateral acceleration in
+    m/s², allows; it holds the course until a mode change or a DO_REPOSITION.
+    """
+    course = _finite("course_deg", course_deg) % 360.0
+    if float(np.float32(course)) >= 360.0:  # the wire's float32 rounds 359.99999… up
+        course = 0.0
+    accel = _finite("lateral_accel_m_s2", lateral_accel_m_s2)
+    if accel <= 0.0:
+        raise ValueError(f"lateral_accel_m_s2 must be > 0, got {accel}")
+    _target(target_system, target_component)
+    return mavlink2.MAVLink_command_int_message(
+        target_system, target_component, MAV_FRAME_GLOBAL, MAV_CMD_GUIDED_CHANGE_HEADING, 0, 0,
+        float(HEADING_TYPE_COURSE_OVER_GROUND), course, accel, 0.0,
+        0, 0, 0.0,
+    )  # fmt: skip
+
+
+def guided_change_altitude(
+    target_system: int,
+    alt_amsl_m: float,
+    rate_m_s: float,
+    *,
+    target_component: int = AUTOPILOT_COMPONENT_ID,
+) -> MAVLinkMessage:
+    """COMMAND_INT ``MAV_CMD_GUIDED_CHANGE_ALTITUDE`` (ArduPilot dialect, 43001): change altitude
+    at a vertical speed.
+
+    ArduPlane (GUIDED only, else FAILED) moves its altitude target towards z (metres above
+    mean sea level in ``MAV_FRAME_GLOBAL``) at param3 m/s (0: as fast as it can) and holds it
+    until a mode change; it refuses z = 0 and z = −1 (DENIED), so they are refused here.
+    """
+    alt = _finite("alt_amsl_m", alt_amsl_m)
+    rate = _finite("rate_m_s", rate_m_s)
+    if alt in (0.0, -1.0):
+        raise ValueError(f"alt_amsl_m {alt} is refused by ArduPlane (0 and -1 mean 'unset')")
+    if rate < 0.0:
+        raise ValueError(f"rate_m_s must be >= 0, got {rate}")
+    _target(target_system, target_component)
+    return mavlink2.MAVLink_command_int_message(
+        target_system, target_component, MAV_FRAME_GLOBAL, MAV_CMD_GUIDED_CHANGE_ALTITUDE, 0, 0,
+        0.0, 0.0, rate, 0.0, 0, 0, alt,
+    )  # fmt: skip
+
+
 def set_message_interval(
     target_system: int,
     message_id: int,
@@ -249,6 +308,13 @@ def request_data_streams(
     )
 
 
+def _param_id(name: str) -> bytes:
+    raw = name.encode("ascii")
+    if not 1 <= len(raw) <= 16:
+        raise ValueError(f"parameter name must be 1..16 ASCII characters, got {name!r}")
+    return raw
+
+
 def set_param(
     target_system: int,
     name: str,
@@ -259,15 +325,24 @@ def set_param(
     """PARAM_SET of a float parameter; ArduPilot answers with PARAM_VALUE (not COMMAND_ACK),
     and ignores parameters it does not have."""
     _target(target_system, target_component)
-    raw = name.encode("ascii")
-    if not 1 <= len(raw) <= 16:
-        raise ValueError(f"parameter name must be 1..16 ASCII characters, got {name!r}")
+    raw = _param_id(name)
     return mavlink2.MAVLink_param_set_message(
         target_system,
         target_component,
         raw,
         _finite("value", value),
         MAV_PARAM_TYPE_REAL32,
+    )
+
+
+def param_request_read(
+    target_system: int, name: str, *, target_component: int = AUTOPILOT_COMPONENT_ID
+) -> MAVLinkMessage:
+    """PARAM_REQUEST_READ by name (param_index −1); ArduPilot answers with PARAM_VALUE, or
+    not at all for a name it does not have."""
+    _target(target_system, target_component)
+    return mavlink2.MAVLink_param_request_read_message(
+        target_system, target_component, _param_id(name), -1
     )
 
 

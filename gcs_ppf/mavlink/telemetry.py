@@ -9,6 +9,7 @@ the service); nothing here reads a clock.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -79,6 +80,9 @@ class VehicleTelemetry:
     """SYSTEM_TIME.time_unix_usec; None while the vehicle has no GPS time (it sends 0)."""
     command_acks: tuple[CommandAck, ...] = ()
     """The last COMMAND_ACK per command, ordered by command number."""
+    pitch_max_deg: float | None = None
+    """The airframe's pitch limits (PARAM_VALUE of ``PITCH_LIMIT_PARAMS``), degrees."""
+    pitch_min_deg: float | None = None
 
     @property
     def mode_name(self) -> str | None:
@@ -98,8 +102,8 @@ def apply(tel: VehicleTelemetry | None, msg: MAVLinkMessage, now_s: float) -> Ve
 
     ``tel`` None starts a record for the message's sender.  Messages from another system or
     component than ``tel``'s, and message types not decoded here, return ``tel`` unchanged.
-    Decoded: HEARTBEAT, GLOBAL_POSITION_INT, ATTITUDE, VFR_HUD, SYSTEM_TIME, COMMAND_ACK; the
-    ``time_boot_ms`` of any message carrying one.
+    Decoded: HEARTBEAT, GLOBAL_POSITION_INT, ATTITUDE, VFR_HUD, SYSTEM_TIME, COMMAND_ACK,
+    PARAM_VALUE of the pitch limits; the ``time_boot_ms`` of any message carrying one.
     """
     src = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
     if tel is None:
@@ -172,6 +176,27 @@ def _command_ack(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> di
     return {"command_acks": tuple(sorted([*others, ack], key=lambda a: a.command))}
 
 
+PITCH_LIMIT_PARAMS: dict[str, tuple[str, float]] = {
+    "PTCH_LIM_MAX_DEG": ("pitch_max_deg", 1.0),  # ArduPlane 4.5 on, degrees
+    "PTCH_LIM_MIN_DEG": ("pitch_min_deg", 1.0),
+    "LIM_PITCH_MAX": ("pitch_max_deg", 0.01),  # before, centidegrees
+    "LIM_PITCH_MIN": ("pitch_min_deg", 0.01),
+}
+"""ArduPlane's pitch-limit parameters: the field of ``VehicleTelemetry`` and the scale."""
+
+
+def _param_value(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:
+    name = msg.param_id
+    if isinstance(name, bytes):
+        name = name.decode("ascii", "replace")
+    known = PITCH_LIMIT_PARAMS.get(str(name).rstrip("\x00"))
+    value = float(msg.param_value)
+    if known is None or not math.isfinite(value):
+        return {}
+    field_name, scale = known
+    return {field_name: value * scale}
+
+
 _DECODERS = {
     "HEARTBEAT": _heartbeat,
     "GLOBAL_POSITION_INT": _global_position_int,
@@ -179,4 +204,5 @@ _DECODERS = {
     "VFR_HUD": _vfr_hud,
     "SYSTEM_TIME": _system_time,
     "COMMAND_ACK": _command_ack,
+    "PARAM_VALUE": _param_value,
 }

@@ -59,6 +59,11 @@ class KernelLimits(NamedTuple):
     ground: float
     """ICS z of the ground (flat), kept ``safe_distance_obstacle`` below every vehicle;
     −∞ for the paper's free space."""
+    max_climb_angle: float = math.pi / 2
+    """Steepest flight-path angle up the airframe flies (rad; ArduPlane PTCH_LIM_MAX_DEG);
+    π/2 for the paper's vehicles, whose pitch is limited by Eq. 1 only."""
+    max_dive_angle: float = math.pi / 2
+    """Steepest flight-path angle down, as a positive angle (ArduPlane −PTCH_LIM_MIN_DEG)."""
 
 
 @njit(cache=True)
@@ -171,10 +176,14 @@ def limit_climb(
     cy: float,
     sy: float,
     lowest: float,
+    lim: KernelLimits,
 ) -> tuple[float, float, float]:
-    """The wanted ICS direction d, no steeper than ``MAX_AVOID_PITCH`` and descending no
-    more steeply than ``lowest`` (the sine of the lowest flight-path angle allowed, see
-    ``lowest_climb``; −1 for no ground).
+    """The wanted ICS direction d, no steeper than ``MAX_AVOID_PITCH`` nor than the
+    airframe's flight-path limits (``lim.max_climb_angle``, ``lim.max_dive_angle``), and
+    descending no more steeply than ``lowest`` (the sine of the lowest flight-path angle
+    allowed, see ``lowest_climb``; −1 for no ground).  A plan steeper than the airframe
+    flies is a plan it cannot follow: flown closed loop, a wingman planned to climb over an
+    obstacle at up to 60° and climbing at ArduPlane's 20° came within 6 m of it.
 
     Pitch stops at ±π/2 (Eq. 1) and near it yaw no longer turns the flight direction, so
     a vehicle asked to steepen past the vertical would hang there, unable to turn.  When d
@@ -187,8 +196,10 @@ def limit_climb(
     if norm == 0.0:
         return dx, dy, dz
     dx, dy, dz = dx / norm, dy / norm, dz / norm
-    top = math.sin(MAX_AVOID_PITCH)
-    low = min(max(lowest, -top), top)
+    steepest = min(MAX_AVOID_PITCH, lim.max_climb_angle)
+    deepest = min(MAX_AVOID_PITCH, lim.max_dive_angle)
+    top = math.sin(steepest)
+    low = min(max(lowest, -math.sin(deepest)), top)
     if low <= dz <= top:
         return dx, dy, dz
     z_new = min(max(dz, low), top)
@@ -207,7 +218,12 @@ def limit_climb(
             return (a_new * e1x + b_new * e2x, a_new * e1y + b_new * e2y, b_new * e2z)
     h = math.sqrt(dx * dx + dy * dy)
     hx, hy = (dx / h, dy / h) if h > 0.0 else (cy, sy)
-    c = math.cos(MAX_AVOID_PITCH) if abs(z_new) == top else math.sqrt(1.0 - z_new * z_new)
+    if z_new == top:
+        c = math.cos(steepest)
+    elif z_new == -math.sin(deepest):
+        c = math.cos(deepest)
+    else:
+        c = math.sqrt(1.0 - z_new * z_new)
     return c * hx, c * hy, z_new
 
 
@@ -266,6 +282,27 @@ def away_from_obstacles(
     after = ct * (math.cos(yaw + turn) * ox + math.sin(yaw + turn) * oy) + st * oz
     other = ct * (math.cos(yaw - turn) * ox + math.sin(yaw - turn) * oy) + st * oz
     return -f_yaw if after < now and other > after else f_yaw
+
+
+@njit(cache=True)
+def obstacles_first(
+    rx: float, ry: float, rz: float, ox: float, oy: float, oz: float
+) -> tuple[float, float, float]:
+    """The total repulsion (rx, ry, rz) with the teammates' part (total minus the
+    obstacles' (ox, oy, oz)) stripped of any component against the obstacles' repulsion.
+
+    Flown closed loop, a wingman sliding round an obstacle at ArduPlane's 20° climb limit
+    was pushed into it by a teammate's repulsion (−12.6 m from its surface, replayed from
+    telemetry); without that push the same state clears it by 99 m.
+    """
+    o2 = ox * ox + oy * oy + oz * oz
+    if o2 == 0.0:
+        return rx, ry, rz
+    tx, ty, tz = rx - ox, ry - oy, rz - oz
+    into = (tx * ox + ty * oy + tz * oz) / o2
+    if into >= 0.0:
+        return rx, ry, rz
+    return rx - into * ox, ry - into * oy, rz - into * oz
 
 
 @njit(cache=True)
@@ -385,6 +422,7 @@ def fleet_step(
     n = pos.shape[0]
     m = obs_center.shape[0]
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    airframe_limited = min(lim.max_climb_angle, lim.max_dive_angle) < MAX_AVOID_PITCH
 
     # Unit velocity directions at the start of the step (Eq. 5 divided by v), the cosines
     # and sines of pitch and yaw, and the obstacles' speeds.
@@ -529,6 +567,9 @@ def fleet_step(
                 rz += EPSILON_1 * mz
                 moving_threat = True
 
+        # A teammate never pushes a vehicle into a static obstacle: the part of the
+        # teammates' repulsion against the obstacles' is dropped (obstacles come first).
+        rx, ry, rz = obstacles_first(rx, ry, rz, ox, oy, oz)
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0
         avoiding[i] = repelled
 
@@ -582,19 +623,19 @@ def fleet_step(
                 k_proj = fvx / (f_norm * f_norm)
                 fvx, fvy, fvz = 1.0 - k_proj * fvx, -k_proj * fvy, -k_proj * fvz
 
-        # No steeper than MAX_AVOID_PITCH, no descent it could not level out of above the
-        # ground (see ``limit_climb``, ``lowest_climb``), then back into the VCS.
+        # No steeper than MAX_AVOID_PITCH or the airframe, no descent it could not level
+        # out of above the ground (see ``limit_climb``, ``lowest_climb``), then back into the VCS.
         height = pz - lim.ground - lim.safe_distance_obstacle - INFLUENCE_STEPS * vi * dt
         lowest = lowest_climb(height, vi, lim)
         dx, dy, dz = from_vcs(fvx, fvy, fvz, cp, sp, cy, sy)
-        dx, dy, dz = limit_climb(dx, dy, dz, rx, ry, rz, tangent, cy, sy, lowest)
+        dx, dy, dz = limit_climb(dx, dy, dz, rx, ry, rz, tangent, cy, sy, lowest, lim)
         fvx, fvy, fvz = to_vcs(dx, dy, dz, cp, sp, cy, sy)
 
         # Trend matrix f (Eq. 19, erratum 2): pitch follows F_v^z, yaw follows F_v^y.
         elevation = math.atan2(fvz, math.sqrt(fvx * fvx + fvy * fvy))
         wanted = math.sqrt(fvx * fvx + fvy * fvy + fvz * fvz)
         azimuth = math.atan2(fvy, fvx) if abs(fvy) > SIDEWAYS_EPS * wanted else 0.0
-        if fvx < 0.0 or abs(pitch[i]) > MAX_FOLLOW_PITCH or lowest > -1.0:
+        if fvx < 0.0 or abs(pitch[i]) > MAX_FOLLOW_PITCH or lowest > -1.0 or airframe_limited:
             # Wanted direction behind, or a steep vehicle: the sign of F_v^z would pitch
             # the nose on through the vertical (a loop; and a steep vehicle that yaws keeps
             # steepening, its z_v tilted away from the wanted direction's vertical plane),
@@ -602,7 +643,8 @@ def fleet_step(
             # Go for the wanted elevation in the ICS instead and turn round by yaw (to the
             # left when straight behind).  Near the ground too: while the vehicle yaws,
             # F_v^z is not the flight-path angle still to climb, and the ground's limit
-            # (``lowest_climb``) is on the flight-path angle.
+            # (``lowest_climb``) is on the flight-path angle.  So are an airframe's limits
+            # (a leader climbing at 20° while it turned kept pitching up to 45° on F_v^z).
             elevation = math.atan2(dz, math.sqrt(dx * dx + dy * dy)) - pitch[i]
             if fvx < 0.0 and azimuth == 0.0:
                 azimuth = math.pi

@@ -18,6 +18,7 @@ from gcs_ppf.ppf.kernel import (
     EPSILON_1,
     INFLUENCE_STEPS,
     LOCAL_MINIMUM_ANGLE,
+    MAX_AVOID_PITCH,
     MAX_FOLLOW_PITCH,
     S1_FOLLOW,
     S2_LOCAL_MINIMUM,
@@ -102,6 +103,12 @@ def reference_step(
     push = np.where((miss > 1e-6 * np.sqrt(d2))[..., None], _unit(miss_vec), _unit(d_m))
     obstacles_rep = rep
     rep = rep + EPSILON_1 * (push * threat[..., None]).sum(1)
+    # Obstacles first: drop the teammates' push against the obstacles' (the kernel's
+    # obstacles_first).
+    o2 = (obstacles_rep**2).sum(1)
+    into = np.divide(((rep - obstacles_rep) * obstacles_rep).sum(1), o2, out=np.zeros(n),
+                     where=o2 > 0)  # fmt: skip
+    rep = rep - np.minimum(into, 0.0)[:, None] * obstacles_rep
     moving |= threat.any(1)
     repelled = (rep != 0).any(1)
 
@@ -163,7 +170,7 @@ def reference_step(
         np.minimum(-r, math.sin(MAX_FOLLOW_PITCH)),
     )
 
-    # No steeper than MAX_AVOID_PITCH (the kernel's limit_climb, vehicle by vehicle).
+    # No steeper than MAX_AVOID_PITCH or the airframe (the kernel's limit_climb, by vehicle).
     px_ = cp * fvx - sp * fvz  # VCS → ICS
     d = np.stack([cy * px_ - sy * fvy, sy * px_ + cy * fvy, sp * fvx + cp * fvz], axis=1)
     for i in range(n):
@@ -178,6 +185,7 @@ def reference_step(
             cy[i],
             sy[i],
             float(lowest[i]),
+            lim,
         )
     bx = cy * d[:, 0] + sy * d[:, 1]  # ICS → VCS
     fvx, fvy, fvz = cp * bx + sp * d[:, 2], -sy * d[:, 0] + cy * d[:, 1], -sp * bx + cp * d[:, 2]
@@ -186,6 +194,7 @@ def reference_step(
     elevation = np.arctan2(fvz, np.hypot(fvx, fvy))
     behind = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1])) - pitch
     ics = (fvx < 0) | (np.abs(pitch) > MAX_FOLLOW_PITCH) | (lowest > -1.0)
+    ics |= min(lim.max_climb_angle, lim.max_dive_angle) < MAX_AVOID_PITCH  # airframe limits
     elevation = np.where(ics, behind, elevation)
     wanted = np.sqrt(fvx**2 + fvy**2 + fvz**2)
     azimuth = np.where(np.abs(fvy) > SIDEWAYS_EPS * wanted, np.arctan2(fvy, fvx), 0.0)

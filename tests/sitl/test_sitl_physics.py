@@ -116,6 +116,42 @@ def test_climb_to_target_altitude_within_pitch_limits() -> None:
     assert s.pos_enu_m[0, 2] == pytest.approx(500.0, abs=2.0)
 
 
+def test_course_is_held_and_turned_onto_within_the_lateral_acceleration() -> None:
+    s = fleet()  # east at 100 m/s
+    env = envelope(1)
+    g = hold_guidance(s)
+    g.kind[:] = GuidanceKind.COURSE
+    g.course_rad[:] = math.pi / 2  # north
+    g.lateral_accel_m_s2[:] = 5.0  # 0.05 rad/s at 100 m/s, below ω_max = 0.52
+    for _ in range(int(2.0 / DT_S)):
+        n = step(s, env, g, DT_S)
+        assert abs(float(n.yaw_rad[0] - s.yaw_rad[0])) <= 0.05 * DT_S + 1e-12
+        s = n
+    g.lateral_accel_m_s2[:] = np.inf
+    for _ in range(int(20 / DT_S)):
+        s = step(s, env, g, DT_S)
+    assert s.yaw_rad[0] == pytest.approx(math.pi / 2, abs=1e-3)  # on the course, not circling
+    x = s.pos_enu_m[0, 0]
+    for _ in range(int(10 / DT_S)):
+        s = step(s, env, g, DT_S)
+    assert s.pos_enu_m[0, 0] == pytest.approx(x, abs=0.5)
+    assert s.pos_enu_m[0, 1] > 900.0
+
+
+def test_climb_rate_caps_the_vertical_speed_towards_the_target_altitude() -> None:
+    s = fleet()
+    env = envelope(1)
+    g = hold_guidance(s)
+    g.kind[:] = GuidanceKind.GOTO
+    g.target_enu_m[:] = (1e6, 0.0, 800.0)
+    g.climb_rate_m_s[:] = 5.0
+    z0 = s.pos_enu_m[0, 2]
+    for _ in range(int(20 / DT_S)):
+        s = step(s, env, g, DT_S)
+        assert s.speed_m_s[0] * math.sin(s.pitch_rad[0]) <= 5.0 + 1e-6
+    assert 20 * 5.0 * 0.8 <= s.pos_enu_m[0, 2] - z0 <= 20 * 5.0
+
+
 def test_glide_without_thrust_lands() -> None:
     s = fleet(z=50.0)
     env = envelope(1)
@@ -144,23 +180,31 @@ def test_step_is_pure_and_deterministic() -> None:
 @given(
     x=hs.floats(-5000, 5000), y=hs.floats(-5000, 5000), z=hs.floats(50, 1000),
     yaw=hs.floats(-math.pi, math.pi), v=hs.floats(100, 300), cmd=hs.floats(0, 500),
-    kind=hs.sampled_from(list(GuidanceKind)),
+    kind=hs.sampled_from(list(GuidanceKind)), course=hs.floats(-10, 10),
+    lateral=hs.floats(0.05, 1e3), climb=hs.floats(0.1, 1e3),
 )  # fmt: skip
 def test_limits_hold_for_any_command(
-    x: float, y: float, z: float, yaw: float, v: float, cmd: float, kind: GuidanceKind
-) -> None:
+    x: float, y: float, z: float, yaw: float, v: float, cmd: float, kind: GuidanceKind,
+    course: float, lateral: float, climb: float,
+) -> None:  # fmt: skip
     s = fleet(speed=v, yaw=yaw)
     env = envelope(1)
     g = hold_guidance(s)
     g.kind[:] = kind
     g.target_enu_m[:] = (x, y, z)
     g.speed_cmd_m_s[:] = cmd
+    g.course_rad[:] = course
+    g.lateral_accel_m_s2[:] = lateral
+    g.climb_rate_m_s[:] = climb
     for _ in range(20):
         n = step(s, env, g, DT_S)
         assert (
             abs(math.remainder(float(n.yaw_rad[0] - s.yaw_rad[0]), math.tau))
             <= math.pi / 6 * DT_S + 1e-9
         )
+        if kind == GuidanceKind.COURSE:  # and no harder than the lateral acceleration allows
+            turned = abs(math.remainder(float(n.yaw_rad[0] - s.yaw_rad[0]), math.tau))
+            assert turned <= lateral / float(s.speed_m_s[0]) * DT_S + 1e-9
         assert abs(float(n.pitch_rad[0] - s.pitch_rad[0])) <= math.pi / 6 * DT_S + 1e-9
         assert -40.0 * DT_S - 1e-9 <= float(n.speed_m_s[0] - s.speed_m_s[0]) <= 10.0 * DT_S + 1e-9
         assert 100.0 <= n.speed_m_s[0] <= 300.0

@@ -136,6 +136,74 @@ def test_change_speed_rules() -> None:
     assert sim.state.speed_m_s[0] == pytest.approx(150, abs=1.0)
 
 
+def slew(sim: Simulation, command: int, *p: float, z: float = 0.0, frame: int = 0) -> int:
+    """A MAV_CMD_GUIDED_CHANGE_* command as COMMAND_INT (param1..3, z) to vehicle 0."""
+    params = [*p, *([0.0] * (4 - len(p)))]
+    msg = mavlink.MAVLink_command_int_message(1, 1, frame, command, 0, 0, *params, 0, 0, z)
+    return ack(deliver(sim, 0, msg), command)
+
+
+HEADING, ALTITUDE, SPEED = 43002, 43001, 43000
+
+
+def test_guided_change_heading_holds_a_course_until_cancelled() -> None:
+    sim = sim_of()  # vehicle 0 flies east at 100 m/s
+    ap = sim.autopilots[0]
+    assert slew(sim, HEADING, 0, 0.0, 50.0) == FAILED  # MANUAL
+    cmd_long(sim, 176, 1, 15)
+    assert cmd_long(sim, HEADING, 0, 0.0, 50.0) == UNSUPPORTED  # COMMAND_INT only
+    assert slew(sim, HEADING, 0, 360.0, 50.0) == DENIED
+    assert slew(sim, HEADING, 2, 0.0, 50.0) == DENIED  # no such heading type
+    assert slew(sim, HEADING, 0, 0.0, 5.0) == ACCEPTED  # north, 5 m/s² of lateral acceleration
+    yaw0 = float(sim.state.yaw_rad[0])
+    run(sim, 2.0)
+    assert abs(float(sim.state.yaw_rad[0]) - yaw0) <= 0.05 * 2.0 + 1e-6  # a/v = 0.05 rad/s
+    assert slew(sim, HEADING, 0, 0.0, 100.0) == ACCEPTED
+    run(sim, 30.0)
+    assert float(sim.state.yaw_rad[0]) == pytest.approx(math.pi / 2, abs=0.01)  # held
+    assert slew(sim, HEADING, 4, 0.0, 0.0) == ACCEPTED  # HEADING_TYPE_DEFAULT: cancel
+    assert ap.guided_course is None
+    assert slew(sim, HEADING, 1, 270.0, 100.0) == ACCEPTED  # west
+    run(sim, 10.0)
+    assert abs(math.remainder(float(sim.state.yaw_rad[0]) - math.pi, math.tau)) < 0.01
+    assert reposition(sim, 5000, 2000, 300) == ACCEPTED  # a guided point replaces the course
+    assert ap.guided_course is None
+    assert slew(sim, HEADING, 0, 90.0, 100.0) == ACCEPTED
+    assert cmd_long(sim, 176, 1, 12) == ACCEPTED  # LOITER
+    assert ap.guided_course is None
+
+
+def test_guided_change_altitude_climbs_at_the_rate_and_holds_it() -> None:
+    sim = sim_of()  # vehicle 0 at 300 m ICS; origin altitude 488 m AMSL
+    ap = sim.autopilots[0]
+    assert slew(sim, ALTITUDE, 0, 0, 5.0, z=800.0) == FAILED  # MANUAL
+    cmd_long(sim, 176, 1, 15)
+    assert slew(sim, ALTITUDE, 0, 0, 5.0, z=0.0) == DENIED  # 0 and −1 are refused
+    assert slew(sim, ALTITUDE, 0, 0, 5.0, z=-1.0) == DENIED
+    assert slew(sim, ALTITUDE, 0, 0, 5.0, z=800.0, frame=1) == DENIED  # MAV_FRAME_LOCAL_NED
+    assert slew(sim, ALTITUDE, 0, 0, 5.0, z=488.0 + 500.0) == ACCEPTED  # 500 m ICS, AMSL
+    run(sim, 10.0)
+    assert 300.0 + 10 * 5.0 * 0.7 <= sim.state.pos_enu_m[0, 2] <= 300.0 + 10 * 5.0 + 1e-6
+    assert reposition(sim, 5000, 2000, 300) == ACCEPTED  # the altitude target stays
+    run(sim, 80.0)
+    assert sim.state.pos_enu_m[0, 2] == pytest.approx(500.0, abs=3.0)
+    assert slew(sim, ALTITUDE, 0, 0, 0.0, z=400.0, frame=3) == ACCEPTED  # above home
+    assert ap.guided_altitude is not None  # (ICS z is below the altitude by the curvature)
+    assert ap.guided_altitude.z_m == pytest.approx(400.0 + ap.home_enu_m[2], abs=2.0)
+    assert ap.guided_altitude.rate_m_s == 1000.0  # 0: as fast as it can
+
+
+def test_guided_change_speed_rules() -> None:
+    sim = sim_of()
+    assert slew(sim, SPEED, 0, 150.0) == FAILED  # MANUAL
+    cmd_long(sim, 176, 1, 15)
+    assert slew(sim, SPEED, 1, 150.0) == DENIED  # ground speed: not supported
+    assert slew(sim, SPEED, 0, 999.0) == FAILED  # above AIRSPEED_MAX
+    assert slew(sim, SPEED, 0, 150.0, 2.0) == ACCEPTED
+    run(sim, 8.0)
+    assert sim.state.speed_m_s[0] == pytest.approx(150, abs=1.0)
+
+
 def test_modes_arming_and_unknown_commands() -> None:
     sim = sim_of()
     assert cmd_long(sim, 176, 1, 99) == FAILED

@@ -11,6 +11,7 @@ from gcs_ppf.mission import Mission
 from gcs_ppf.online import (
     VehicleState,
     clearance,
+    fleet_pitch_limits,
     guidance,
     home_ground,
     scene_now,
@@ -53,6 +54,10 @@ def test_guided_points_lie_ahead_on_the_plan(table3: Mission) -> None:
     assert np.allclose(g.guided_point_m[:, 2], plan.pos[-1, :, 2])  # planned altitude
     bearing = g.guided_point_m[:, :2] - plan.pos[-1, :, :2]
     assert np.allclose(np.arctan2(bearing[:, 1], bearing[:, 0]), plan.yaw[-1])
+    lead = 0.5 / 0.02 - 1  # course and climb rate as planned 0.5 s on
+    assert np.allclose(g.course_rad, plan.yaw[round(lead)])
+    climb = np.abs(plan.speed[round(lead)] * np.sin(plan.pitch[round(lead)]))
+    assert np.allclose(g.climb_rate_m_s, climb + 1.0)
     assert g.state[0] == "s3"  # the leader waits for its wingmen
     assert np.all(g.speed_m_s >= 100.0 - 1e-9)
     assert g.local_target_distance_m[0] is None
@@ -64,6 +69,28 @@ def test_a_lost_wingman_is_left_out(table3: Mission) -> None:
     assert scene.fleet.active.tolist() == [True, True, True, True, False]
     g = guidance(scene, lookahead_s=1.0, dt=0.02)
     assert np.allclose(g.guided_point_m[4], scene.fleet.pos[4])
+
+
+def test_the_fleets_pitch_limits_are_the_tightest_known() -> None:
+    assert fleet_pitch_limits([]) is None
+    assert fleet_pitch_limits([(None, None), (None, None)]) is None
+    climb, dive = fleet_pitch_limits([(20.0, -25.0), (15.0, None), (None, -30.0)]) or (0, 0)
+    assert climb == pytest.approx(math.radians(15.0))
+    assert dive == pytest.approx(math.radians(25.0))
+    climb, dive = fleet_pitch_limits([(20.0, None)]) or (0, 0)
+    assert climb == pytest.approx(math.radians(20.0))
+    assert dive == math.pi / 2
+
+
+def test_pitch_limits_reach_the_planned_scene(table3: Mission) -> None:
+    states = _states_at_start(table3)
+    ids = {v.id for v in table3.vehicles}
+    free = scene_now(table3, states, ids, obstacles_from_mission(table3))
+    assert free.limits.max_climb_angle == math.pi / 2
+    limited = scene_now(
+        table3, states, ids, obstacles_from_mission(table3), pitch_limits_rad=(0.3, 0.4)
+    )
+    assert (limited.limits.max_climb_angle, limited.limits.max_dive_angle) == (0.3, 0.4)
 
 
 def test_separation_and_clearance(table3: Mission) -> None:

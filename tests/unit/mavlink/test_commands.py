@@ -67,6 +67,18 @@ GOLDEN: list[tuple[str, MAVLinkMessage, str, dict[str, Any]]] = [
         {"command": 178, "param1": 0.0, "param2": 22.5, "param3": -1.0, "param4": 0.0},
     ),
     (
+        "guided_change_heading",
+        commands.guided_change_heading(3, 271.5, 52.0),
+        "fd20000007ffbe4b00000000000000c087430000504200000000000000000000000000000000faa70301c1f4",
+        {"command": 43002, "frame": 0, "param1": 0.0, "param2": 271.5, "param3": 52.0},
+    ),
+    (
+        "guided_change_altitude",
+        commands.guided_change_altitude(3, 1288.25, 7.5),
+        "fd20000007ffbe4b000000000000000000000000f0400000000000000000000000000008a144f9a70301afe2",
+        {"command": 43001, "frame": 0, "param3": 7.5, "z": 1288.25},
+    ),
+    (
         "set_message_interval",
         commands.set_message_interval(3, 33, 100_000),
         "fd20000007ffbe4c0000000004420050c3470000000000000000000000000000000000000000ff010301b226",
@@ -132,6 +144,13 @@ def test_reposition_rounds_to_the_nearest_1e7_degree() -> None:
     assert decoded.y == 1512073200
 
 
+def test_guided_change_heading_wraps_the_course_into_0_360() -> None:
+    for course, sent in ((-90.0, 270.0), (360.0, 0.0), (725.0, 5.0), (-1e-9, 0.0)):
+        decoded = _decode(Codec().encode(commands.guided_change_heading(1, course, 10.0)))
+        assert 0.0 <= decoded.param2 < 360.0
+        assert decoded.param2 == pytest.approx(sent, abs=1e-6)
+
+
 def test_request_data_streams_zero_rate_stops_the_stream() -> None:
     msg = commands.request_data_streams(2, 0, commands.MAV_DATA_STREAM_POSITION)
     assert (msg.req_stream_id, msg.req_message_rate, msg.start_stop) == (6, 0, 0)
@@ -156,6 +175,11 @@ def test_takeoff_is_param_mode_then_arm() -> None:
         lambda: commands.reposition(1, 0.0, 0.0, 100.0, loiter_radius_m=-1.0),
         lambda: commands.reposition(0, 0.0, 0.0, 100.0),
         lambda: commands.change_speed(1, 0.0),
+        lambda: commands.guided_change_heading(1, math.nan, 10.0),
+        lambda: commands.guided_change_heading(1, 90.0, 0.0),
+        lambda: commands.guided_change_altitude(1, 0.0, 5.0),
+        lambda: commands.guided_change_altitude(1, -1.0, 5.0),
+        lambda: commands.guided_change_altitude(1, 500.0, -5.0),
         lambda: commands.change_speed(1, math.inf),
         lambda: commands.set_message_interval(1, 33, -2),
         lambda: commands.request_data_streams(1, 70_000),

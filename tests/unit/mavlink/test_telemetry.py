@@ -103,6 +103,27 @@ def test_command_acks_keep_the_last_per_command() -> None:
     assert tel.ack(400) is None
 
 
+def _param(name: str, value: float) -> MAVLinkMessage:
+    return _wire(mavlink2.MAVLink_param_value_message(name.encode(), value, 9, 1200, 7))
+
+
+@pytest.mark.parametrize(
+    ("hi", "lo", "scale"), [("PTCH_LIM_MAX_DEG", "PTCH_LIM_MIN_DEG", 1.0),
+                            ("LIM_PITCH_MAX", "LIM_PITCH_MIN", 100.0)]
+)  # fmt: skip
+def test_pitch_limits_from_param_value_in_degrees_either_name(
+    hi: str, lo: str, scale: float
+) -> None:
+    tel = apply(None, _heartbeat(), 0.0)
+    tel = apply(tel, _param(hi, 20.0 * scale), 1.0)
+    tel = apply(tel, _param(lo, -25.0 * scale), 2.0)
+    assert tel.pitch_max_deg == pytest.approx(20.0)
+    assert tel.pitch_min_deg == pytest.approx(-25.0)
+    same = apply(tel, _param("WP_LOITER_RAD", 60.0), 3.0)  # other parameters: not kept
+    assert same is tel
+    assert apply(tel, _param(hi, math.nan), 4.0) is tel
+
+
 def test_unknown_messages_and_other_senders_leave_the_record_unchanged() -> None:
     tel = apply(None, _heartbeat(), 0.0)
     status = mavlink2.MAVLink_statustext_message(6, b"hello")

@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
-from gcs_ppf.mission import Mission
+from gcs_ppf.mission import Mission, load_mission_file
 from gcs_ppf.planner import advance
 from gcs_ppf.ppf.kernel import (
     MAX_AVOID_PITCH,
@@ -19,6 +21,7 @@ from gcs_ppf.ppf.kernel import (
     braking_speed,
     influence_radius,
     lowest_climb,
+    obstacles_first,
     to_vcs,
     trend,
 )
@@ -261,3 +264,64 @@ def test_a_wingman_between_a_mate_and_an_obstacle_turns_away_from_the_obstacle()
     clearance = np.linalg.norm(tr.pos[:, 2] - np.array([3300.0, 3900.0, 300.0]), axis=1) - 300.0
     assert clearance.min() >= 125.0
     assert np.linalg.norm(tr.pos[:, 1] - tr.pos[:, 2], axis=1).min() >= 150.0
+
+
+def test_table3_planned_within_arduplanes_pitch_limits_still_keeps_every_distance() -> None:
+    """With the airframe's flight-path limits (ArduPlane's defaults, +20°/−25°) the plan
+    climbs round the obstacles less steeply and keeps both safe distances."""
+    mission = load_mission_file(Path(__file__).resolve().parents[3] / "examples/paper_table3.json")
+    scene = scene_from_mission(mission)
+    limits = scene.limits._replace(
+        max_climb_angle=math.radians(20.0), max_dive_angle=math.radians(25.0)
+    )
+    scene = replace(scene, limits=limits)
+    run = advance(scene, 0.01, 12000)
+    tr = run.trajectory
+    assert run.arrived
+    assert tr.pitch.min() >= math.radians(-25.0) - 1e-9
+    assert tr.pitch.max() <= math.radians(20.0) + 1e-9
+    ob = scene.obstacles
+    clearance = np.linalg.norm(tr.pos[:, :, None] - ob.center[None, None], axis=-1) - ob.radius
+    assert clearance.min() >= mission.limits.safe_distance_obstacle
+    gaps = np.linalg.norm(tr.pos[:, :, None] - tr.pos[:, None], axis=-1)
+    n = tr.pos.shape[1]
+    gaps[:, np.arange(n), np.arange(n)] = np.inf
+    assert gaps.min() >= mission.limits.safe_distance_uav
+
+
+def test_obstacles_first_drops_only_a_teammates_push_into_the_obstacle() -> None:
+    # Obstacle repels along +x; a teammate pushes along −x and +y: only the −x part goes.
+    assert obstacles_first(1.0 - 0.5, 0.5, 0.0, 1.0, 0.0, 0.0) == pytest.approx((1.0, 0.5, 0.0))
+    # A push away from the obstacle, or no obstacle at all: unchanged.
+    assert obstacles_first(1.5, 0.5, 0.0, 1.0, 0.0, 0.0) == (1.5, 0.5, 0.0)
+    assert obstacles_first(-0.5, 0.5, 0.0, 0.0, 0.0, 0.0) == (-0.5, 0.5, 0.0)
+
+
+def test_a_teammate_does_not_push_a_climb_limited_wingman_into_an_obstacle() -> None:
+    """Flown closed loop (Table 3, ArduPlane's +20°/−25° pitch limits, 100 m planning
+    margin): wingman 4 slid round the 650 m obstacle while teammates converged; the plan
+    from this telemetry state took it 12.6 m into the obstacle (teammate repulsion against
+    the obstacle's, the climb over it capped at 20°).  Obstacles first: it stays out."""
+    doc = json.loads(
+        (Path(__file__).resolve().parents[3] / "examples/paper_table3.json").read_text()
+    )
+    states = {
+        1: ((4254.1, 4004.4, 404.7), 0.1779, 1.0410, 100.0),  # 99.9: v_min as online
+        2: ((4073.4, 3793.4, 523.4), 0.3264, 0.6162, 148.3),
+        3: ((3810.4, 3426.7, 440.3), 0.0443, 1.1934, 174.3),
+        4: ((4552.1, 3922.4, 436.7), 0.1798, 1.3189, 104.8),
+        5: ((4287.7, 3605.0, 395.2), -0.1000, 0.9577, 156.3),
+    }
+    for v in doc["vehicles"]:
+        v["position"], v["pitch"], v["yaw"], v["speed"] = states[v["id"]]
+    doc["ground"] = 0.0
+    scene = scene_from_mission(Mission.model_validate(doc))
+    limits = scene.limits._replace(
+        safe_distance_obstacle=125.0, safe_distance_uav=150.0,
+        max_climb_angle=math.radians(20.0), max_dive_angle=math.radians(25.0),
+    )  # fmt: skip
+    tr = advance(replace(scene, limits=limits), 0.02, 400).trajectory
+    i = scene.fleet.ids.tolist().index(4)
+    obstacle = np.array([5000.0, 4500.0, 100.0])
+    clearance = np.linalg.norm(tr.pos[:, i] - obstacle, axis=1) - 650.0
+    assert clearance.min() >= 25.0  # the mission's safe distance (was −12.6 m)
