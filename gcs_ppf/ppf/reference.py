@@ -18,13 +18,13 @@ from gcs_ppf.ppf.kernel import (
     EPSILON_1,
     INFLUENCE_STEPS,
     LOCAL_MINIMUM_ANGLE,
-    MAX_AVOID_PITCH,
     MAX_FOLLOW_PITCH,
     S1_FOLLOW,
     S2_LOCAL_MINIMUM,
     S3_FORMATION,
     SIDEWAYS_EPS,
     KernelLimits,
+    airframe_limited,
     limit_climb,
 )
 from gcs_ppf.scene import BoolArray, FloatArray, IntArray
@@ -72,6 +72,8 @@ def reference_step(
     keep = (obs_radius + lim.safe_distance_obstacle)[None]
     radius = np.sqrt((keep + rho) ** 2 - rho**2) + INFLUENCE_STEPS * (speed * dt)[:, None]
     radius = radius + closing * AVOIDANCE_TURN_ANGLE / omega
+    if airframe_limited(lim):
+        radius = radius + rho  # room for a half turn (the kernel's half_turn)
     inside = (dist <= radius) & (dist > 0)
     rep = EPSILON_1 * (_unit(d_obs) * inside[..., None]).sum(1)
     moving = (inside & (u_obs[None] > 0)).any(1)
@@ -194,7 +196,7 @@ def reference_step(
     elevation = np.arctan2(fvz, np.hypot(fvx, fvy))
     behind = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1])) - pitch
     ics = (fvx < 0) | (np.abs(pitch) > MAX_FOLLOW_PITCH) | (lowest > -1.0)
-    ics |= min(lim.max_climb_angle, lim.max_dive_angle) < MAX_AVOID_PITCH  # airframe limits
+    ics |= airframe_limited(lim)
     elevation = np.where(ics, behind, elevation)
     wanted = np.sqrt(fvx**2 + fvy**2 + fvz**2)
     azimuth = np.where(np.abs(fvy) > SIDEWAYS_EPS * wanted, np.arctan2(fvy, fvx), 0.0)

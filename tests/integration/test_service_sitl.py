@@ -264,6 +264,26 @@ def test_table2_flown_closed_loop_and_how_near_the_formation_comes(tmp_path: Pat
 
 
 @pytest.mark.integration
+def test_the_formation_forms_closed_loop(tmp_path: Path) -> None:
+    """Table 2's vehicles with a target 13.5 km straight ahead of the leader at its own
+    altitude (offline the formation forms at 27.0 s): flown closed loop, every wingman is
+    within the target accuracy of its local target point (Eq. 6, from the leader's track
+    as the listener recorded it) at one same moment."""
+    doc = json.loads((EXAMPLES / "paper_table2.json").read_text())
+    doc["target"] = [15000.0, 2000.0, 300.0]
+    flight = fly(tmp_path, doc)
+    assert flight.final["state"] == "completed", flight.final
+    start_s, separation, _ = check_safety(flight)
+    best, closest = formation_offsets(flight, start_s)
+    print(
+        f"\nlevel formation flown: mission time {flight.final['mission_time_s']:.1f} s, min "
+        f"separation {separation:.1f} m; formation: closest {closest:.1f} m (worst wingman), "
+        "each wingman's best " + ", ".join(f"{vid}: {d:.1f} m" for vid, d in best.items())
+    )
+    assert closest <= flight.mission.limits.target_accuracy
+
+
+@pytest.mark.integration
 def test_an_obstacle_moved_into_the_path_mid_run_is_avoided(tmp_path: Path) -> None:
     """PUT …/obstacles while flying: a new sphere on the leader's way to the target."""
     doc = json.loads(MISSION.read_text())

@@ -297,11 +297,12 @@ def test_obstacles_first_drops_only_a_teammates_push_into_the_obstacle() -> None
     assert obstacles_first(-0.5, 0.5, 0.0, 0.0, 0.0, 0.0) == (-0.5, 0.5, 0.0)
 
 
-def test_a_teammate_does_not_push_a_climb_limited_wingman_into_an_obstacle() -> None:
-    """Flown closed loop (Table 3, ArduPlane's +20°/−25° pitch limits, 100 m planning
-    margin): wingman 4 slid round the 650 m obstacle while teammates converged; the plan
-    from this telemetry state took it 12.6 m into the obstacle (teammate repulsion against
-    the obstacle's, the climb over it capped at 20°).  Obstacles first: it stays out."""
+def test_a_teammate_does_not_push_a_wingman_into_an_obstacle() -> None:
+    """Flown closed loop (Table 3 with the 100 m planning margin), telemetry state: wingman
+    4 slid round the 650 m obstacle while teammates converged on it.  Their repulsion,
+    against the obstacle's, pushed it in: from this state the plan came to 40.9 m of the
+    surface with the paper's free pitch (and 12.6 m into it at ArduPlane's 20° climb limit,
+    before the half turn of ``airframe_limited``).  Obstacles first: 74.3 m."""
     doc = json.loads(
         (Path(__file__).resolve().parents[3] / "examples/paper_table3.json").read_text()
     )
@@ -316,12 +317,28 @@ def test_a_teammate_does_not_push_a_climb_limited_wingman_into_an_obstacle() -> 
         v["position"], v["pitch"], v["yaw"], v["speed"] = states[v["id"]]
     doc["ground"] = 0.0
     scene = scene_from_mission(Mission.model_validate(doc))
-    limits = scene.limits._replace(
-        safe_distance_obstacle=125.0, safe_distance_uav=150.0,
-        max_climb_angle=math.radians(20.0), max_dive_angle=math.radians(25.0),
-    )  # fmt: skip
+    limits = scene.limits._replace(safe_distance_obstacle=125.0, safe_distance_uav=150.0)
     tr = advance(replace(scene, limits=limits), 0.02, 400).trajectory
     i = scene.fleet.ids.tolist().index(4)
     obstacle = np.array([5000.0, 4500.0, 100.0])
     clearance = np.linalg.norm(tr.pos[:, i] - obstacle, axis=1) - 650.0
-    assert clearance.min() >= 25.0  # the mission's safe distance (was −12.6 m)
+    assert clearance.min() >= 62.5  # half the planned keep-out at least (40.9 m without)
+
+
+def test_a_climb_limited_airframe_starts_avoiding_a_turn_radius_further_out() -> None:
+    """``airframe_limited``: room for a half turn, since it cannot climb over in a quarter."""
+    mission = solo([0.0, 0.0, 300.0], 0.0, [9000.0, 0.0, 300.0],
+                   [{"center": [3000.0, 0.0, 300.0], "radius": 650.0}])  # fmt: skip
+    scene = scene_from_mission(mission)
+    rho = 100.0 / OMEGA
+    reach = influence_radius(100.0, OMEGA, 650.0 + 25.0)
+    limited = scene.limits._replace(max_climb_angle=math.radians(20.0),
+                                    max_dive_angle=math.radians(25.0))  # fmt: skip
+    for gap, free_avoids, limited_avoids in ((reach + 0.5 * rho, False, True),
+                                             (reach + 1.5 * rho, False, False)):  # fmt: skip
+        fleet = scene.fleet.copy()
+        fleet.pos[0, 0] = 3000.0 - gap
+        free = advance(replace(scene, fleet=fleet), 0.01, 1).trajectory
+        lim = advance(replace(scene, fleet=fleet, limits=limited), 0.01, 1).trajectory
+        assert bool(free.avoiding[0, 0]) is free_avoids
+        assert bool(lim.avoiding[0, 0]) is limited_avoids
