@@ -221,7 +221,7 @@ def check_safety(flight: Flight, exclude: Sequence[int] = ()) -> tuple[float, fl
 def test_table3_flown_closed_loop_is_safe_and_survives_a_restart(tmp_path: Path) -> None:
     flight = fly(tmp_path, json.loads(MISSION.read_text()))
     assert flight.final["state"] == "completed", flight.final
-    start_s, separation, _ = check_safety(flight)
+    start_s, separation, clearance = check_safety(flight)
 
     # Figures for the record: flown time, and how far the flight strayed from the offline
     # plan made from the same start (the vehicles' state when the mission started).
@@ -231,7 +231,8 @@ def test_table3_flown_closed_loop_is_safe_and_survives_a_restart(tmp_path: Path)
     best, closest = formation_offsets(flight, start_s)
     print(
         f"\nflown: mission time {flight.final['mission_time_s']:.1f} s, min separation "
-        f"{separation:.1f} m, largest deviation from the offline plan {deviation:.0f} m; "
+        f"{separation:.1f} m, min clearance {clearance:.1f} m, largest deviation from the "
+        f"offline plan {deviation:.0f} m; "
         f"formation: closest {closest:.0f} m (worst wingman), each wingman's best "
         + ", ".join(f"{vid}: {d:.0f} m" for vid, d in best.items())
     )
