@@ -96,6 +96,11 @@ class Run:
     task: asyncio.Task[None] | None = None
 
 
+MAX_POSITION_AGE_S = 1.0
+"""A position older than this (vehicle seconds) is not carried further on: a silent vehicle
+is the watchdog's business, not dead reckoning's."""
+
+
 def passes_within(start: Any, end: Any, point: Any, radius: float) -> bool:
     """Whether the segment start → end (or the point ``end`` alone when ``start`` is None)
     comes within ``radius`` of ``point``: telemetry at 10 Hz can step over a 10 m sphere."""
@@ -464,13 +469,21 @@ class FormationService:
                 yield vehicle, pos
 
     def _states(self, run: Run) -> tuple[dict[int, VehicleState], set[int]]:
+        """Each vehicle's state, its position carried on to this moment (vehicle seconds
+        since its GLOBAL_POSITION_INT arrived, at most ``MAX_POSITION_AGE_S``)."""
         states: dict[int, VehicleState] = {}
         active: set[int] = set()
+        now = time.monotonic()
         for vehicle, pos in self._located(run):
             t = vehicle.telemetry
             if t.vn_m_s is None or t.ve_m_s is None or t.vd_m_s is None:
                 continue
-            states[vehicle.system_id] = state_from_velocity(pos, t.vn_m_s, t.ve_m_s, t.vd_m_s)
+            age = 0.0
+            if t.position_received_s is not None:
+                age = vehicle.clock.vehicle_seconds(max(0.0, now - t.position_received_s))
+            states[vehicle.system_id] = state_from_velocity(
+                pos, t.vn_m_s, t.ve_m_s, t.vd_m_s, min(age, MAX_POSITION_AGE_S)
+            )
             if not vehicle.lost:
                 active.add(vehicle.system_id)
         return states, active

@@ -64,6 +64,8 @@ class VehicleTelemetry:
     vd_m_s: float | None = None
     heading_deg: float | None = None
     """GLOBAL_POSITION_INT.hdg: [0, 360) from north, clockwise; None if unknown."""
+    position_received_s: float | None = None
+    """Caller's clock when the last GLOBAL_POSITION_INT arrived."""
     roll_rad: float | None = None
     pitch_rad: float | None = None
     yaw_rad: float | None = None
@@ -147,6 +149,7 @@ def _global_position_int(
         "ve_m_s": msg.vy * 1e-2,
         "vd_m_s": msg.vz * 1e-2,
         "heading_deg": None if hdg == UINT16_UNKNOWN else hdg * 1e-2,
+        "position_received_s": now_s,
     }
 
 

@@ -29,6 +29,12 @@ def test_state_from_ned_velocity() -> None:
     assert s.speed_m_s == pytest.approx(math.hypot(100.0, 10.0))
 
 
+def test_a_position_is_carried_on_along_its_velocity_by_its_age() -> None:
+    s = state_from_velocity((1.0, 2.0, 3.0), vn_m_s=100.0, ve_m_s=50.0, vd_m_s=-10.0, age_s=0.1)
+    assert s.pos_m == pytest.approx((1.0 + 5.0, 2.0 + 10.0, 3.0 + 1.0))
+    assert s.speed_m_s == pytest.approx(math.sqrt(100.0**2 + 50.0**2 + 10.0**2))
+
+
 def _states_at_start(mission: Mission) -> dict[int, VehicleState]:
     out = {}
     for v in mission.vehicles:

@@ -59,7 +59,10 @@ def test_global_position_int_units() -> None:
     assert tel.heading_deg == pytest.approx(90.5)
     assert tel.time_boot_ms == 123456
     assert tel.last_update_s == 1.0
+    assert tel.position_received_s == 1.0
     assert tel.last_heartbeat_s == 0.0
+    tel = apply(tel, _wire(mavlink2.MAVLink_attitude_message(123500, 0, 0, 0, 0, 0, 0)), 1.05)
+    assert tel.position_received_s == 1.0  # only a position moves it
 
 
 def test_unknown_heading_is_none() -> None:
