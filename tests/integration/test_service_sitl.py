@@ -249,19 +249,27 @@ def test_table3_flown_closed_loop_is_safe_and_survives_a_restart(tmp_path: Path)
         assert events[-1]["kind"] == "run_completed"
 
 
-@pytest.mark.integration
-def test_table2_flown_closed_loop_and_how_near_the_formation_comes(tmp_path: Path) -> None:
-    """The paper's formation scene (no obstacles; offline the formation forms at 27 s):
-    safe and complete; how near the wingmen come to their slots is printed (the gap)."""
-    flight = fly(tmp_path, json.loads((EXAMPLES / "paper_table2.json").read_text()))
+def fly_formation(tmp_path: Path, doc: dict[str, Any], label: str) -> tuple[Flight, float]:
+    """Fly ``doc`` (no obstacles) to completion, check it was safe, print how near the
+    wingmen came to their local target points; the worst wingman's closest (m)."""
+    flight = fly(tmp_path, doc)
     assert flight.final["state"] == "completed", flight.final
     start_s, separation, _ = check_safety(flight)
     best, closest = formation_offsets(flight, start_s)
     print(
-        f"\nTable 2 flown: mission time {flight.final['mission_time_s']:.1f} s, min separation "
-        f"{separation:.1f} m; formation: closest {closest:.0f} m (worst wingman), each "
-        "wingman's best " + ", ".join(f"{vid}: {d:.0f} m" for vid, d in best.items())
+        f"\n{label} flown: mission time {flight.final['mission_time_s']:.1f} s, min "
+        f"separation {separation:.1f} m; formation: closest {closest:.1f} m (worst wingman), "
+        "each wingman's best " + ", ".join(f"{vid}: {d:.1f} m" for vid, d in best.items())
     )
+    return flight, closest
+
+
+@pytest.mark.integration
+def test_table2_flown_closed_loop_and_how_near_the_formation_comes(tmp_path: Path) -> None:
+    """The paper's formation scene (no obstacles; offline, with the paper's free pitch, the
+    formation forms at 27 s; planned at ArduPlane's 20° it does not within 113 s): safe and
+    complete; how near the wingmen come to their slots is printed."""
+    fly_formation(tmp_path, json.loads((EXAMPLES / "paper_table2.json").read_text()), "Table 2")
 
 
 @pytest.mark.integration
@@ -272,15 +280,7 @@ def test_the_formation_forms_closed_loop(tmp_path: Path) -> None:
     as the listener recorded it) at one same moment."""
     doc = json.loads((EXAMPLES / "paper_table2.json").read_text())
     doc["target"] = [15000.0, 2000.0, 300.0]
-    flight = fly(tmp_path, doc)
-    assert flight.final["state"] == "completed", flight.final
-    start_s, separation, _ = check_safety(flight)
-    best, closest = formation_offsets(flight, start_s)
-    print(
-        f"\nlevel formation flown: mission time {flight.final['mission_time_s']:.1f} s, min "
-        f"separation {separation:.1f} m; formation: closest {closest:.1f} m (worst wingman), "
-        "each wingman's best " + ", ".join(f"{vid}: {d:.1f} m" for vid, d in best.items())
-    )
+    flight, closest = fly_formation(tmp_path, doc, "level formation")
     assert closest <= flight.mission.limits.target_accuracy
 
 
@@ -422,5 +422,10 @@ def _vehicle_count(api: str) -> int:
 
 
 def _finished(api: str, mid: int) -> dict[str, Any] | None:
-    status, s = http("GET", f"{api}/missions/{mid}/status")
+    """The run's status once it has ended; None while it runs (or if one poll of it fails
+    at the socket: a Table 2 run once ended its test 0.3 s in, the service still flying)."""
+    try:
+        status, s = http("GET", f"{api}/missions/{mid}/status")
+    except OSError:
+        return None
     return s if status == 200 and s["state"] in ("completed", "aborted", "failed") else None
