@@ -468,13 +468,16 @@ class FormationService:
             if vehicle is not None and pos is not None:
                 yield vehicle, pos
 
-    def _states(self, run: Run) -> tuple[dict[int, VehicleState], set[int]]:
-        """Each vehicle's state, its position carried on to this moment (vehicle seconds
-        since its GLOBAL_POSITION_INT arrived, at most ``MAX_POSITION_AGE_S``)."""
+    @staticmethod
+    def _states(
+        located: list[tuple[Vehicle, tuple[float, float, float]]],
+    ) -> tuple[dict[int, VehicleState], set[int]]:
+        """Each located vehicle's state, its position carried on to this moment (vehicle
+        seconds since its GLOBAL_POSITION_INT arrived, at most ``MAX_POSITION_AGE_S``)."""
         states: dict[int, VehicleState] = {}
         active: set[int] = set()
         now = time.monotonic()
-        for vehicle, pos in self._located(run):
+        for vehicle, pos in located:
             t = vehicle.telemetry
             if t.vn_m_s is None or t.ve_m_s is None or t.vd_m_s is None:
                 continue
@@ -502,7 +505,8 @@ class FormationService:
             self._finish(run, RunState.FAILED, "leader lost")
             return True
 
-        states, active = self._states(run)
+        located = list(self._located(run))  # one geodetic → ICS conversion per vehicle
+        states, active = self._states(located)
         if leader_id not in states:
             return False
         positions = np.array([states[i].pos_m for i in sorted(active)], dtype=float)
@@ -525,11 +529,11 @@ class FormationService:
             return True
 
         ground = home_ground(
-            [(pos[2], v.telemetry.relative_alt_m) for v, pos in self._located(run)
+            [(pos[2], v.telemetry.relative_alt_m) for v, pos in located
              if v.telemetry.relative_alt_m is not None]
         )  # fmt: skip
         pitch_limits = fleet_pitch_limits(
-            [(v.telemetry.pitch_max_deg, v.telemetry.pitch_min_deg) for v, _ in self._located(run)]
+            [(v.telemetry.pitch_max_deg, v.telemetry.pitch_min_deg) for v, _ in located]
         )
         scene = scene_now(
             mission, states, active, obstacles, self.settings.planning_margin_m, ground,

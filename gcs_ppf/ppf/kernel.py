@@ -376,10 +376,12 @@ def nearby_obstacles(
     ``horizon_steps`` steps (a neighbour list, so that a step need not look at all M).
 
     A vehicle is influenced from at most keep_out + v_max/ω + v_max·Δt + u·T (the cheap
-    bound in ``fleet_step``); over the horizon the two close by at most (v_max + u)·steps·Δt.
+    bound in ``fleet_step``; one v_max/ω more for an ``airframe_limited`` one); over the
+    horizon the two close by at most (v_max + u)·steps·Δt.
     Fills ``near_obstacles`` in CSR form: vehicle i's are ``near_start[i]:near_start[i+1]``.
     """
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    turns = 2.0 if airframe_limited(lim) else 1.0  # the half turn of fleet_step
     count = 0
     for i in range(pos.shape[0]):
         near_start[i] = count
@@ -387,9 +389,7 @@ def nearby_obstacles(
             u = math.sqrt(
                 obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2
             )
-            reach = obs_radius[j] + lim.safe_distance_obstacle + lim.v_max / omega
-            if airframe_limited(lim):
-                reach += lim.v_max / omega  # the half turn of fleet_step
+            reach = obs_radius[j] + lim.safe_distance_obstacle + turns * lim.v_max / omega
             reach += INFLUENCE_STEPS * lim.v_max * dt + u * AVOIDANCE_TURN_ANGLE / omega
             reach += (lim.v_max + u) * horizon_steps * dt
             dx = pos[i, 0] - obs_center[j, 0]
