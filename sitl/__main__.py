@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 from gcs_ppf.mission import MissionError, load_mission_file
+from sitl.airframe import AIRFRAMES
 from sitl.engine import Simulation, parse_param_override
 from sitl.faults import parse_fault
 from sitl.server import ServerConfig, check_speedup, serve, signing_key
@@ -50,6 +51,16 @@ def build_parser() -> argparse.ArgumentParser:
         "--fault", action="append", default=[], metavar="[ID:]KEY=VAL,...",
         help="loss=%%, latency=ms, noise=m, cut=START+DUR, die=T (sim s; repeatable)",
     )  # fmt: skip
+    p.add_argument(
+        "--airframe", choices=AIRFRAMES, default="auto",
+        help="parameter defaults: ArduPlane's plane.parm (arduplane), scaled to the mission's "
+        "limits (mission), or arduplane when the mission's v_max is within it (auto)",
+    )  # fmt: skip
+    p.add_argument(
+        "--ground-start", action="store_true",
+        help="vehicles start on the ground at their start positions, disarmed (take off in "
+        "TAKEOFF mode), instead of in the air at their start state",
+    )  # fmt: skip
     p.add_argument("--duration", type=float, default=None, help="stop after this many sim seconds")
     return p
 
@@ -65,7 +76,8 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError("--base-port: ports out of range for this many vehicles")
         sim = Simulation(
             mission, seed=args.seed, params=params, faults=faults,
-            boot_unix_us=int(time.time() * 1e6),
+            boot_unix_us=int(time.time() * 1e6), airframe=args.airframe,
+            ground_start=args.ground_start,
         )  # fmt: skip
     except (MissionError, ValueError) as exc:
         print(f"sitl: {exc}", file=sys.stderr)

@@ -20,7 +20,15 @@ from sitl.messages import Message
 from sitl.modes import PlaneMode
 from sitl.navigation import AutoEvents, MissionRunner, NavTarget
 from sitl.params import ParamTable
-from sitl.physics import ORBIT_MARGIN, Envelope, Guidance, GuidanceKind
+from sitl.physics import (
+    GRAVITY_M_S2,
+    ORBIT_MARGIN,
+    TURN_EFFICIENCY,
+    Envelope,
+    Guidance,
+    GuidanceKind,
+    heading_gain,
+)
 
 Vec3 = tuple[float, float, float]
 
@@ -76,6 +84,17 @@ class GuidedAltitude:
     rate_m_s: float
 
 
+@dataclass(frozen=True, slots=True)
+class TakeoffStage:
+    """ArduPlane TAKEOFF mode's takeoff stage (``mode_takeoff.cpp``): roll along
+    ``course_rad`` from ``start_enu_m``, climb at full throttle, until TKOFF_ALT − 2 m or
+    TKOFF_DIST from the start; then loiter at ``loiter_enu_m`` (TKOFF_DIST ahead)."""
+
+    start_enu_m: Vec3
+    course_rad: float
+    loiter_enu_m: Vec3
+
+
 @dataclass
 class Outbox:
     """Messages produced by one event: ``reply`` to the sender, ``broadcast`` to every client."""
@@ -99,6 +118,7 @@ class Autopilot:
         params: ParamTable,
         faults: FaultState,
         initial_speed_m_s: float,
+        armed: bool = True,
     ) -> None:
         self.index = index
         self.sysid = sysid
@@ -112,7 +132,7 @@ class Autopilot:
         self.runner = MissionRunner([], [])
         self.streams = st.StreamSchedule.default()
         self.mode = PlaneMode.MANUAL
-        self.armed = True
+        self.armed = armed
         self.nav = NavTarget(GuidanceKind.HOLD, home_enu_m)
         self.new_airspeed_m_s: float | None = None
         self.manual_speed_m_s = initial_speed_m_s
@@ -127,6 +147,7 @@ class Autopilot:
         # GUIDED's slew targets (MAV_CMD_GUIDED_CHANGE_*), until a mode change.
         self.guided_course: GuidedCourse | None = None
         self.guided_altitude: GuidedAltitude | None = None
+        self.takeoff: TakeoffStage | None = None
         self.reboot_requested = False
 
     # ---- geometry ------------------------------------------------------------------------
@@ -173,6 +194,7 @@ class Autopilot:
         self.guided_ccw = None
         self.guided_course = None
         self.guided_altitude = None
+        self.takeoff = None
         self.guidance_dirty = True
         here = kin.pos_enu_m
         if mode == PlaneMode.MANUAL:
@@ -186,13 +208,46 @@ class Autopilot:
         elif mode in (PlaneMode.LOITER, PlaneMode.GUIDED):
             self.set_nav(self.loiter(here))
         elif mode == PlaneMode.TAKEOFF:
-            climb = self.home_enu_m[2] + self.params["TKOFF_ALT"]
-            self.set_nav(self.loiter((here[0], here[1], max(here[2], climb))))
+            self._takeoff_begin(kin, out)
         elif mode == PlaneMode.RTL:
             self.set_nav(self.loiter(self.rtl_point(kin)))
         elif mode == PlaneMode.AUTO:
             self._auto_begin(kin, clock, out)
         return True
+
+    def _takeoff_begin(self, kin: Kinematics, out: Outbox) -> None:
+        """TAKEOFF: below TKOFF_ALT, climb along the current course to a loiter TKOFF_DIST
+        ahead at TKOFF_ALT; above it, loiter here (ArduPlane ``ModeTakeoff::update``)."""
+        here = kin.pos_enu_m
+        alt = self.home_enu_m[2] + self.params["TKOFF_ALT"]
+        if here[2] >= alt and not kin.landed:
+            out.text(MAV_SEVERITY_INFO, "Above TKOFF alt - loitering")
+            self.set_nav(self.loiter(here))
+            return
+        dist = self.params["TKOFF_DIST"]
+        ahead = (
+            here[0] + dist * math.cos(kin.yaw_rad), here[1] + dist * math.sin(kin.yaw_rad), alt
+        )  # fmt: skip
+        self.takeoff = TakeoffStage(here, kin.yaw_rad, ahead)
+        compass = (90.0 - math.degrees(kin.yaw_rad)) % 360.0
+        out.text(
+            MAV_SEVERITY_INFO,
+            f"Takeoff to {self.params['TKOFF_ALT']:.0f}m for {dist:.1f}m heading {compass:.1f} deg",
+        )
+        self.set_nav(NavTarget(GuidanceKind.COURSE, ahead))
+
+    def _takeoff_update(self, kin: Kinematics) -> None:
+        """The takeoff stage ends 2 m below TKOFF_ALT or TKOFF_DIST from the start."""
+        stage = self.takeoff
+        if stage is None or kin.landed:
+            return
+        sx, sy, _ = stage.start_enu_m
+        x, y, z = kin.pos_enu_m
+        far = math.hypot(x - sx, y - sy) >= self.params["TKOFF_DIST"]
+        if z >= stage.loiter_enu_m[2] - 2.0 or far:
+            self.takeoff = None
+            self.guidance_dirty = True
+            self.set_nav(self.loiter(stage.loiter_enu_m))
 
     def _auto_begin(self, kin: Kinematics, clock: Clock, out: Outbox) -> None:
         events = AutoEvents()
@@ -258,34 +313,51 @@ class Autopilot:
         guid.target_enu_m[i] = self.nav.pos_enu_m
         guid.radius_m[i] = self.nav.radius_m
         guid.direction[i] = self.nav.direction
-        guid.speed_cmd_m_s[i] = self.speed_cmd_m_s
+        tas = 1.0 if self.mode == PlaneMode.MANUAL else self.params["SIM_EAS2TAS"]
+        guid.speed_cmd_m_s[i] = self.speed_cmd_m_s * tas  # an airspeed demand is EAS
         guid.thrust[i] = self.thrust
-        guid.climb_rate_m_s[i] = math.inf
+        guid.alt_slew_m_s[i] = math.inf
+        guid.takeoff[i] = self.takeoff is not None and self.thrust
+        if self.takeoff is not None:
+            guid.course_rad[i] = self.takeoff.course_rad
+            guid.lateral_accel_m_s2[i] = math.inf
         if self.mode == PlaneMode.GUIDED and self.guided_course is not None:
             guid.kind[i] = int(GuidanceKind.COURSE)
             guid.course_rad[i] = self.guided_course.course_rad
             guid.lateral_accel_m_s2[i] = self.guided_course.lateral_accel_m_s2
         if self.mode == PlaneMode.GUIDED and self.guided_altitude is not None:
             guid.target_enu_m[i, 2] = self.guided_altitude.z_m
-            guid.climb_rate_m_s[i] = self.guided_altitude.rate_m_s
+            guid.alt_slew_m_s[i] = self.guided_altitude.rate_m_s
         self.guidance_dirty = False
 
     def write_envelope(self, env: Envelope) -> None:
         i, p = self.index, self.params
-        env.v_min_m_s[i] = p["SIM_SPEED_MIN"]
-        env.v_max_m_s[i] = max(p["SIM_SPEED_MAX"], p["SIM_SPEED_MIN"])
+        env.v_min_m_s[i] = p["SIM_SPEED_MIN"] * p["SIM_EAS2TAS"]
+        env.v_max_m_s[i] = max(p["SIM_SPEED_MAX"], p["SIM_SPEED_MIN"]) * p["SIM_EAS2TAS"]
         env.accel_m_s2[i] = p["SIM_ACCEL_MAX"]
         env.decel_m_s2[i] = p["SIM_DECEL_MAX"]
         env.max_yaw_rate_rad_s[i] = math.radians(p["SIM_YAW_RATE"])
         env.max_pitch_rate_rad_s[i] = math.radians(p["SIM_PTCH_RATE"])
         env.pitch_min_rad[i] = math.radians(p["PTCH_LIM_MIN_DEG"])
         env.pitch_max_rad[i] = math.radians(p["PTCH_LIM_MAX_DEG"])
+        env.roll_limit_rad[i] = math.radians(p["ROLL_LIMIT_DEG"])
+        env.heading_gain[i] = heading_gain(p["GUIDED_P"])
+        env.climb_max_m_s[i] = p["TECS_CLMB_MAX"]
+        env.sink_max_m_s[i] = p["TECS_SINK_MAX"]
+        env.l1_period_s[i] = p["NAVL1_PERIOD"]
+        env.l1_damping[i] = p["NAVL1_DAMPING"]
+        env.takeoff_climb_m_s[i] = 2.0 * p["TECS_CLMB_MAX"]
+        env.speed_height_coupling[i] = p["SIM_SPD_HGT"]
+        env.rotate_speed_m_s[i] = 0.9 * p["AIRSPEED_CRUISE"] * p["SIM_EAS2TAS"]
         self.envelope_dirty = False
 
     def loiter_radius_eff_m(self, kin: Kinematics) -> float:
         """The loiter radius actually flown (see physics.effective_radius_m)."""
-        w = math.radians(self.params["SIM_YAW_RATE"])
-        return max(abs(self.nav.radius_m), ORBIT_MARGIN * kin.speed_m_s / w)
+        v = max(kin.speed_m_s, 1.0)
+        bank = min(math.radians(self.params["ROLL_LIMIT_DEG"]), 1.5)
+        tightest = max(v * v / (TURN_EFFICIENCY * GRAVITY_M_S2 * math.tan(bank)),
+                       v / math.radians(self.params["SIM_YAW_RATE"]))  # fmt: skip
+        return max(abs(self.nav.radius_m), ORBIT_MARGIN * tightest)
 
     def update(self, kin: Kinematics, clock: Clock) -> Outbox | None:
         """Once per physics step: mission progress, failsafe, faults. None if nothing to say."""
@@ -294,6 +366,8 @@ class Autopilot:
             self.guidance_dirty = True
         if self.faults.dead:
             return None
+        if self.takeoff is not None:
+            self._takeoff_update(kin)
         if self.mode == PlaneMode.AUTO and self.runner.active:
             events = self.runner.update(
                 self.rtl_point(kin), kin.pos_enu_m, kin.yaw_rad, self.loiter_radius_eff_m(kin),

@@ -18,6 +18,7 @@ from gcs_ppf.mission import Mission
 from sitl import handlers
 from sitl import messages as mb
 from sitl import streams as st
+from sitl.airframe import AirframeName
 from sitl.autopilot import Autopilot, Clock, Kinematics, Outbox
 from sitl.faults import FaultSpec, FaultState
 from sitl.mission_protocol import Transfer
@@ -25,9 +26,9 @@ from sitl.modes import PlaneMode, mode_from_number
 from sitl.params import ParamTable, vehicle_param_specs
 from sitl.physics import (
     DT_S,
-    Envelope,
     FleetState,
     Guidance,
+    default_envelope,
     hold_guidance,
     initial_state,
     step,
@@ -61,7 +62,13 @@ def parse_param_override(text: str) -> ParamOverride:
 
 
 class Simulation:
-    """A mission's vehicles flying in simulated time (starts at 0 s, steps of DT_S)."""
+    """A mission's vehicles flying in simulated time (starts at 0 s, steps of DT_S).
+
+    By default every vehicle spawns in the air at its start state (the paper's initial
+    state), armed, in MANUAL. With ``ground_start`` each one sits on the ground at its start
+    position instead, disarmed, in MANUAL, heading along its yaw, as an ArduPlane does after
+    boot: it flies once armed in TAKEOFF mode.
+    """
 
     def __init__(
         self,
@@ -71,6 +78,8 @@ class Simulation:
         params: list[ParamOverride] | None = None,
         faults: list[FaultSpec] | None = None,
         boot_unix_us: int = 0,
+        airframe: AirframeName = "auto",
+        ground_start: bool = False,
     ) -> None:
         self.mission = mission
         self.origin = mission.origin
@@ -86,25 +95,20 @@ class Simulation:
             np.array([v.pitch for v in vehicles]),
             np.array([v.yaw for v in vehicles]),
             speeds,
+            landed=np.full(n, ground_start),
         )
-        ground = np.minimum(0.0, self.state.pos_enu_m[:, 2])
-        self.env = Envelope(
-            v_min_m_s=np.full(n, lim.v_min),
-            v_max_m_s=np.full(n, lim.v_max),
-            accel_m_s2=np.full(n, lim.accel),
-            decel_m_s2=np.full(n, lim.decel),
-            max_pitch_rate_rad_s=np.full(n, lim.max_pitch_rate),
-            max_yaw_rate_rad_s=np.full(n, lim.max_yaw_rate),
-            pitch_min_rad=np.full(n, math.radians(-25.0)),
-            pitch_max_rad=np.full(n, math.radians(20.0)),
-            ground_z_m=ground,
-        )
+        z = self.state.pos_enu_m[:, 2]
+        ground = z.copy() if ground_start else np.minimum(0.0, z)
+        self.env = default_envelope(
+            n, v_min=lim.v_min, v_max=lim.v_max, accel=lim.accel, decel=lim.decel,
+            max_pitch_rate=lim.max_pitch_rate, max_yaw_rate=lim.max_yaw_rate, ground_z_m=ground,
+        )  # fmt: skip
         self.guid: Guidance = hold_guidance(self.state)
         self.rngs = [np.random.default_rng([seed, v.id]) for v in vehicles]
         self.autopilots: list[Autopilot] = []
         overrides = params or []
         for i, v in enumerate(vehicles):
-            table = ParamTable(vehicle_param_specs(v.id, lim, float(speeds[i])))
+            table = ParamTable(vehicle_param_specs(v.id, lim, float(speeds[i]), airframe))
             for o in overrides:
                 if o.vehicle_id in (None, v.id):
                     if o.name not in table:
@@ -117,7 +121,8 @@ class Simulation:
                     f.apply(fault)
             fault.noise_m = max(fault.noise_m, table["SIM_GPS_NOISE"])
             home = (float(v.position[0]), float(v.position[1]), float(ground[i]))
-            ap = Autopilot(i, v.id, self.origin, home, table, fault, float(speeds[i]))
+            speed = 0.0 if ground_start else float(speeds[i])
+            ap = Autopilot(i, v.id, self.origin, home, table, fault, speed, not ground_start)
             mode = mode_from_number(table["INITIAL_MODE"]) or PlaneMode.MANUAL
             ap.set_mode(mode, self.kinematics(i), self.clock(0.0), Outbox())
             self.autopilots.append(ap)
@@ -167,6 +172,7 @@ class Simulation:
         for i, ap in enumerate(self.autopilots):
             if (
                 ap.mode == PlaneMode.AUTO
+                or ap.takeoff is not None
                 or ap.last_gcs_heartbeat_s is not None
                 or ap.mission_current_sent != ap.runner.current
                 or ap.faults.die_at_s is not None
@@ -193,7 +199,7 @@ class Simulation:
         if any(not _POSITION_STREAMS.isdisjoint(ids) for _, ids in due):
             geo = self._geodetic()
         vel = self.state.velocity_enu_m_s()
-        roll = self.state.roll_rad()
+        roll = self.state.roll_rad
         for i, ids in due:
             ap = self.autopilots[i]
             out = Outbox()
@@ -241,7 +247,7 @@ class Simulation:
             roll_rate_rad_s=0.0,
             pitch_rate_rad_s=float(s.pitch_rate_rad_s[i]),
             yaw_rate_ned_rad_s=-yaw_rate,
-            airspeed_m_s=float(s.speed_m_s[i]),
+            airspeed_m_s=float(s.speed_m_s[i]) / ap.params["SIM_EAS2TAS"],
             throttle_pct=50 if ap.thrust and not s.landed[i] else 0,
             landed=bool(s.landed[i]),
         )

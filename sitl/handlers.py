@@ -122,11 +122,21 @@ def on_param_set(
         out.reply.append(_param_msg(ap, ap.params.index_of(name)))
 
 
+#: Parameters that change the flight model's envelope (``Autopilot.write_envelope``).
+ENVELOPE_PARAMS = frozenset({
+    "SIM_SPEED_MIN", "SIM_SPEED_MAX", "SIM_ACCEL_MAX", "SIM_DECEL_MAX", "SIM_YAW_RATE",
+    "SIM_PTCH_RATE", "SIM_SPD_HGT", "SIM_EAS2TAS", "PTCH_LIM_MAX_DEG", "PTCH_LIM_MIN_DEG",
+    "ROLL_LIMIT_DEG", "GUIDED_P", "TECS_CLMB_MAX", "TECS_SINK_MAX", "NAVL1_PERIOD",
+    "NAVL1_DAMPING", "AIRSPEED_CRUISE",
+})  # fmt: skip
+
+
 def apply_param(ap: Autopilot, name: str, clock: Clock) -> None:
     """Side effects of a parameter change."""
     value = ap.params[name]
-    if name.startswith(("SIM_SPEED", "SIM_ACCEL", "SIM_DECEL", "SIM_YAW", "SIM_PTCH", "PTCH_LIM")):
+    if name in ENVELOPE_PARAMS:
         ap.envelope_dirty = True
+        ap.guidance_dirty = True  # the speed demand is scaled by SIM_EAS2TAS
     elif name.startswith("AIRSPEED") or name == "WP_LOITER_RAD":
         ap.guidance_dirty = True
     elif name == "SIM_GPS_NOISE":

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from enum import IntEnum
 
 from gcs_ppf.mission import Limits
+from sitl.airframe import AirframeName, defaults
 
 
 class ParamType(IntEnum):
@@ -42,33 +43,44 @@ class ParamSpec:
         return self.ptype != ParamType.REAL32
 
 
-def vehicle_param_specs(sysid: int, limits: Limits, cruise_m_s: float) -> list[ParamSpec]:
-    """Parameter definitions for a vehicle with MAVLink id ``sysid`` and envelope ``limits``."""
-    yaw_rate_deg = math.degrees(limits.max_yaw_rate)
-    pitch_rate_deg = math.degrees(limits.max_pitch_rate)
+def vehicle_param_specs(
+    sysid: int, limits: Limits, cruise_m_s: float, airframe: AirframeName = "auto"
+) -> list[ParamSpec]:
+    """Parameter definitions for a vehicle with MAVLink id ``sysid`` flying a mission with
+    envelope ``limits``; the airframe's defaults come from ``sitl.airframe``."""
+    a = defaults(airframe, limits, cruise_m_s)
     i8, i16, i32, f = ParamType.INT8, ParamType.INT16, ParamType.INT32, ParamType.REAL32
     return [
         ParamSpec("SYSID_THISMAV", sysid, i16, 1, 255, "MAVLink system id (after reboot)"),
         ParamSpec("SYSID_MYGCS", 255, i16, 1, 255, "system id of the GCS for the failsafe"),
         ParamSpec("INITIAL_MODE", 0, i8, 0, 24, "flight mode at start"),
-        ParamSpec("AIRSPEED_MIN", limits.v_min, f, 1, 1000, "minimum commanded airspeed, m/s"),
-        ParamSpec("AIRSPEED_MAX", limits.v_max, f, 1, 1000, "maximum commanded airspeed, m/s"),
-        ParamSpec("AIRSPEED_CRUISE", cruise_m_s, f, 1, 1000, "cruise airspeed, m/s"),
-        ParamSpec("WP_RADIUS", 90, i16, 1, 32767, "waypoint acceptance radius, m"),
-        ParamSpec("WP_LOITER_RAD", 60, i16, -32767, 32767, "loiter radius, m; <0 CCW"),
+        ParamSpec("AIRSPEED_MIN", a["AIRSPEED_MIN"], f, 1, 1000, "minimum airspeed, m/s"),
+        ParamSpec("AIRSPEED_MAX", a["AIRSPEED_MAX"], f, 1, 1000, "maximum airspeed, m/s"),
+        ParamSpec("AIRSPEED_CRUISE", a["AIRSPEED_CRUISE"], f, 1, 1000, "cruise airspeed, m/s"),
+        ParamSpec("WP_RADIUS", a["WP_RADIUS"], i16, 1, 32767, "waypoint acceptance radius, m"),
+        ParamSpec("WP_LOITER_RAD", a["WP_LOITER_RAD"], i16, -32767, 32767, "loiter radius, m"),
         ParamSpec("RTL_ALTITUDE", 100, f, -1, 32767, "RTL altitude above home, m; -1 current"),
-        ParamSpec("TKOFF_ALT", 50, f, 0, 1000, "TAKEOFF mode target altitude above home, m"),
-        ParamSpec("PTCH_LIM_MAX_DEG", 20, f, 0, 90, "maximum pitch, degrees"),
-        ParamSpec("PTCH_LIM_MIN_DEG", -25, f, -90, 0, "minimum pitch, degrees"),
+        ParamSpec("TKOFF_ALT", a["TKOFF_ALT"], f, 0, 1000, "TAKEOFF mode altitude, m"),
+        ParamSpec("TKOFF_DIST", a["TKOFF_DIST"], f, 0, 30000, "TAKEOFF loiter distance, m"),
+        ParamSpec("PTCH_LIM_MAX_DEG", a["PTCH_LIM_MAX_DEG"], f, 0, 90, "maximum pitch, deg"),
+        ParamSpec("PTCH_LIM_MIN_DEG", a["PTCH_LIM_MIN_DEG"], f, -90, 0, "minimum pitch, deg"),
+        ParamSpec("ROLL_LIMIT_DEG", a["ROLL_LIMIT_DEG"], f, 0, 90, "maximum bank, deg"),
+        ParamSpec("GUIDED_P", a["GUIDED_P"], f, 0, 1e7, "GUIDED heading gain, cdeg/rad"),
+        ParamSpec("TECS_CLMB_MAX", a["TECS_CLMB_MAX"], f, 0.1, 1000, "max climb rate, m/s"),
+        ParamSpec("TECS_SINK_MAX", a["TECS_SINK_MAX"], f, 0.1, 1000, "max sink rate, m/s"),
+        ParamSpec("NAVL1_PERIOD", a["NAVL1_PERIOD"], f, 1, 60, "L1 navigation period, s"),
+        ParamSpec("NAVL1_DAMPING", a["NAVL1_DAMPING"], f, 0.6, 1, "L1 navigation damping"),
         ParamSpec("FS_GCS_ENABL", 0, i8, 0, 2, "GCS failsafe: 0 off, 1 heartbeat, 2 also RSSI"),
         ParamSpec("FS_LONG_TIMEOUT", 5, f, 1, 300, "GCS-loss failsafe timeout, s"),
         ParamSpec("FS_LONG_ACTN", 0, i8, 0, 3, "0 RTL (AUTO continues), 1 RTL, 2 glide"),
-        ParamSpec("SIM_YAW_RATE", yaw_rate_deg, f, 0.1, 360, "airframe turn rate, deg/s"),
-        ParamSpec("SIM_PTCH_RATE", pitch_rate_deg, f, 0.1, 360, "airframe pitch rate, deg/s"),
-        ParamSpec("SIM_ACCEL_MAX", limits.accel, f, 0.1, 1000, "airframe acceleration, m/s/s"),
-        ParamSpec("SIM_DECEL_MAX", limits.decel, f, 0.1, 1000, "airframe deceleration, m/s/s"),
-        ParamSpec("SIM_SPEED_MIN", limits.v_min, f, 0.1, 1000, "airframe stall speed, m/s"),
-        ParamSpec("SIM_SPEED_MAX", limits.v_max, f, 0.1, 1000, "airframe top speed, m/s"),
+        ParamSpec("SIM_YAW_RATE", a["SIM_YAW_RATE"], f, 0.1, 360, "airframe turn rate, deg/s"),
+        ParamSpec("SIM_PTCH_RATE", a["SIM_PTCH_RATE"], f, 0.1, 360, "flight-path rate, deg/s"),
+        ParamSpec("SIM_ACCEL_MAX", a["SIM_ACCEL_MAX"], f, 0.1, 1000, "acceleration, m/s/s"),
+        ParamSpec("SIM_DECEL_MAX", a["SIM_DECEL_MAX"], f, 0.1, 1000, "deceleration, m/s/s"),
+        ParamSpec("SIM_SPEED_MIN", a["SIM_SPEED_MIN"], f, 0.1, 1000, "stall speed, m/s"),
+        ParamSpec("SIM_SPEED_MAX", a["SIM_SPEED_MAX"], f, 0.1, 1000, "top speed, m/s"),
+        ParamSpec("SIM_SPD_HGT", a["SIM_SPD_HGT"], f, 0, 1, "speed change paid in height"),
+        ParamSpec("SIM_EAS2TAS", a["SIM_EAS2TAS"], f, 0.5, 2, "true / indicated airspeed"),
         ParamSpec("SIM_GPS_NOISE", 0, f, 0, 1000, "position noise (1σ), m"),
         ParamSpec("SIM_LINK_LOSS", 0, f, 0, 100, "link packet loss, % each way"),
         ParamSpec("SIM_LINK_DELAY", 0, i32, 0, 60000, "added link latency each way, ms"),

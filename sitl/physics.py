@@ -1,18 +1,39 @@
-"""Fleet kinematics: the paper's Eq. 5 with turn-rate, pitch-rate, speed and acceleration
-limits, and the guidance that a fixed-wing autopilot closes around it.
+"""Fleet flight model: how an ArduPlane flies the demands of its own autopilot — bank-to-turn
+with a roll lag, GUIDED's P-only heading controller, L1 navigation, a TECS-like height and
+speed loop with climb and sink limits, and the takeoff roll — calibrated against real
+ArduPlane SITL (``tests/sitl/test_arduplane_calibration.py``, ``../shared/arduplane-traces``).
 
 Everything is a structure of arrays over the fleet (N vehicles) and every function is pure:
 ``step`` takes the state, the envelope and the guidance commands and returns a new state.
 Frames and units follow CONVENTIONS §1: ICS = local ENU metres, pitch θ positive nose up,
-yaw ψ from +x (east) counter-clockwise, speeds m/s, rates rad/s.
+yaw ψ from +x (east) counter-clockwise, speeds m/s, rates rad/s; roll is reported with
+MAVLink's sign (right wing down positive, a clockwise turn).
 
-Eq. 5::
+Kinematics are the paper's Eq. 5 with the flight-path angle as pitch (no wind, so airspeed
+= speed along the path and course = yaw)::
 
-    ẋ = v cos θ cos ψ     ẏ = v cos θ sin ψ     ż = v sin θ
-    θ̇ ∈ [−ω_θ, ω_θ]       ψ̇ ∈ [−ω_ψ, ω_ψ]       v̇ ∈ [−decel, accel],  v ∈ [v_min, v_max]
+    ẋ = v cos θ cos ψ     ẏ = v cos θ sin ψ     ż = v sin θ = climb rate
 
-Turning starts and stops instantly (assumption (2) of the paper, CONVENTIONS §2 erratum 5):
-the commanded rate is clipped to ω_max and applied for the whole step.
+The turn is what the bank gives, ψ̇ = −η g tan φ / v (η = ``TURN_EFFICIENCY``), within the
+airframe's SIM_YAW_RATE; the bank follows the autopilot's demand with a first-order lag
+(``TAU_ROLL_S``) and a roll-rate limit.  The demand is ArduPlane's:
+
+* GUIDED heading (MAV_CMD_GUIDED_CHANGE_HEADING, ArduPlane ``mode_guided.cpp``): a P-only
+  controller, bank = GUIDED_P (centidegrees per radian) × course error, clipped to
+  ±min(atan(param3 / g), ROLL_LIMIT_DEG) — the aircraft lags a turning course command;
+* waypoints and loiters: L1 navigation, lateral acceleration 4πζ v sin η / NAVL1_PERIOD
+  towards the desired course (plus the centripetal v²/r on a loiter circle);
+* CIRCLE: the bank of a circle of WP_LOITER_RAD.
+
+Height is a TECS-like loop: the height demand moves towards the target at no more than
+TECS_CLMB_MAX / TECS_SINK_MAX, the climb-rate demand is ``K_HEIGHT`` × the height error
+(within those limits and the pitch limits; no feed-forward of the demand's rate, which is
+why a slewed GUIDED altitude barely climbs), and the climb rate follows it with a lag
+(``TAU_CLIMB_S``).  Speeding up costs height and slowing down gains it (TECS trades energy:
+the envelope's ``speed_height_coupling``).  Speed follows its demand within SIM_ACCEL_MAX /
+SIM_DECEL_MAX.  A vehicle on the ground stays there unless it is taking off (ArduPlane's
+TAKEOFF mode): it rolls along its heading at ``GROUND_ACCEL_M_S2`` and lifts off at its
+rotation speed, then climbs at the takeoff climb rate.
 """
 
 from __future__ import annotations
@@ -32,47 +53,70 @@ GRAVITY_M_S2 = 9.80665
 #: Physics step of the SITL (50 Hz), seconds.
 DT_S = 0.02
 
-#: Heading-error gain of the course controller, 1/s (rate = gain × error, then clipped).
-K_COURSE = 2.5
-#: Flight-path gain: commanded climb angle is atan(K_ALT × altitude error / v), 1/s.
-K_ALT = 0.5
-#: Pitch-error gain, 1/s.
-K_PITCH = 2.0
-#: Speed-error gain, 1/s (then clipped to the acceleration limits).
-K_SPEED = 1.0
-#: Convergence gain of the loiter vector field (dimensionless, per loiter radius).
-K_ORBIT = 2.0
-#: A loiter circle is at least this factor times the tightest turn radius v / ω_max.
+# Fitted to real ArduPlane 4.7 SITL (plane.parm), see tests/sitl/test_arduplane_calibration.py.
+#: Lag of the bank behind its demand, s (course step +90°: 45° of bank within 0.7 s).
+TAU_ROLL_S = 0.2
+#: Fastest roll, rad/s (the same step rolled at ~90°/s).
+ROLL_RATE_MAX_RAD_S = math.radians(90.0)
+#: Turn rate as a fraction of a coordinated turn's g tan φ / v at the same bank (trace 02
+#: turned at ~75 % of it, trace 08 loitered 94 m wide at 40° of bank: 70 %).
+TURN_EFFICIENCY = 0.72
+#: Lag of the climb rate behind TECS's climb-rate demand, s (+50 m step: 3 m/s after 3 s).
+TAU_CLIMB_S = 2.0
+#: The same lag in the takeoff climb, s (trace 01 climbed at 10 m/s 0.5 s after lift-off).
+TAU_TAKEOFF_CLIMB_S = 0.4
+#: TECS's height-error gain, 1/s (from the tail of the +50 m step and the param3 = 2 run).
+K_HEIGHT_1_S = 0.35
+#: Lag of the airspeed behind its demand, s (within SIM_ACCEL_MAX / SIM_DECEL_MAX).
+TAU_SPEED_S = 1.0
+#: How often ArduPlane moves GUIDED's slewed altitude demand (``update_target_altitude``
+#: clamps it to the current altitude ± param3 × this), s.
+GUIDED_ALT_UPDATE_S = 0.1
+#: Airspeed of the full-throttle takeoff climb, × the rotation speed (trace 01: 27 m/s).
+TAKEOFF_SPEED_FACTOR = 1.4
+#: Takeoff roll acceleration at full throttle, m/s² (lift-off at 19 m/s after 3.8 s).
+GROUND_ACCEL_M_S2 = 6.0
+#: A loiter circle is at least this factor times the tightest turn radius.
 ORBIT_MARGIN = 1.15
-#: Pitch held by a vehicle without thrust (disarmed or dead): a glide, radians.
+#: Flight-path angle held by a vehicle without thrust (disarmed or dead): a glide, radians.
 GLIDE_PITCH_RAD = -0.1
+#: Below this speed the turn formula uses it instead (no division by zero on the ground).
+MIN_TURN_SPEED_M_S = 1.0
 
 
 class GuidanceKind(IntEnum):
     """What the guidance of one vehicle does during a step."""
 
     HOLD = 0
-    """Neutral controls: pitch and yaw rates zero (MANUAL with centred sticks)."""
+    """Neutral controls: wings level, pitch held (MANUAL with centred sticks)."""
     GOTO = 1
-    """Turn-rate-limited pursuit of ``target_enu_m`` (horizontal course), holding its altitude."""
+    """L1 navigation to ``target_enu_m`` (horizontal), TECS to its altitude."""
     ORBIT = 2
-    """Loiter on a circle of ``radius_m`` around ``target_enu_m`` (a vector field that first
-    flies to the circle), holding the target's altitude."""
+    """Loiter on a circle of ``radius_m`` around ``target_enu_m`` (L1 onto the circle), TECS
+    to the target's altitude."""
     TURN = 3
-    """Constant-rate turn (ArduPlane CIRCLE mode), holding the target's altitude."""
+    """Constant-bank circle (ArduPlane CIRCLE mode), TECS to the target's altitude."""
     COURSE = 4
-    """Hold the course ``course_rad`` (ArduPlane GUIDED after MAV_CMD_GUIDED_CHANGE_HEADING),
-    turning no harder than ``lateral_accel_m_s2`` allows, holding the target's altitude."""
+    """Hold the course ``course_rad`` with GUIDED's P-only heading controller, banking no
+    more than ``lateral_accel_m_s2`` allows (MAV_CMD_GUIDED_CHANGE_HEADING)."""
 
 
 @dataclass(frozen=True, slots=True)
 class FleetState:
-    """Kinematic state of N vehicles. Arrays have shape (N, 3) for positions, (N,) otherwise."""
+    """State of N vehicles. Arrays have shape (N, 3) for positions, (N,) otherwise.
+
+    ``pitch_rad`` is the flight-path angle, ``roll_rad`` the bank (MAVLink sign),
+    ``climb_m_s`` the vertical speed, ``height_demand_m`` TECS's rate-limited height demand
+    (ICS z), ``landed`` true while on the ground.
+    """
 
     pos_enu_m: FloatArray
     pitch_rad: FloatArray
     yaw_rad: FloatArray
     speed_m_s: FloatArray
+    roll_rad: FloatArray
+    climb_m_s: FloatArray
+    height_demand_m: FloatArray
     pitch_rate_rad_s: FloatArray
     yaw_rate_rad_s: FloatArray
     accel_m_s2: FloatArray
@@ -96,16 +140,11 @@ class FleetState:
         )
         return out
 
-    def roll_rad(self) -> FloatArray:
-        """Bank angle of a coordinated turn at the current yaw rate, NED sign (right wing down
-        positive, i.e. a clockwise turn, ψ̇ < 0, banks right)."""
-        roll: FloatArray = np.arctan(-self.speed_m_s * self.yaw_rate_rad_s / GRAVITY_M_S2)
-        return np.clip(roll, -1.4, 1.4)
-
 
 @dataclass(slots=True)
 class Envelope:
-    """Performance limits of each vehicle, shape (N,); mutable: parameters change them."""
+    """Performance limits and autopilot gains of each vehicle, shape (N,); mutable:
+    parameters change them (``Autopilot.write_envelope``)."""
 
     v_min_m_s: FloatArray
     v_max_m_s: FloatArray
@@ -116,6 +155,57 @@ class Envelope:
     pitch_min_rad: FloatArray
     pitch_max_rad: FloatArray
     ground_z_m: FloatArray
+    roll_limit_rad: FloatArray
+    heading_gain: FloatArray
+    """GUIDED_P as radians of bank per radian of course error."""
+    climb_max_m_s: FloatArray
+    sink_max_m_s: FloatArray
+    l1_period_s: FloatArray
+    l1_damping: FloatArray
+    takeoff_climb_m_s: FloatArray
+    rotate_speed_m_s: FloatArray
+    speed_height_coupling: FloatArray
+    """Fraction of the kinetic energy of a speed change that TECS pays in height."""
+
+
+def default_envelope(
+    n: int,
+    *,
+    v_min: float,
+    v_max: float,
+    accel: float,
+    decel: float,
+    max_pitch_rate: float,
+    max_yaw_rate: float,
+    ground_z_m: FloatArray,
+) -> Envelope:
+    """An envelope for N vehicles with ArduPlane's default gains (plane.parm); the autopilots
+    overwrite it from their parameters."""
+    return Envelope(
+        v_min_m_s=np.full(n, v_min),
+        v_max_m_s=np.full(n, v_max),
+        accel_m_s2=np.full(n, accel),
+        decel_m_s2=np.full(n, decel),
+        max_pitch_rate_rad_s=np.full(n, max_pitch_rate),
+        max_yaw_rate_rad_s=np.full(n, max_yaw_rate),
+        pitch_min_rad=np.full(n, math.radians(-20.0)),
+        pitch_max_rad=np.full(n, math.radians(25.0)),
+        ground_z_m=np.array(ground_z_m, dtype=np.float64),
+        roll_limit_rad=np.full(n, math.radians(65.0)),
+        heading_gain=np.full(n, heading_gain(5000.0)),
+        climb_max_m_s=np.full(n, 5.0),
+        sink_max_m_s=np.full(n, 5.0),
+        l1_period_s=np.full(n, 15.0),
+        l1_damping=np.full(n, 0.75),
+        takeoff_climb_m_s=np.full(n, 10.0),
+        rotate_speed_m_s=np.full(n, 19.0),
+        speed_height_coupling=np.zeros(n),
+    )
+
+
+def heading_gain(guided_p: float) -> float:
+    """GUIDED_P (centidegrees of bank per radian of error) as radians per radian."""
+    return guided_p * math.pi / 18000.0
 
 
 @dataclass(slots=True)
@@ -124,9 +214,10 @@ class Guidance:
 
     ``direction`` is +1 for clockwise loiters (ArduPlane's positive radius), −1 for
     counter-clockwise. ``thrust`` is False for a disarmed or dead vehicle: it glides at v_min.
-    ``course_rad`` and ``lateral_accel_m_s2`` are read in COURSE only; ``climb_rate_m_s``
-    caps the vertical speed at which the altitude of ``target_enu_m`` is approached (∞: as
-    fast as the flight-path gain and the pitch limits allow).
+    ``course_rad`` and ``lateral_accel_m_s2`` are read in COURSE only.  ``alt_slew_m_s`` is
+    GUIDED_CHANGE_ALTITUDE's param3: the altitude demand is kept within ± param3 ×
+    ``GUIDED_ALT_UPDATE_S`` of the current altitude (∞: the target itself).  ``takeoff``
+    is ArduPlane's takeoff stage: roll on the ground, lift off, climb at the takeoff rate.
     """
 
     kind: IntArray
@@ -137,24 +228,37 @@ class Guidance:
     thrust: BoolArray
     course_rad: FloatArray
     lateral_accel_m_s2: FloatArray
-    climb_rate_m_s: FloatArray
+    alt_slew_m_s: FloatArray
+    takeoff: BoolArray
 
 
 def initial_state(
-    pos_enu_m: FloatArray, pitch_rad: FloatArray, yaw_rad: FloatArray, speed_m_s: FloatArray
+    pos_enu_m: FloatArray,
+    pitch_rad: FloatArray,
+    yaw_rad: FloatArray,
+    speed_m_s: FloatArray,
+    landed: BoolArray | None = None,
 ) -> FleetState:
-    """A fleet in flight at the given state, all rates zero."""
-    n = int(speed_m_s.shape[0])
+    """A fleet at the given state, wings level, holding its flight path (or on the ground,
+    at rest, where ``landed``)."""
+    n = int(np.asarray(speed_m_s).shape[0])
+    on_ground = np.zeros(n, dtype=np.bool_) if landed is None else np.array(landed, dtype=bool)
+    pos = np.array(pos_enu_m, dtype=np.float64).reshape(n, 3)
+    speed = np.where(on_ground, 0.0, np.array(speed_m_s, dtype=np.float64))
+    pitch = np.where(on_ground, 0.0, np.array(pitch_rad, dtype=np.float64))
     zeros = np.zeros(n)
     return FleetState(
-        pos_enu_m=np.array(pos_enu_m, dtype=np.float64).reshape(n, 3),
-        pitch_rad=np.array(pitch_rad, dtype=np.float64),
+        pos_enu_m=pos,
+        pitch_rad=pitch,
         yaw_rad=np.array(yaw_rad, dtype=np.float64),
-        speed_m_s=np.array(speed_m_s, dtype=np.float64),
+        speed_m_s=speed,
+        roll_rad=zeros.copy(),
+        climb_m_s=speed * np.sin(pitch),
+        height_demand_m=pos[:, 2].copy(),
         pitch_rate_rad_s=zeros.copy(),
         yaw_rate_rad_s=zeros.copy(),
         accel_m_s2=zeros.copy(),
-        landed=np.zeros(n, dtype=np.bool_),
+        landed=on_ground,
     )
 
 
@@ -170,7 +274,8 @@ def hold_guidance(state: FleetState) -> Guidance:
         thrust=np.ones(n, dtype=np.bool_),
         course_rad=state.yaw_rad.copy(),
         lateral_accel_m_s2=np.full(n, np.inf),
-        climb_rate_m_s=np.full(n, np.inf),
+        alt_slew_m_s=np.full(n, np.inf),
+        takeoff=np.zeros(n, dtype=np.bool_),
     )
 
 
@@ -180,25 +285,31 @@ def wrap_pi(angle: FloatArray) -> FloatArray:
     return out
 
 
-def effective_radius_m(
-    radius_m: FloatArray, speed_m_s: FloatArray, max_yaw_rate: FloatArray
-) -> FloatArray:
-    """Loiter radius actually flown: at least ORBIT_MARGIN × v / ω_max (the tightest circle
-    the vehicle can hold at its speed)."""
-    out: FloatArray = np.maximum(np.abs(radius_m), ORBIT_MARGIN * speed_m_s / max_yaw_rate)
+def min_turn_radius_m(speed_m_s: FloatArray, env: Envelope) -> FloatArray:
+    """The tightest circle at this speed: the roll limit's v² / (g tan φ_max), or the
+    airframe's turn rate limit v / ω_max, whichever is wider."""
+    v = np.maximum(speed_m_s, MIN_TURN_SPEED_M_S)
+    by_bank = v * v / (TURN_EFFICIENCY * GRAVITY_M_S2 * np.tan(np.minimum(env.roll_limit_rad, 1.5)))
+    out: FloatArray = np.maximum(by_bank, v / env.max_yaw_rate_rad_s)
+    return out
+
+
+def effective_radius_m(radius_m: FloatArray, speed_m_s: FloatArray, env: Envelope) -> FloatArray:
+    """Loiter radius actually flown: at least ORBIT_MARGIN × the tightest turn radius."""
+    out: FloatArray = np.maximum(np.abs(radius_m), ORBIT_MARGIN * min_turn_radius_m(speed_m_s, env))
     return out
 
 
 def commanded_course_rad(state: FleetState, env: Envelope, guid: Guidance) -> FloatArray:
-    """Course (ENU yaw) each vehicle steers for in GOTO and ORBIT, shape (N,)."""
+    """Course (ENU yaw) each vehicle steers for in GOTO, ORBIT and COURSE, shape (N,)."""
     rel = guid.target_enu_m[:, :2] - state.pos_enu_m[:, :2]
     dist = np.hypot(rel[:, 0], rel[:, 1])
     goto = np.arctan2(rel[:, 1], rel[:, 0])
-    r_eff = effective_radius_m(guid.radius_m, state.speed_m_s, env.max_yaw_rate_rad_s)
+    r_eff = effective_radius_m(guid.radius_m, state.speed_m_s, env)
     gamma = np.arctan2(-rel[:, 1], -rel[:, 0])  # bearing centre → vehicle
     lam = -np.sign(guid.direction)  # ENU counter-clockwise is +1; ArduPlane +1 is clockwise
     lam = np.where(lam == 0.0, -1.0, lam)
-    orbit = gamma + lam * (math.pi / 2 + np.arctan(K_ORBIT * (dist - r_eff) / r_eff))
+    orbit = gamma + lam * (math.pi / 2 + np.arctan(2.0 * (dist - r_eff) / r_eff))
     course: FloatArray = np.where(
         guid.kind == GuidanceKind.ORBIT,
         orbit,
@@ -207,76 +318,121 @@ def commanded_course_rad(state: FleetState, env: Envelope, guid: Guidance) -> Fl
     return course
 
 
+def bank_demand_rad(state: FleetState, env: Envelope, guid: Guidance) -> FloatArray:
+    """The bank each autopilot asks for (MAVLink sign: positive turns clockwise)."""
+    kind = guid.kind
+    v = np.maximum(state.speed_m_s, MIN_TURN_SPEED_M_S)
+    error = wrap_pi(commanded_course_rad(state, env, guid) - state.yaw_rad)  # + = turn left
+    # GUIDED heading: P-only, bank limited by the command's lateral acceleration.
+    course_limit = np.minimum(np.arctan(guid.lateral_accel_m_s2 / GRAVITY_M_S2), env.roll_limit_rad)
+    bank_course = np.clip(-env.heading_gain * error, -course_limit, course_limit)
+    # L1 towards the desired course (sin η saturates beyond ±90°), plus a loiter's v²/r.
+    eta = np.clip(error, -math.pi / 2, math.pi / 2)
+    accel_left = 4.0 * math.pi * env.l1_damping * v * np.sin(eta) / env.l1_period_s
+    r_eff = effective_radius_m(guid.radius_m, state.speed_m_s, env)
+    orbit_ff = -np.sign(guid.direction) * v * v / r_eff
+    accel_left = accel_left + np.where(kind == GuidanceKind.ORBIT, orbit_ff, 0.0)
+    bank_nav = -np.arctan(accel_left / GRAVITY_M_S2)
+    circle = np.sign(guid.direction) * np.arctan(v * v / (GRAVITY_M_S2 * np.maximum(
+        np.abs(guid.radius_m), 1.0)))  # fmt: skip
+    bank = np.where(
+        kind == GuidanceKind.COURSE,
+        bank_course,
+        np.where(
+            kind == GuidanceKind.TURN, circle, np.where(kind == GuidanceKind.HOLD, 0.0, bank_nav)
+        ),
+    )
+    bank = np.where(guid.takeoff & state.landed, 0.0, bank)
+    out: FloatArray = np.clip(bank, -env.roll_limit_rad, env.roll_limit_rad)
+    return out
+
+
+def climb_demand_m_s(
+    state: FleetState, env: Envelope, guid: Guidance, dt: float
+) -> tuple[FloatArray, FloatArray]:
+    """TECS: the new height demand and the climb-rate demand, shape (N,) each."""
+    z = state.pos_enu_m[:, 2]
+    slew = guid.alt_slew_m_s * GUIDED_ALT_UPDATE_S
+    demand = np.clip(guid.target_enu_m[:, 2], z - slew, z + slew)
+    step_up, step_down = env.climb_max_m_s * dt, env.sink_max_m_s * dt
+    height_demand = state.height_demand_m + np.clip(
+        demand - state.height_demand_m, -step_down, step_up
+    )
+    climb = K_HEIGHT_1_S * (height_demand - z)
+    climb = np.clip(climb, -env.sink_max_m_s, env.climb_max_m_s)
+    climb = np.where(guid.takeoff, env.takeoff_climb_m_s, climb)
+    held = (guid.kind == GuidanceKind.HOLD) & ~guid.takeoff
+    climb = np.where(held, state.climb_m_s, climb)  # MANUAL, centred stick: pitch held
+    return np.where(held | guid.takeoff, z, height_demand), climb
+
+
 def step(state: FleetState, env: Envelope, guid: Guidance, dt: float) -> FleetState:
     """Advance the fleet by ``dt`` seconds (pure; returns a new state)."""
-    kind = guid.kind
     v = state.speed_m_s
-    w_yaw = env.max_yaw_rate_rad_s
-    w_pitch = env.max_pitch_rate_rad_s
+    airborne = ~state.landed
 
-    # Lateral: yaw rate.
-    course = commanded_course_rad(state, env, guid)
-    pursuit_rate = K_COURSE * wrap_pi(course - state.yaw_rad)
-    turn_rate = -np.sign(guid.direction) * v / np.maximum(np.abs(guid.radius_m), 1.0)
-    yaw_rate_cmd = np.where(
-        kind == GuidanceKind.HOLD,
-        0.0,
-        np.where(kind == GuidanceKind.TURN, turn_rate, pursuit_rate),
-    )
-    # A course command turns no harder than its lateral acceleration (bank) limit allows.
-    w_turn = np.where(
-        kind == GuidanceKind.COURSE,
-        np.minimum(w_yaw, guid.lateral_accel_m_s2 / np.maximum(v, 1.0)),
-        w_yaw,
-    )
-    yaw_rate = np.clip(yaw_rate_cmd, -w_turn, w_turn)
+    # Lateral: bank follows the demand, the turn is what the bank gives.
+    bank_rate = np.clip((bank_demand_rad(state, env, guid) - state.roll_rad) / TAU_ROLL_S,
+                        -ROLL_RATE_MAX_RAD_S, ROLL_RATE_MAX_RAD_S)  # fmt: skip
+    roll = np.where(airborne, state.roll_rad + bank_rate * dt, 0.0)
+    yaw_rate = -TURN_EFFICIENCY * GRAVITY_M_S2 * np.tan(roll) / np.maximum(v, MIN_TURN_SPEED_M_S)
+    yaw_rate = np.where(airborne, np.clip(yaw_rate, -env.max_yaw_rate_rad_s,
+                                          env.max_yaw_rate_rad_s), 0.0)  # fmt: skip
 
-    # Longitudinal: pitch rate from the altitude error (not in HOLD), glide without thrust.
-    # A climb-rate limit caps the error the gain sees, so the vertical speed K_ALT × error
-    # never exceeds it (ArduPlane's altitude slew: TECS demands at most that height rate).
-    reach = guid.climb_rate_m_s / K_ALT
-    dz = np.clip(guid.target_enu_m[:, 2] - state.pos_enu_m[:, 2], -reach, reach)
-    gamma_cmd = np.arctan2(K_ALT * dz, np.maximum(v, 1.0))
-    gamma_cmd = np.where(guid.thrust, gamma_cmd, np.minimum(gamma_cmd, GLIDE_PITCH_RAD))
-    gamma_cmd = np.clip(gamma_cmd, env.pitch_min_rad, env.pitch_max_rad)
-    pitch_rate_cmd = K_PITCH * (gamma_cmd - state.pitch_rad)
-    hold_pitch = (kind == GuidanceKind.HOLD) & guid.thrust
-    pitch_rate = np.clip(np.where(hold_pitch, 0.0, pitch_rate_cmd), -w_pitch, w_pitch)
-
-    # Speed.
+    # Speed: its demand within the airframe's limits; the takeoff roll at full throttle.
     v_cmd = np.where(guid.thrust, guid.speed_cmd_m_s, env.v_min_m_s)
+    v_cmd = np.where(guid.takeoff, TAKEOFF_SPEED_FACTOR * env.rotate_speed_m_s, v_cmd)
     v_cmd = np.clip(v_cmd, env.v_min_m_s, env.v_max_m_s)
-    accel = np.clip(K_SPEED * (v_cmd - v), -env.decel_m_s2, env.accel_m_s2)
+    accel = np.clip((v_cmd - v) / TAU_SPEED_S, -env.decel_m_s2, env.accel_m_s2)
+    rolling = state.landed & guid.takeoff & guid.thrust
+    accel = np.where(rolling, GROUND_ACCEL_M_S2, np.where(airborne, accel, 0.0))
+    speed = v + accel * dt
+    speed = np.where(airborne, np.clip(speed, env.v_min_m_s, env.v_max_m_s), speed)
+    lift_off = rolling & (speed >= env.rotate_speed_m_s)
+    flying = airborne | lift_off
 
-    pitch = np.clip(state.pitch_rad + pitch_rate * dt, -math.pi / 2, math.pi / 2)
+    # Vertical: TECS's climb demand (energy traded with speed), lagged, within pitch limits.
+    height_demand, climb_cmd = climb_demand_m_s(state, env, guid, dt)
+    climb_cmd = climb_cmd - env.speed_height_coupling * v * accel / GRAVITY_M_S2
+    climb_max = np.where(guid.takeoff, env.takeoff_climb_m_s, env.climb_max_m_s)
+    climb_cmd = np.clip(climb_cmd, -env.sink_max_m_s, climb_max)
+    vs = np.maximum(speed, MIN_TURN_SPEED_M_S)
+    climb_cmd = np.where(guid.thrust, climb_cmd, vs * math.sin(GLIDE_PITCH_RAD))
+    climb_cmd = np.clip(climb_cmd, vs * np.sin(env.pitch_min_rad), vs * np.sin(env.pitch_max_rad))
+    climb_rate_limit = vs * env.max_pitch_rate_rad_s  # the flight path turns no faster
+    tau = np.where(guid.takeoff, TAU_TAKEOFF_CLIMB_S, TAU_CLIMB_S)
+    climb_accel = np.clip((climb_cmd - state.climb_m_s) / tau, -climb_rate_limit,
+                          climb_rate_limit)  # fmt: skip
+    climb = np.where(flying, state.climb_m_s + climb_accel * dt, 0.0)
+    climb = np.clip(climb, -0.99 * vs, 0.99 * vs)
+    pitch = np.where(flying, np.arcsin(climb / vs), 0.0)
+
     yaw = wrap_pi(state.yaw_rad + yaw_rate * dt)
-    speed = np.clip(v + accel * dt, env.v_min_m_s, env.v_max_m_s)
     cp = np.cos(pitch)
-    vel = np.stack(
-        (speed * cp * np.cos(yaw), speed * cp * np.sin(yaw), speed * np.sin(pitch)), axis=1
-    )
-    pos = state.pos_enu_m + vel * dt
+    vel = np.stack((speed * cp * np.cos(yaw), speed * cp * np.sin(yaw), climb), axis=1)
+    moving = flying | rolling
+    pos = state.pos_enu_m + np.where(moving[:, None], vel, 0.0) * dt
 
-    # Ground contact: a vehicle below its ground level stops there, landed.
-    landed = state.landed | (pos[:, 2] < env.ground_z_m)
-    if landed.any():
-        keep = landed[:, None]
-        pos = np.where(
-            keep, np.stack((pos[:, 0], pos[:, 1], np.maximum(pos[:, 2], env.ground_z_m)), 1), pos
-        )
-        pos = np.where(state.landed[:, None], state.pos_enu_m, pos)
-        pitch = np.where(landed, 0.0, pitch)
-        yaw = np.where(state.landed, state.yaw_rad, yaw)
-        speed = np.where(landed, 0.0, speed)
-        pitch_rate = np.where(landed, 0.0, pitch_rate)
-        yaw_rate = np.where(landed, 0.0, yaw_rate)
-        accel = np.where(landed, 0.0, accel)
+    # Ground contact: a flying vehicle below its ground level stops there, landed.
+    hit = flying & (pos[:, 2] < env.ground_z_m)
+    landed = (state.landed & ~lift_off) | hit
+    if hit.any():
+        pos[:, 2] = np.where(hit, env.ground_z_m, pos[:, 2])
+        speed = np.where(hit, 0.0, speed)
+        climb = np.where(hit, 0.0, climb)
+        pitch = np.where(hit, 0.0, pitch)
+        roll = np.where(hit, 0.0, roll)
+        yaw_rate = np.where(hit, 0.0, yaw_rate)
+        accel = np.where(hit, 0.0, accel)
     return FleetState(
         pos_enu_m=pos,
         pitch_rad=pitch,
         yaw_rad=yaw,
         speed_m_s=speed,
-        pitch_rate_rad_s=pitch_rate,
+        roll_rad=roll,
+        climb_m_s=climb,
+        height_demand_m=np.where(landed, pos[:, 2], height_demand),
+        pitch_rate_rad_s=(pitch - state.pitch_rad) / dt,
         yaw_rate_rad_s=yaw_rate,
         accel_m_s2=accel,
         landed=landed,

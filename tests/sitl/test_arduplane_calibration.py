@@ -1,0 +1,26 @@
+"""The built-in SITL against real ArduPlane: every recorded step response
+(tests/data/arduplane-traces, ArduPlane V4.7.0-dev SITL, plane.parm) flown again here with
+the same parameters and commands from the same state, each metric within its tolerance."""
+
+from __future__ import annotations
+
+import pytest
+
+from sitl.calibration import EXPERIMENTS, TRACES, compare, load_meta
+
+
+def test_the_recordings_are_real_arduplane_4_7() -> None:
+    meta = load_meta()
+    assert meta["ardupilot_version"].startswith("ArduPlane V4.7.0")
+    assert sorted(p.stem for p in TRACES.glob("*.csv")) == sorted(EXPERIMENTS)
+
+
+@pytest.mark.parametrize("experiment", sorted(EXPERIMENTS))
+def test_step_response_matches_arduplane(experiment: str) -> None:
+    rows = compare(experiment)
+    for c in rows:
+        print(f"{c.experiment} {c.metric}: ArduPlane {c.recorded:.2f}, built-in {c.simulated:.2f}")
+    off = [c for c in rows if not c.agrees]
+    assert not off, ", ".join(
+        f"{c.metric}: ArduPlane {c.recorded:.2f}, built-in {c.simulated:.2f}" for c in off
+    )
