@@ -61,6 +61,13 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--host", help="address to serve the API on (default 127.0.0.1)")
     serve.add_argument("--port", type=int, help="port of the API (default 8000)")
     serve.add_argument("--db", type=Path, help="SQLite file (default gcs_ppf.db)")
+    ap = sub.add_parser("arduplane-sitl", help="start real ArduPlane SITL, one per vehicle")
+    ap.add_argument("mission", type=Path, help="mission document (JSON)")
+    ap.add_argument("--binary", type=Path, required=True, help="build/sitl/bin/arduplane")
+    ap.add_argument("--defaults", type=Path, help="parameter file (default: the tree's plane.parm)")
+    ap.add_argument("--speedup", type=float, default=1.0, help="SITL time factor")
+    ap.add_argument("--base-port", type=int, default=5760, help="serial0 TCP port of vehicle 0")
+    ap.add_argument("--workdir", type=Path, help="instances' directories (default: a temp dir)")
     return parser
 
 
@@ -266,6 +273,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         return plan_command(args)
     if args.command == "serve":
         return serve_command(args)
+    if args.command == "arduplane-sitl":
+        from gcs_ppf.arduplane_sitl import arduplane_sitl_command
+
+        return arduplane_sitl_command(
+            args.mission,
+            binary=args.binary,
+            defaults=args.defaults,
+            speedup=args.speedup,
+            base_port=args.base_port,
+            workdir=args.workdir,
+        )
     if args.command == "demo":
         from gcs_ppf.demo import run_demo
 
