@@ -99,6 +99,8 @@ class Observer:
                     continue
                 kind = msg.get_type()
                 if kind == "GLOBAL_POSITION_INT":
+                    if msg.lat == 0 and msg.lon == 0:  # no GPS fix yet
+                        continue
                     last_pos, tbm = time.monotonic(), int(msg.time_boot_ms)
                     rec.pos.append((last_pos, tbm, msg.lat * 1e-7, msg.lon * 1e-7,
                                     msg.alt * 1e-3, msg.relative_alt * 1e-3))  # fmt: skip
@@ -139,11 +141,13 @@ def tracks_on_common_clock(
     obs: Observer, mission: Mission, t0_wall: float
 ) -> dict[int, np.ndarray]:
     """Per vehicle [K,5] rows of (vehicle seconds since ``t0_wall`` on the common clock,
-    x, y, z in the mission's ICS, height above home): test_service_sitl's track format."""
+    x, y, z in the mission's ICS, height above home) from ``t0_wall`` on:
+    test_service_sitl's track format."""
     out = {}
     for sysid, rec in obs.records.items():
         rows = np.array(rec.pos)
         t = (emission_wall_s(rows[:, 0], rows[:, 1]) - t0_wall) * SPEEDUP
+        rows, t = rows[t >= 0.0], t[t >= 0.0]
         enu = [geodetic_to_enu(la, lo, al, mission.origin) for la, lo, al in rows[:, 2:5]]
         out[sysid] = np.column_stack([t, np.array(enu), rows[:, 5]])
     return out
@@ -187,6 +191,7 @@ def fly_arduplane(tmp_path: Path, mission_path: Path) -> None:
                 r = client.post(f"/missions/{mid}/start")
                 assert r.status_code == 202, r.text
             final = wait_for(lambda: _finished(api, mid), wall_budget, "the run to end")
+            end_s = (time.monotonic() - t0_wall) * SPEEDUP  # on the common clock
             end_ms = obs.latest_boot_ms()
 
             def watched_after() -> bool:
@@ -195,6 +200,8 @@ def fly_arduplane(tmp_path: Path, mission_path: Path) -> None:
 
             wait_for(watched_after, 3 * AFTER_S / SPEEDUP + 10, "vehicle time after the end")
 
+    record = {s: {"pos": r.pos, "texts": r.texts} for s, r in obs.records.items()}
+    (tmp_path / "observer.json").write_text(json.dumps({"t0_wall": t0_wall, **record}))
     tracks = tracks_on_common_clock(obs, mission, t0_wall)
     start = max(tr[0, 0] for tr in tracks.values())
     end = min(tr[-1, 0] for tr in tracks.values())
@@ -211,11 +218,13 @@ def fly_arduplane(tmp_path: Path, mission_path: Path) -> None:
         up = [tbm for _, tbm, *_, h in rec.pos if h >= AIRBORNE_M]
         hits[sysid] = [t for b, t in rec.texts if "Hit ground" in t and up and b >= up[0]]
     flight = Flight(mission, api, mid, final, tracks, serve, env)
-    best, formation = formation_offsets(flight, 0.0)
+    # The run's clock starts once the vehicles are launched: its window ends at end_s.
+    best, formation = formation_offsets(flight, end_s - final["mission_time_s"])
     to_target = closest_pass(tracks[mission.leader.id], np.array(mission.target))
     print(
         f"{mission.name} on ArduPlane SITL (×{SPEEDUP:g}): run {final['state']} "
-        f"({final.get('outcome')}), flight time {final['mission_time_s']:.1f} s; observer: "
+        f"({final.get('outcome')}), flight time {final['mission_time_s']:.1f} s ({end_s:.1f} s "
+        "from the start command, takeoff included); observer: "
         f"min separation {separation:.1f} m (safe {lim.safe_distance_uav:g}), min clearance "
         f"{clearance:.1f} m (safe {lim.safe_distance_obstacle:g}), leader's closest to the "
         f"target {to_target:.1f} m, formation error {formation:.1f} m (worst wingman at the "
