@@ -13,10 +13,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from gcs_ppf.airframe import OnlineLimits
 from gcs_ppf.frames import local_target_point
 from gcs_ppf.geodesy import velocity_ned_to_enu
 from gcs_ppf.mission import Mission
 from gcs_ppf.planner import STATE_NAMES, advance
+from gcs_ppf.ppf.kernel import KernelLimits
 from gcs_ppf.scene import FloatArray, Obstacles, Scene, scene_from_mission
 
 
@@ -67,8 +69,9 @@ class Guidance:
 
     ids: list[int]
     guided_point_m: FloatArray  # [N,3] ICS; z is the planned altitude
-    speed_m_s: FloatArray  # [N]
+    speed_m_s: FloatArray  # [N] planned speed lead_s on
     course_rad: FloatArray  # [N] ICS yaw to fly now
+    turn_rate_rad_s: FloatArray  # [N] planned yaw rate there (+: left), for feed-forward
     climb_rate_m_s: FloatArray  # [N] vertical speed towards the altitude (inf: all it can)
     state: list[str]  # PPF state of the first planned step
     avoiding: list[bool]
@@ -76,6 +79,7 @@ class Guidance:
     local_target_distance_m: list[float | None]  # None for the leader
     leader_arrives_within_lookahead: bool
     resolving: list[bool] = field(default_factory=list)  # vertical conflict resolution
+    speed_ahead_m_s: FloatArray | None = None  # [N] planned speed lookahead_s on
 
 
 def scene_now(
@@ -86,6 +90,7 @@ def scene_now(
     margin_m: float = 0.0,
     home_ground_m: float | None = None,
     pitch_limits_rad: tuple[float, float] | None = None,
+    envelope: OnlineLimits | None = None,
 ) -> Scene:
     """The mission's scene with the vehicles where telemetry says they are.
 
@@ -94,7 +99,10 @@ def scene_now(
     The ground is the mission's, or else ``home_ground_m`` (ICS z of the ground under the
     vehicles' homes, see ``home_ground``): real aircraft do not fly in free space.
     ``pitch_limits_rad`` (steepest climb, steepest dive, both positive; see
-    ``fleet_pitch_limits``) keeps the planned flight paths within what the airframes fly.
+    ``fleet_pitch_limits``) keeps the planned flight paths within what the airframes fly;
+    ``envelope`` (``gcs_ppf.airframe.online_limits``, from the vehicles' parameters)
+    tightens the speed range, the turn rate and the flight-path angles further.  A speed
+    range that does not meet the mission's is the airframes' (they fly what they can).
     """
     base = scene_from_mission(mission)
     ground = mission.ground if mission.ground is not None else home_ground_m
@@ -111,6 +119,8 @@ def scene_now(
         base = replace(
             base, limits=base.limits._replace(max_climb_angle=climb, max_dive_angle=dive)
         )
+    if envelope is not None:
+        base = replace(base, limits=_within_envelope(base.limits, envelope))
     fleet = base.fleet.copy()
     lim = base.limits
     for i, vid in enumerate(fleet.ids.tolist()):
@@ -123,6 +133,26 @@ def scene_now(
         fleet.yaw[i] = s.yaw_rad
         fleet.speed[i] = min(max(s.speed_m_s, lim.v_min), lim.v_max)
     return replace(base, fleet=fleet, obstacles=obstacles)
+
+
+def _within_envelope(lim: KernelLimits, env: OnlineLimits) -> KernelLimits:
+    v_min = lim.v_min if env.v_min is None else max(lim.v_min, env.v_min)
+    v_max = lim.v_max if env.v_max is None else min(lim.v_max, env.v_max)
+    if v_min > v_max:  # the mission asks what the airframes cannot fly
+        v_min = lim.v_min if env.v_min is None else env.v_min
+        v_max = lim.v_max if env.v_max is None else env.v_max
+        v_min = min(v_min, v_max)
+
+    def tighter(a: float, b: float | None) -> float:
+        return a if b is None else min(a, b)
+
+    return lim._replace(
+        v_min=v_min,
+        v_max=v_max,
+        max_yaw_rate=tighter(lim.max_yaw_rate, env.max_yaw_rate),
+        max_climb_angle=tighter(lim.max_climb_angle, env.max_climb_angle),
+        max_dive_angle=tighter(lim.max_dive_angle, env.max_dive_angle),
+    )
 
 
 def home_ground(heights: list[tuple[float, float]]) -> float | None:
@@ -182,9 +212,16 @@ def guidance(
     carrot_m: float = 1500.0,
     lead_s: float = 0.5,
     climb_rate_floor_m_s: float = 1.0,
+    turn_window_s: float = 0.5,
 ) -> Guidance:
     """Run PPF ``lookahead_s`` ahead from ``scene`` and read off, for each vehicle, its speed,
-    course and climb rate as planned ``lead_s`` on, and its guided point.
+    course and climb rate as planned ``lead_s`` on, its speed ``lookahead_s`` on, and its
+    guided point.
+
+    The speed to command is the one ``lookahead_s`` on: an autopilot changes airspeed at its
+    own rate towards its demand (ArduPlane: 22 → 28 m/s took ~9 s), and the planned change
+    within ``lead_s`` can be smaller than the change worth commanding, so a plan replanned
+    every tick from the measured speed would never be flown faster or slower.
 
     The guided point is the planned position ``lookahead_s`` ahead carried ``carrot_m``
     further along the planned heading, at the planned altitude.  A fixed wing in GUIDED flies
@@ -196,7 +233,10 @@ def guidance(
     closed loop (the worst wingman came to 38.8–41.0 m of its slot at best); flying the
     course it forms (``tests/integration``).  The climb rate is the planned vertical speed
     plus ``climb_rate_floor_m_s``, so a level plan still corrects a small altitude error;
-    the leader on its final approach or go-around climbs as it can.
+    the leader on its final approach or go-around climbs as it can.  The planned turn
+    rate there is the yaw change over ``turn_window_s`` centred on it (the saturated sign
+    of Eq. 19 can alternate between full and partial steps), 0 for the leader flying the
+    line of sight or going around.
     """
     steps = max(1, round(lookahead_s / dt))
     run = advance(scene, dt, steps)
@@ -208,16 +248,19 @@ def guidance(
     yaw = tr.yaw[-1].copy()
     course = tr.yaw[k_lead].copy()
     climb = np.abs(tr.speed[k_lead] * np.sin(tr.pitch[k_lead])) + climb_rate_floor_m_s
+    turn_rate = planned_turn_rate(fleet.yaw, tr.t, tr.yaw, k_lead, turn_window_s)
     approach = leader_approach(scene)
     if run.arrived or approach == "final":  # through the target, on the line of sight
         ahead[0] = scene.target
         to_target = scene.target - fleet.pos[0]
         yaw[0] = course[0] = math.atan2(to_target[1], to_target[0])
         climb[0] = math.inf
+        turn_rate[0] = 0.0
     elif approach == "go_around":  # straight on at the target's altitude, then come back
         ahead[0] = (fleet.pos[0, 0], fleet.pos[0, 1], scene.target[2])
         yaw[0] = course[0] = fleet.yaw[0]
         climb[0] = math.inf
+        turn_rate[0] = 0.0
     guided = ahead + carrot_m * np.stack([np.cos(yaw), np.sin(yaw), np.zeros_like(yaw)], axis=1)
     guided[~fleet.active] = fleet.pos[~fleet.active]
     gaps = [
@@ -232,13 +275,35 @@ def guidance(
         guided_point_m=guided,
         speed_m_s=tr.speed[k_lead].copy(),
         course_rad=course,
+        turn_rate_rad_s=turn_rate,
         climb_rate_m_s=climb,
         state=[STATE_NAMES[int(s)] for s in tr.state[0]],
         avoiding=[bool(a) for a in tr.avoiding[0]],
         formed=[bool(f) for f in tr.formed[0]],
         local_target_distance_m=[None, *gaps],
         leader_arrives_within_lookahead=run.arrived,
+        speed_ahead_m_s=tr.speed[-1].copy(),
     )
+
+
+def planned_turn_rate(
+    yaw0: FloatArray, t: FloatArray, yaw: FloatArray, k: int, window_s: float
+) -> FloatArray:
+    """Yaw rate [N] (rad/s) of a plan around its record ``k``: the wrapped yaw change over
+    ``window_s`` centred there (clipped to the plan, whose records ``t`` [K], ``yaw`` [K,N]
+    follow the start ``yaw0`` [N] at t = 0)."""
+    times = np.concatenate([[0.0], t])
+    yaws = np.concatenate([yaw0[None], yaw])
+    j = k + 1  # record k is after step k + 1
+    half = window_s / 2.0 + 1e-9  # the records' own times count in
+    lo = int(np.searchsorted(times, times[j] - half, side="left"))
+    hi = int(np.searchsorted(times, times[j] + half, side="right")) - 1
+    lo, hi = max(0, min(lo, j)), min(len(times) - 1, max(hi, j))
+    if hi == lo:
+        return np.zeros_like(yaw0)
+    change = np.remainder(yaws[hi] - yaws[lo] + np.pi, 2.0 * np.pi) - np.pi
+    out: FloatArray = change / (times[hi] - times[lo])
+    return out
 
 
 def separations(positions: FloatArray) -> float | None:

@@ -9,6 +9,12 @@ the vehicle of lower priority a vertical resolution: its guided altitude moves
 ``resolution_m`` away from the other's (up if it is higher; down if lower, but no lower
 than the ground's keep-out, and never towards the other).  Horizontal guidance stays
 the plan's, so obstacles are still avoided as planned.  Pure: arrays in, arrays out.
+
+The distances, the horizon and the resolutions may be per vehicle; the service sizes
+them from each airframe (``gcs_ppf.airframe.guard_tuning``): an ArduPlane climbs and sinks
+no faster than TECS_CLMB_MAX / TECS_SINK_MAX (5 m/s by default), so it is asked for only
+what it can climb or sink within the horizon, and the margins are what it flies during its
+response lag.  The fixed figures (150 m, 4 s, 50 m) were tuned at the paper's 100–300 m/s.
 """
 
 from __future__ import annotations
@@ -16,6 +22,9 @@ from __future__ import annotations
 import numpy as np
 
 from gcs_ppf.scene import FloatArray, Scene
+
+PerVehicle = float | FloatArray
+"""A figure for every vehicle, or one [N] per vehicle in scene order."""
 
 
 def velocities(scene: Scene) -> FloatArray:
@@ -41,11 +50,12 @@ def resolve(
     scene: Scene,
     guided: FloatArray,
     *,
-    distance_m: float,
+    distance_m: PerVehicle,
     horizon_s: float,
-    resolution_m: float,
-    release_m: float = 50.0,
+    resolution_m: PerVehicle,
+    release_m: PerVehicle = 50.0,
     previous: list[bool] | None = None,
+    resolution_down_m: PerVehicle | None = None,
 ) -> tuple[FloatArray, list[bool]]:
     """The guided points [N,3] with vertical resolutions applied, and which vehicles got one.
 
@@ -54,7 +64,9 @@ def resolve(
     of the air, the overtaking aircraft gives way too, for the one ahead cannot see it come.
     A resolution in force (``previous``, the last tick's answer) holds until the predicted
     miss exceeds ``distance_m + release_m``, so that it does not flicker on and off as the
-    vehicle climbs away and the plan brings it back.
+    vehicle climbs away and the plan brings it back.  ``distance_m`` and ``release_m``
+    are those of the vehicle that gives way; it moves ``resolution_m`` up, or
+    ``resolution_down_m`` (default: the same) down.
     """
     fleet = scene.fleet
     lim = scene.limits
@@ -68,14 +80,22 @@ def resolve(
     held = np.zeros(n, dtype=bool)
     if previous is not None:
         held[: min(n, len(previous))] = previous[:n]
-    conflict = pairs & (miss < (distance_m + np.where(held, release_m, 0.0))[:, None])
+    distance = np.broadcast_to(np.asarray(distance_m, dtype=float), (n,))
+    release = np.broadcast_to(np.asarray(release_m, dtype=float), (n,))
+    up = np.broadcast_to(np.asarray(resolution_m, dtype=float), (n,))
+    down = (
+        up
+        if resolution_down_m is None
+        else np.broadcast_to(np.asarray(resolution_down_m, dtype=float), (n,))
+    )
+    conflict = pairs & (miss < (distance + np.where(held, release, 0.0))[:, None])
     out = guided.copy()
     floor = lim.ground + lim.safe_distance_obstacle
     for i in np.flatnonzero(conflict.any(axis=1)):
         k = int(np.argmax(conflict[i]))  # the first conflicting vehicle
         z = float(fleet.pos[i, 2])
         if z >= fleet.pos[k, 2]:
-            out[i, 2] = z + resolution_m
+            out[i, 2] = z + up[i]
         else:  # down, but not into the ground's keep-out (and never towards the other)
-            out[i, 2] = min(z, max(z - resolution_m, floor))
+            out[i, 2] = min(z, max(z - down[i], floor))
     return out, [bool(c) for c in conflict.any(axis=1)]

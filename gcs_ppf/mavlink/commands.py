@@ -216,7 +216,10 @@ def guided_change_heading(
     ArduPlane (``handle_command_int_guided_slew_commands``, GUIDED only, else FAILED) flies the
     course over ground param2 (degrees from north, clockwise, in [0, 360)) with param1
     ``HEADING_TYPE_COURSE_OVER_GROUND``, banking no more than param3, a lateral acceleration in
-    m/s², allows; it holds the course until a mode change or a DO_REPOSITION.
+    m/s², allows; it holds the course until a mode change or a DO_REPOSITION.  Its controller
+    (``ModeGuided::update``) is P only by default: bank (centidegrees) = GUIDED_P × heading
+    error (radians), clipped to ±min(atan(param3/g), ROLL_LIMIT_DEG), so a course that keeps
+    moving is flown behind (``gcs_ppf.slew`` leads it).
     """
     course = _finite("course_deg", course_deg) % 360.0
     if float(np.float32(course)) >= 360.0:  # the wire's float32 rounds 359.99999… up
@@ -242,9 +245,12 @@ def guided_change_altitude(
     """COMMAND_INT ``MAV_CMD_GUIDED_CHANGE_ALTITUDE`` (ArduPilot dialect, 43001): change altitude
     at a vertical speed.
 
-    ArduPlane (GUIDED only, else FAILED) moves its altitude target towards z (metres above
-    mean sea level in ``MAV_FRAME_GLOBAL``) at param3 m/s (0: as fast as it can) and holds it
-    until a mode change; it refuses z = 0 and z = −1 (DENIED), so they are refused here.
+    ArduPlane (GUIDED only, else FAILED) takes z (metres above mean sea level in
+    ``MAV_FRAME_GLOBAL``) as its altitude target and holds it until a mode change; it refuses
+    z = 0 and z = −1 (DENIED), so they are refused here.  param3 = 0 lets TECS climb or sink
+    as fast as it can (up to TECS_CLMB_MAX / TECS_SINK_MAX); param3 > 0 is *not* a climb-rate
+    cap: each update moves the demand from the current altitude by param3 × Δt, so TECS barely
+    climbs (measured on ArduPlane 4.7 SITL: 3.6 m in 60 s asked at 2 m/s; ``gcs_ppf.slew``).
     """
     alt = _finite("alt_amsl_m", alt_amsl_m)
     rate = _finite("rate_m_s", rate_m_s)
@@ -270,7 +276,9 @@ def set_message_interval(
     in µs (−1 stops the message, 0 restores the default rate), param7 0 (to this link).
 
     ArduPilot applies it per link and it overrides the ``REQUEST_DATA_STREAM`` rates for that
-    message; DENIED if the vehicle cannot send that message.
+    message; DENIED if the vehicle cannot send that message.  A REQUEST_DATA_STREAM sent after
+    it sets the rate of the whole stream group again and overrides the interval (measured on
+    ArduPlane 4.7): a ground station that sets intervals sends no REQUEST_DATA_STREAM.
     """
     if not 0 <= message_id <= 0xFFFFFF:
         raise ValueError(f"message_id must be a MAVLink message id (0..16777215), got {message_id}")

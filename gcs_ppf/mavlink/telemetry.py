@@ -34,6 +34,18 @@ class CommandAck:
 
 
 @dataclass(frozen=True, slots=True)
+class ParamValue:
+    """The last PARAM_VALUE received for one of ``AIRFRAME_PARAMS``."""
+
+    name: str
+    """The parameter's name as the vehicle spells it (``"TECS_CLMB_MAX"``)."""
+    value: float
+    """``param_value`` as sent (ArduPilot sends every type as a float)."""
+    received_s: float
+    """Caller's clock when it arrived."""
+
+
+@dataclass(frozen=True, slots=True)
 class VehicleTelemetry:
     """What is known of one vehicle (system id, component id); None: not received yet."""
 
@@ -85,6 +97,8 @@ class VehicleTelemetry:
     pitch_max_deg: float | None = None
     """The airframe's pitch limits (PARAM_VALUE of ``PITCH_LIMIT_PARAMS``), degrees."""
     pitch_min_deg: float | None = None
+    params: tuple[ParamValue, ...] = ()
+    """The last PARAM_VALUE of each of ``AIRFRAME_PARAMS`` received, ordered by name."""
 
     @property
     def mode_name(self) -> str | None:
@@ -98,6 +112,13 @@ class VehicleTelemetry:
                 return a
         return None
 
+    def param(self, name: str) -> ParamValue | None:
+        """The last PARAM_VALUE received for ``name`` (one of ``AIRFRAME_PARAMS``), if any."""
+        for p in self.params:
+            if p.name == name:
+                return p
+        return None
+
 
 def apply(tel: VehicleTelemetry | None, msg: MAVLinkMessage, now_s: float) -> VehicleTelemetry:
     """``tel`` updated with ``msg`` (received at caller time ``now_s``), as a new object.
@@ -105,7 +126,8 @@ def apply(tel: VehicleTelemetry | None, msg: MAVLinkMessage, now_s: float) -> Ve
     ``tel`` None starts a record for the message's sender.  Messages from another system or
     component than ``tel``'s, and message types not decoded here, return ``tel`` unchanged.
     Decoded: HEARTBEAT, GLOBAL_POSITION_INT, ATTITUDE, VFR_HUD, SYSTEM_TIME, COMMAND_ACK,
-    PARAM_VALUE of the pitch limits; the ``time_boot_ms`` of any message carrying one.
+    PARAM_VALUE of ``AIRFRAME_PARAMS`` (and the pitch limits among them as their own fields);
+    the ``time_boot_ms`` of any message carrying one.
     """
     src = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
     if tel is None:
@@ -188,16 +210,43 @@ PITCH_LIMIT_PARAMS: dict[str, tuple[str, float]] = {
 """ArduPlane's pitch-limit parameters: the field of ``VehicleTelemetry`` and the scale."""
 
 
+AIRFRAME_PARAMS: tuple[str, ...] = (
+    "TECS_CLMB_MAX",  # m/s: TECS's steepest climb rate
+    "TECS_SINK_MAX",  # m/s: TECS's steepest sink rate
+    "AIRSPEED_MIN",  # m/s (ArduPlane 4.5 on; ARSPD_FBW_MIN before)
+    "AIRSPEED_CRUISE",  # m/s (TRIM_ARSPD_CM, cm/s, before)
+    "AIRSPEED_MAX",  # m/s (ARSPD_FBW_MAX before)
+    "ARSPD_FBW_MIN",
+    "TRIM_ARSPD_CM",
+    "ARSPD_FBW_MAX",
+    "ROLL_LIMIT_DEG",  # degrees (LIM_ROLL_CD, centidegrees, before 4.5)
+    "LIM_ROLL_CD",
+    "GUIDED_P",  # GUIDED heading controller: centidegrees of bank per radian of error
+    "TKOFF_ALT",  # m above home that TAKEOFF mode climbs to
+    *PITCH_LIMIT_PARAMS,
+)
+"""The ArduPlane parameters the service reads from every vehicle (PARAM_REQUEST_READ) and
+keeps, under the names of ArduPlane 4.5 on and of the versions before; see
+``gcs_ppf.airframe`` for what each one limits."""
+
+
 def _param_value(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:
     name = msg.param_id
     if isinstance(name, bytes):
         name = name.decode("ascii", "replace")
-    known = PITCH_LIMIT_PARAMS.get(str(name).rstrip("\x00"))
+    name = str(name).rstrip("\x00")
     value = float(msg.param_value)
-    if known is None or not math.isfinite(value):
+    if name not in AIRFRAME_PARAMS or not math.isfinite(value):
         return {}
-    field_name, scale = known
-    return {field_name: value * scale}
+    kept = [p for p in tel.params if p.name != name]
+    out: dict[str, Any] = {
+        "params": tuple(sorted([*kept, ParamValue(name, value, now_s)], key=lambda p: p.name))
+    }
+    known = PITCH_LIMIT_PARAMS.get(name)
+    if known is not None:
+        field_name, scale = known
+        out[field_name] = value * scale
+    return out
 
 
 _DECODERS = {

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from gcs_ppf.airframe import OnlineLimits
 from gcs_ppf.mission import Mission
 from gcs_ppf.online import (
     VehicleState,
@@ -14,6 +15,7 @@ from gcs_ppf.online import (
     fleet_pitch_limits,
     guidance,
     home_ground,
+    planned_turn_rate,
     scene_now,
     separations,
     state_from_velocity,
@@ -64,6 +66,12 @@ def test_guided_points_lie_ahead_on_the_plan(table3: Mission) -> None:
     assert np.allclose(g.course_rad, plan.yaw[round(lead)])
     climb = np.abs(plan.speed[round(lead)] * np.sin(plan.pitch[round(lead)]))
     assert np.allclose(g.climb_rate_m_s, climb + 1.0)
+    yaws = np.concatenate([scene.fleet.yaw[None], plan.yaw])  # the turn rate there
+    j = round(lead) + 1
+    change = np.remainder(yaws[j + 12] - yaws[j - 12] + np.pi, 2 * np.pi) - np.pi
+    assert np.allclose(g.turn_rate_rad_s[1:], change[1:] / (24 * 0.02))
+    assert g.speed_ahead_m_s is not None
+    assert np.allclose(g.speed_ahead_m_s, plan.speed[-1])  # the speed to command
     assert g.state[0] == "s3"  # the leader waits for its wingmen
     assert np.all(g.speed_m_s >= 100.0 - 1e-9)
     assert g.local_target_distance_m[0] is None
@@ -118,3 +126,38 @@ def test_the_ground_is_the_missions_or_else_under_the_vehicles_homes(table3: Mis
     assert scene_now(table3, states, ids, obstacles, 0.0, homes).limits.ground == homes
     own = table3.model_copy(update={"ground": -50.0})
     assert scene_now(own, states, ids, obstacles, 0.0, homes).limits.ground == -50.0
+
+
+def test_the_planned_turn_rate_is_the_yaw_change_around_the_lead() -> None:
+    t = np.arange(1, 101, dtype=np.float64) * 0.02
+    yaw = np.stack([0.3 * t, -0.1 * t, np.full_like(t, 3.1)], axis=1)
+    yaw[:, 2] += np.where(t > 0.6, 0.1, 0.0)  # crosses ±π within the window
+    yaw = np.remainder(yaw + np.pi, 2 * np.pi) - np.pi
+    rate = planned_turn_rate(np.array([0.0, 0.0, 3.1]), t, yaw, 24, 0.5)
+    assert rate[:2] == pytest.approx([0.3, -0.1])
+    assert rate[2] == pytest.approx(0.1 / 0.48)  # over 0.26–0.74 s, wrapped, not −2π
+    edge = planned_turn_rate(np.array([0.0, 0.0, 3.1]), t, yaw, 0, 0.5)  # clipped at t = 0
+    assert edge[0] == pytest.approx(0.3)
+    assert planned_turn_rate(np.zeros(1), t[:1], yaw[:1, :1], 0, 0.0) == pytest.approx([0.0])
+
+
+def test_the_airframes_envelope_tightens_the_planned_scene(table3: Mission) -> None:
+    states = _states_at_start(table3)
+    ids = {v.id for v in table3.vehicles}
+    obstacles = obstacles_from_mission(table3)
+    env = OnlineLimits(v_min=120.0, v_max=250.0, max_yaw_rate=0.2, max_climb_angle=0.25,
+                       max_dive_angle=0.3)  # fmt: skip
+    lim = scene_now(table3, states, ids, obstacles, envelope=env).limits
+    assert (lim.v_min, lim.v_max, lim.max_yaw_rate) == (120.0, 250.0, 0.2)
+    assert (lim.max_climb_angle, lim.max_dive_angle) == (0.25, 0.3)
+    assert lim.max_pitch_rate == table3.limits.max_pitch_rate
+    loose = OnlineLimits(v_min=50.0, v_max=400.0, max_yaw_rate=2.0)  # the mission's bind
+    lim = scene_now(table3, states, ids, obstacles, envelope=loose).limits
+    assert (lim.v_min, lim.v_max) == (table3.limits.v_min, table3.limits.v_max)
+    assert lim.max_yaw_rate == table3.limits.max_yaw_rate
+    # an ArduPlane's 10–30 m/s never meets the paper's 100–300: it flies what it can
+    small = scene_now(table3, states, ids, obstacles, envelope=OnlineLimits(10.0, 30.0))
+    assert (small.limits.v_min, small.limits.v_max) == (10.0, 30.0)
+    assert np.all(small.fleet.speed <= 30.0)
+    unknown = scene_now(table3, states, ids, obstacles, envelope=OnlineLimits())
+    assert unknown.limits == scene_now(table3, states, ids, obstacles).limits

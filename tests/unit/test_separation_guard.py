@@ -101,3 +101,35 @@ def test_the_overtaking_vehicle_gives_way_too() -> None:
     ahead = replace(scene, fleet=scene.fleet.copy())
     ahead.fleet.speed[0] = 100.0  # same speed: no overtaking, no conflict
     assert guard(ahead)[1] == [False, False]
+
+
+def test_resolutions_and_margins_may_be_per_vehicle_and_differ_up_and_down() -> None:
+    """An ArduPlane climbs or sinks at most TECS_CLMB_MAX / TECS_SINK_MAX: it is asked only
+    that times the horizon (``gcs_ppf.airframe.guard_tuning``), up and down apiece."""
+    up = pair([200.0, 150.0, 330.0], -math.pi / 2)
+    guided = up.fleet.pos + np.array([1500.0, 0.0, 0.0])
+    per = np.array([150.0, 63.5])
+    points, resolving = resolve(
+        up, guided, distance_m=np.array([100.0, 100.0]), horizon_s=12.7, resolution_m=per,
+        resolution_down_m=np.array([150.0, 40.0]),
+    )  # fmt: skip
+    assert resolving == [False, True]
+    assert points[1, 2] == pytest.approx(330.0 + 63.5)
+    down = pair([200.0, 150.0, 270.0], -math.pi / 2)
+    points, _ = resolve(
+        down, down.fleet.pos.copy(), distance_m=100.0, horizon_s=12.7, resolution_m=per,
+        resolution_down_m=np.array([150.0, 40.0]),
+    )  # fmt: skip
+    assert points[1, 2] == pytest.approx(270.0 - 40.0)
+    # the giving-way vehicle's own distance decides: a small margin sees no conflict
+    alongside = pair([0.0, 120.0, 300.0], 0.0)
+    _, resolving = resolve(
+        alongside, alongside.fleet.pos.copy(), distance_m=np.array([200.0, 100.0]),
+        horizon_s=4.0, resolution_m=150.0,
+    )  # fmt: skip
+    assert resolving == [False, False]
+    _, resolving = resolve(
+        alongside, alongside.fleet.pos.copy(), distance_m=np.array([100.0, 130.0]),
+        horizon_s=4.0, resolution_m=150.0,
+    )  # fmt: skip
+    assert resolving == [False, True]

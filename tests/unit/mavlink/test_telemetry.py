@@ -157,3 +157,20 @@ def test_non_heartbeat_first_message_starts_an_empty_record() -> None:
     assert tel.mode_name is None
     assert tel.airspeed_m_s == 20.0
     assert not math.isnan(tel.airspeed_m_s)
+
+
+def test_airframe_parameters_are_kept_with_when_they_arrived() -> None:
+    tel = apply(None, _heartbeat(), 0.0)
+    tel = apply(tel, _param("TECS_CLMB_MAX", 5.0), 1.0)
+    tel = apply(tel, _param("GUIDED_P", 5000.0), 2.0)
+    tel = apply(tel, _param("TECS_CLMB_MAX", 4.0), 3.0)  # changed: the latest is kept
+    assert [p.name for p in tel.params] == ["GUIDED_P", "TECS_CLMB_MAX"]
+    clmb = tel.param("TECS_CLMB_MAX")
+    assert clmb is not None
+    assert (clmb.value, clmb.received_s) == (4.0, 3.0)
+    assert tel.param("ROLL_LIMIT_DEG") is None
+    tel = apply(tel, _param("PTCH_LIM_MAX_DEG", 25.0), 4.0)  # a pitch limit: both places
+    assert tel.pitch_max_deg == 25.0
+    limit = tel.param("PTCH_LIM_MAX_DEG")
+    assert limit is not None
+    assert limit.value == 25.0
