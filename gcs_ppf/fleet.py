@@ -1,7 +1,8 @@
 """The vehicles the service talks to: MAVLink links, discovery by heartbeat, liveness.
 
 Owns the links (``gcs_ppf.links``) and what is known of each vehicle; sends our heartbeat
-on every link, asks new vehicles for their telemetry streams and marks silent ones lost
+on every link, asks new vehicles for their telemetry streams (SET_MESSAGE_INTERVAL only) and
+their airframe parameters (``gcs_ppf.airframe``), and marks silent ones lost
 (the timeout in the vehicle's own seconds, ``gcs_ppf.vehicle_clock``).  The service's runs
 read ``by_id`` and call ``send``; ``telemetry_event`` wakes them when positions arrive.
 """
@@ -16,12 +17,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from gcs_ppf.airframe import Airframe
 from gcs_ppf.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.geodesy import geodetic_to_enu
 from gcs_ppf.links import MavlinkLink, parse_link_url
 from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import mode_name
-from gcs_ppf.mavlink.telemetry import PITCH_LIMIT_PARAMS, VehicleTelemetry, apply
+from gcs_ppf.mavlink.telemetry import AIRFRAME_PARAMS, VehicleTelemetry, apply
 from gcs_ppf.mission import Mission
 from gcs_ppf.settings import Settings
 from gcs_ppf.vehicle_clock import VehicleClock
@@ -157,25 +159,32 @@ class Fleet:
             self.telemetry_event.set()
 
     async def _request_streams(self, vehicle: Vehicle) -> None:
-        """Ask a new vehicle for the telemetry the planner needs (and the legacy streams)."""
+        """Ask a new vehicle for the telemetry the planner needs, by SET_MESSAGE_INTERVAL
+        only (a REQUEST_DATA_STREAM after it would set the whole stream group's rate and
+        override these intervals on ArduPilot), and for its airframe parameters."""
         for msg_id, factor in STREAMED.items():
             interval_us = int(1e6 / (self.settings.stream_rate_hz * factor))
             await self.send(
                 vehicle.system_id,
                 commands.set_message_interval(vehicle.system_id, msg_id, interval_us),
             )
-        await self.send(
-            vehicle.system_id,
-            commands.request_data_streams(vehicle.system_id, int(self.settings.stream_rate_hz)),
-        )
-        await self.request_pitch_limits(vehicle.system_id)
+        await self.request_airframe_params(vehicle.system_id)
 
-    async def request_pitch_limits(self, system_id: int) -> None:
-        """Ask for the airframe's pitch limits (the planner keeps its climbs within them);
-        ArduPlane answers for the names it has (``PTCH_LIM_*_DEG`` or, before 4.5,
-        ``LIM_PITCH_*``)."""
-        for name in PITCH_LIMIT_PARAMS:
+    async def request_airframe_params(self, system_id: int, *, missing_only: bool = False) -> None:
+        """Ask for the parameters of the airframe's envelope (``gcs_ppf.airframe``; the
+        planner and the separation guard keep within them): every one of ``AIRFRAME_PARAMS``
+        or, ``missing_only``, those not answered yet.  ArduPlane answers for the names it
+        has (those of 4.5 on or of the versions before) and ignores the others."""
+        vehicle = self.by_id.get(system_id)
+        for name in AIRFRAME_PARAMS:
+            if missing_only and vehicle is not None and vehicle.telemetry.param(name) is not None:
+                continue
             await self.send(system_id, commands.param_request_read(system_id, name))
+
+    def telemetry(self, system_id: int) -> VehicleTelemetry | None:
+        """What is known of vehicle ``system_id``, if it has been heard."""
+        vehicle = self.by_id.get(system_id)
+        return None if vehicle is None else vehicle.telemetry
 
     async def send(self, system_id: int, msg: Any) -> None:
         """Send ``msg`` on the link the vehicle was last heard on (if any)."""
@@ -233,6 +242,7 @@ class Fleet:
                     "airspeed_m_s": t.airspeed_m_s,
                     "groundspeed_m_s": t.groundspeed_m_s,
                     "pitch_limits_deg": {"max": t.pitch_max_deg, "min": t.pitch_min_deg},
+                    "airframe": Airframe.from_telemetry(t).as_dict(),
                 }
             )
         return out

@@ -1,9 +1,12 @@
 """The ground-station service: missions and their runs (the imperative shell).
 
 It owns the clocks and the tasks; the vehicles and their links are ``gcs_ppf.fleet``,
-planning is ``gcs_ppf.online`` (pure) with ``gcs_ppf.separation_guard``, the wire is
-``gcs_ppf.links`` and ``gcs_ppf.mavlink``, storage is ``gcs_ppf.store``.  Routes in
-``api/`` call the public methods here and of ``fleet``, nothing else.
+launching them (takeoff, confirmed arm and mode changes) is ``gcs_ppf.launch``, planning is
+``gcs_ppf.online`` (pure) within each airframe's envelope (``gcs_ppf.airframe``, from the
+vehicles' ArduPlane parameters) with ``gcs_ppf.separation_guard``, what the commands carry
+is ``gcs_ppf.slew``, the wire is ``gcs_ppf.links`` and ``gcs_ppf.mavlink``, storage is
+``gcs_ppf.store``.  Routes in ``api/`` call the public methods here and of ``fleet``,
+nothing else.
 """
 
 from __future__ import annotations
@@ -21,19 +24,18 @@ from typing import Any
 
 import numpy as np
 
-from gcs_ppf import separation_guard
+from gcs_ppf import launch, separation_guard, slew
+from gcs_ppf.airframe import Airframe, guard_tuning, tick_envelope
 from gcs_ppf.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.fleet import Fleet, Vehicle
 from gcs_ppf.geodesy import enu_to_geodetic
 from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import PlaneMode
-from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission, Obstacle
 from gcs_ppf.online import (
     Guidance,
     VehicleState,
     clearance,
-    fleet_pitch_limits,
     guidance,
     home_ground,
     scene_now,
@@ -46,9 +48,6 @@ from gcs_ppf.store import Store, StoredMission, StoredRun
 
 log = logging.getLogger("gcs_ppf.service")
 
-ON_GROUND_ALT_M = 5.0  # below this height above home and …
-ON_GROUND_SPEED_M_S = 5.0  # … slower than this, a vehicle is on the ground
-TAKEOFF_ALT_M = 50.0
 LOITER_AHEAD_M = 800.0  # after the mission each vehicle circles a point this far ahead …
 LOITER_STACK_M = 100.0  # … at its own height: vehicle k of the mission this much above
 
@@ -379,7 +378,8 @@ class FormationService:
             lat, lon, alt = enu_to_geodetic(x, y, z, mission.origin)
             await self.fleet.send(v.id, commands.reposition(v.id, lat, lon, alt))
             if self.settings.guidance == "course":  # the guided altitude outlives the course
-                await self.fleet.send(v.id, commands.guided_change_altitude(v.id, alt, 0.0))
+                altitude = slew.sendable_altitude(alt)
+                await self.fleet.send(v.id, commands.guided_change_altitude(v.id, altitude, 0.0))
 
     def _vehicle_time_s(self, run: Run) -> float | None:
         leader = self.fleet.by_id.get(run.mission.leader.id)
@@ -388,32 +388,17 @@ class FormationService:
         return leader.telemetry.time_boot_ms / 1000.0
 
     async def _launch(self, run: Run) -> None:
-        """Vehicles on the ground take off in TAKEOFF mode (ArduPlane does not take off in
-        GUIDED); airborne ones go straight to GUIDED."""
-        for v in run.mission.vehicles:
-            t = self.fleet.by_id[v.id].telemetry
-            if self._on_ground(t):
-                for msg in commands.takeoff(v.id, TAKEOFF_ALT_M):  # TKOFF_ALT, TAKEOFF, arm
-                    await self.fleet.send(v.id, msg)
-                self._event(run, "takeoff", v.id)
-            elif not t.armed:
-                await self.fleet.send(v.id, commands.arm(v.id, True))
-        deadline = time.monotonic() + 120.0
-        while any(self._on_ground(self.fleet.by_id[v.id].telemetry) for v in run.mission.vehicles):
-            if time.monotonic() > deadline:
-                raise ServiceError("vehicles did not climb after takeoff")
-            await asyncio.sleep(0.2)
-        for v in run.mission.vehicles:  # now every one is airborne: fly GUIDED
-            await self.fleet.send(v.id, commands.set_mode(v.id, PlaneMode.GUIDED))
-            if self.fleet.by_id[v.id].telemetry.pitch_max_deg is None:  # asked again
-                await self.fleet.request_pitch_limits(v.id)
+        """Every vehicle flying in GUIDED (``gcs_ppf.launch``: those on the ground taken off
+        in TAKEOFF mode to their TKOFF_ALT first, every arm and mode change confirmed);
+        parameters not answered yet are asked for again first."""
+        ids = [v.id for v in run.mission.vehicles]
+        for vid in ids:
+            await self.fleet.request_airframe_params(vid, missing_only=True)
 
-    @staticmethod
-    def _on_ground(t: VehicleTelemetry) -> bool:
-        """Low above home and slow: on the ground (the built-in SITL spawns in the air)."""
-        low = t.relative_alt_m is not None and t.relative_alt_m < ON_GROUND_ALT_M
-        slow = t.groundspeed_m_s is None or t.groundspeed_m_s < ON_GROUND_SPEED_M_S
-        return low and slow
+        def event(kind: str, vehicle_id: int | None = None, **detail: Any) -> None:
+            self._event(run, kind, vehicle_id, **detail)
+
+        await launch.launch(self.fleet, ids, self.settings.takeoff_alt_m, event)
 
     async def _fly(self, run: Run) -> None:
         try:
@@ -532,12 +517,17 @@ class FormationService:
             [(pos[2], v.telemetry.relative_alt_m) for v, pos in located
              if v.telemetry.relative_alt_m is not None]
         )  # fmt: skip
-        pitch_limits = fleet_pitch_limits(
-            [(v.telemetry.pitch_max_deg, v.telemetry.pitch_min_deg) for v, _ in located]
-        )
+        airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
+        lim = mission.limits
+        telemetry_interval_s = 1.0 / self.settings.stream_rate_hz
+        envelope = tick_envelope(
+            list(airframes.values()), [states[i].speed_m_s for i in active], lim.v_min,
+            lim.v_max, lim.accel, self.settings.lookahead_s, telemetry_interval_s,
+            self.settings.planning_margin_m,
+        )  # fmt: skip
         scene = scene_now(
-            mission, states, active, obstacles, self.settings.planning_margin_m, ground,
-            pitch_limits,
+            mission, states, active, obstacles, envelope.planning_margin_m, ground,
+            envelope=envelope.limits,
         )  # fmt: skip
         g = guidance(
             scene,
@@ -545,35 +535,52 @@ class FormationService:
             dt=self.settings.planner_dt_s,
             carrot_m=self.settings.carrot_m,
         )
-        if self.settings.guard_horizon_s > 0.0:
+        ordered = [airframes.get(vid, Airframe()) for vid in g.ids]
+        if self.settings.guard_horizon_s != 0.0:
+            tuning = guard_tuning(
+                ordered, scene.fleet.speed.tolist(), lim.safe_distance_uav,
+                telemetry_interval_s, horizon_s=self.settings.guard_horizon_s,
+                margin_m=self.settings.guard_margin_m,
+                resolution_m=self.settings.guard_resolution_m,
+            )  # fmt: skip
             points, resolving = separation_guard.resolve(
                 scene,
                 g.guided_point_m,
-                distance_m=mission.limits.safe_distance_uav + self.settings.guard_margin_m,
-                horizon_s=self.settings.guard_horizon_s,
-                resolution_m=self.settings.guard_resolution_m,
+                distance_m=lim.safe_distance_uav + tuning.margin_m,
+                horizon_s=tuning.horizon_s,
+                resolution_m=tuning.resolution_up_m,
+                resolution_down_m=tuning.resolution_down_m,
+                release_m=tuning.margin_m,
                 previous=run.last.resolving if run.last is not None else None,
             )
             g = replace(g, guided_point_m=points, resolving=resolving)
         self._note_changes(run, g)
         run.last = g
-        turn_accel = mission.limits.v_max * mission.limits.max_yaw_rate  # the plan limits turns
+        turn_accel = scene.limits.v_max * scene.limits.max_yaw_rate  # the plan limits turns
         for i, vid in enumerate(g.ids):
             if vid not in active:
                 continue
             x, y, z = (float(c) for c in g.guided_point_m[i])
-            lat, lon, alt = enu_to_geodetic(x, y, z, mission.origin)
             if self.settings.guidance == "point":
+                lat, lon, alt = enu_to_geodetic(x, y, z, mission.origin)
                 await self.fleet.send(vid, commands.reposition(vid, lat, lon, alt))
             else:
-                course_deg = 90.0 - math.degrees(float(g.course_rad[i]))  # ENU yaw → compass
-                rate = float(g.climb_rate_m_s[i])
-                if (g.resolving and g.resolving[i]) or not math.isfinite(rate):
-                    rate = 0.0  # ArduPlane: as fast as it can
-                heading = commands.guided_change_heading(vid, course_deg, turn_accel)
+                cmd = slew.slew_command(
+                    g, i, ordered[i], states[vid].pos_m[2], turn_accel, self.settings.lookahead_s
+                )
+                _, _, alt = enu_to_geodetic(x, y, cmd.z_m, mission.origin)
+                course_deg = 90.0 - math.degrees(cmd.course_rad)  # ENU yaw → compass
+                heading = commands.guided_change_heading(vid, course_deg, cmd.lateral_accel_m_s2)
                 await self.fleet.send(vid, heading)
-                await self.fleet.send(vid, commands.guided_change_altitude(vid, alt, rate))
-            speed = float(g.speed_m_s[i])
+                altitude = commands.guided_change_altitude(
+                    vid, slew.sendable_altitude(alt), cmd.rate_m_s
+                )
+                await self.fleet.send(vid, altitude)
+            t = self.fleet.by_id[vid].telemetry
+            ahead = g.speed_m_s if g.speed_ahead_m_s is None else g.speed_ahead_m_s
+            speed = slew.airspeed_command(
+                float(ahead[i]), t.airspeed_m_s, t.groundspeed_m_s, ordered[i]
+            )
             if abs(run.commanded_speed.get(vid, -1.0) - speed) >= 0.5:
                 run.commanded_speed[vid] = speed
                 await self.fleet.send(vid, commands.change_speed(vid, speed))

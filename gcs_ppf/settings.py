@@ -22,8 +22,12 @@ class Settings(BaseSettings):
     system_id: int = Field(default=255, ge=1, le=255, description="the GCS's MAVLink id")
     tick_hz: float = Field(default=10.0, gt=0.0, le=100.0, description="per vehicle second")
     lookahead_s: float = Field(default=3.0, gt=0.0, le=30.0)
-    planning_margin_m: float = Field(
-        default=100.0, ge=0.0, description="added to both safe distances when planning online"
+    planning_margin_m: float | None = Field(
+        default=None,
+        ge=0.0,
+        description="added to both safe distances when planning online; unset: v_max × the "
+        "vehicles' response lag (GUIDED_P's heading time constant + a telemetry interval), "
+        "at most 100 m, and 100 m for a vehicle that does not report GUIDED_P",
     )
     guidance: Literal["course", "point"] = Field(
         default="course",
@@ -33,17 +37,27 @@ class Settings(BaseSettings):
     )
     carrot_m: float = Field(default=1500.0, gt=0.0, description="guided point beyond the plan")
     planner_dt_s: float = Field(default=0.02, gt=0.0, le=0.5)
-    guard_horizon_s: float = Field(
-        default=4.0,
+    guard_horizon_s: float | None = Field(
+        default=None,
         ge=0.0,
-        le=30.0,
-        description="separation guard look-ahead (0: off)",
+        le=60.0,
+        description="separation guard look-ahead (0: off); unset: the time to climb or sink "
+        "the safe distance at TECS_CLMB_MAX/TECS_SINK_MAX plus the response lag, at least 4 s",
     )
-    guard_margin_m: float = Field(
-        default=50.0, ge=0.0, description="the guard acts below safe_distance_uav plus this"
+    guard_margin_m: float | None = Field(
+        default=None,
+        ge=0.0,
+        description="the guard acts below safe_distance_uav plus this; unset: each vehicle's "
+        "speed × its response lag, at most 50 m (50 m without GUIDED_P)",
     )
-    guard_resolution_m: float = Field(
-        default=150.0, gt=0.0, description="altitude change of a vertical resolution"
+    guard_resolution_m: float | None = Field(
+        default=None,
+        gt=0.0,
+        description="altitude change of a vertical resolution; unset: what TECS climbs "
+        "(sinks) within the horizon, at most 150 m (150 m without TECS limits)",
+    )
+    takeoff_alt_m: float = Field(
+        default=50.0, gt=0.0, description="TKOFF_ALT given to vehicles that start on the ground"
     )
     vehicle_timeout_s: float = Field(
         default=5.0, gt=0.0, description="silence, in the vehicle's own seconds, that makes it lost"
