@@ -172,10 +172,8 @@ def _response(rows: list[tuple[float, ...]]) -> Response:
     )  # fmt: skip
 
 
-def fly_guided(experiment: str, meta: dict[str, Any], duration_s: float) -> Response:
-    """A GUIDED experiment: level flight at the recorded state, the settle commands, 15 s,
-    then the experiment's command."""
-    e = meta["experiments"][experiment]
+def _guided_at(e: dict[str, Any], meta: dict[str, Any]) -> Simulation:
+    """A vehicle in GUIDED at the experiment's recorded state, its level commands given."""
     home = meta["simulator"]["home"]
     state = e["state_at_command"]
     yaw = math.remainder(math.radians(90.0 - state["course_deg"]), math.tau)
@@ -184,10 +182,18 @@ def fly_guided(experiment: str, meta: dict[str, Any], duration_s: float) -> Resp
     sim = Simulation(mission, airframe="arduplane")
     ap = sim.autopilots[0]
     ap.set_mode(PlaneMode.GUIDED, sim.kinematics(0), sim.clock(0.0), Outbox())
-    if experiment.startswith("07b"):  # it starts from the end of 07a: 28 m/s demanded
+    if speed > 25.0:  # 07b starts from the end of 07a: 28 m/s demanded
         _command(sim, {"type": "COMMAND_LONG", "command": 178, "params": [0, speed]})
     for spec in e["level_commands"]:
         _command(sim, spec)
+    return sim
+
+
+def fly_guided(experiment: str, meta: dict[str, Any], duration_s: float) -> Response:
+    """A GUIDED experiment: level flight at the recorded state, the settle commands, 15 s,
+    then the experiment's command."""
+    e = meta["experiments"][experiment]
+    sim = _guided_at(e, meta)
     rows: list[tuple[float, ...]] = []
     _run(sim, SETTLE_S, SETTLE_S, rows)
     cmd = dict(e["command"])
@@ -197,6 +203,23 @@ def fly_guided(experiment: str, meta: dict[str, Any], duration_s: float) -> Resp
     if _command(sim, cmd) != 0:
         raise RuntimeError(f"{experiment}: the built-in SITL refused {cmd['command_name']}")
     _run(sim, duration_s, SETTLE_S, rows)
+    return _response(rows)
+
+
+def fly_heading_ramp(meta: dict[str, Any], duration_s: float) -> Response:
+    """The course ramp: level, then a course command every 0.1 s turning at rate_dps."""
+    e = meta["experiments"]["09-heading-ramp"]
+    c0 = e["first_ramp_command_course_deg"]
+    sim = _guided_at(e, meta)
+    rows: list[tuple[float, ...]] = []
+    _run(sim, SETTLE_S, SETTLE_S, rows)
+    for k in range(round(duration_s / 0.1)):
+        if k * 0.1 <= e["ramp_s"] + 1e-9:
+            course = (c0 + e["rate_dps"] * k * 0.1) % 360.0
+            heading = {"type": "COMMAND_INT", "command": 43002, "frame": 0,
+                       "params": [0, round(course, 2), 10.0], "x": 0, "y": 0, "z": 0}  # fmt: skip
+            _command(sim, heading)
+        _run(sim, 0.1, SETTLE_S, rows)
     return _response(rows)
 
 
@@ -294,6 +317,21 @@ def reposition_metrics(r: Response, east: float, north: float) -> dict[str, floa
         "t_within_100m_s": _first(r.t, dist <= 100.0),
         "loiter_radius_m": float(np.mean(dist[tail])),
         "loiter_roll_deg": float(np.mean(np.abs(r.roll_deg[tail]))),
+    }
+
+
+def ramp_metrics(r: Response, rate_dps: float, ramp_s: float) -> dict[str, float]:
+    """How far the course lags a command turning at ``rate_dps`` (steady state: the last
+    half of the ramp), the bank that turn takes, and the settling after the ramp stops."""
+    commanded = r.course_deg[0] + rate_dps * np.minimum(r.t, ramp_s)
+    lag = commanded - r.course_deg
+    steady = (r.t >= ramp_s / 2) & (r.t <= ramp_s)
+    after = r.t >= ramp_s
+    return {
+        "steady_lag_deg": float(np.mean(lag[steady])),
+        "steady_roll_deg": float(np.mean(np.abs(r.roll_deg[steady]))),
+        "t_lag_within_2deg_after_s": _settled(r.t[after], np.abs(lag[after]) < 2.0) - ramp_s,
+        "alt_excursion_m": float(np.max(np.abs(r.rel_alt_m - r.rel_alt_m[0]))),
     }
 
 
@@ -404,6 +442,17 @@ EXPERIMENTS: dict[str, Experiment] = {
             "overshoot_m_s": Tolerance(1.0),
             "alt_excursion_max_m": Tolerance(3.0 * M),
             "alt_excursion_min_m": Tolerance(3.0 * M),
+        },
+    ),
+    "09-heading-ramp": (
+        60.0,
+        lambda meta, d: fly_heading_ramp(meta, d),
+        lambda r, meta: ramp_metrics(r, 6.0, 40.0),
+        {
+            "steady_lag_deg": Tolerance(3.0, 0.1),
+            "steady_roll_deg": Tolerance(3.0),
+            "t_lag_within_2deg_after_s": Tolerance(2.0 * S, 0.25),
+            "alt_excursion_m": Tolerance(3.0 * M),
         },
     ),
     "08-reposition-right-1000m": (

@@ -1,0 +1,156 @@
+"""Record a step response from any MAVLink ArduPlane — real ArduPlane SITL or this one — in
+the format of ``tests/data/arduplane-traces`` (one CSV row per received message).
+
+    python -m sitl.record_trace tcp:127.0.0.1:5760 heading-ramp OUT.csv [--rate-dps 6]
+
+``heading-ramp``: take off in TAKEOFF mode to 100 m, GUIDED, settle 15 s on the current
+course and altitude, then command a course that turns at ``--rate-dps`` for 40 s (a
+MAV_CMD_GUIDED_CHANGE_HEADING every 0.1 s of the vehicle's time, param3 10 m/s²) and 20 s
+more on the last course: how far ArduPlane's P-only heading controller lags a turning
+course. Time is the vehicle's (time_boot_ms), t = 0 at the first ramp command.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from pymavlink import mavutil
+
+COLUMNS = [
+    "t_s", "msg", "lat_deg", "lon_deg", "alt_amsl_m", "rel_alt_m", "vn_m_s", "ve_m_s",
+    "vd_m_s", "hdg_deg", "roll_deg", "pitch_deg", "yaw_deg", "airspeed_m_s",
+    "groundspeed_m_s", "climb_m_s", "throttle_pct", "mode", "cmd_course_deg",
+]  # fmt: skip
+TAKEOFF, GUIDED = 13, 15
+STREAMS = (33, 30, 74)  # GLOBAL_POSITION_INT, ATTITUDE, VFR_HUD
+
+
+class Recorder:
+    """A pymavlink connection that keeps the vehicle's clock and writes trace rows."""
+
+    def __init__(self, url: str) -> None:
+        self.conn: Any = mavutil.mavlink_connection(url, source_system=255, source_component=190)
+        self.conn.wait_heartbeat(timeout=60)
+        self.target = self.conn.target_system
+        self.boot_ms = 0
+        self.mode = -1
+        self.rel_alt = math.nan
+        self.course = math.nan
+        self.rows: list[dict[str, Any]] = []
+        self.t0_ms: int | None = None
+        self.cmd_course = math.nan
+        for msg_id in STREAMS:
+            self.command(511, msg_id, 100_000)
+
+    def command(self, cmd: int, *p: float) -> None:
+        params = [*p, *([0.0] * (7 - len(p)))]
+        self.conn.mav.command_long_send(self.target, 1, cmd, 0, *params)
+
+    def command_int(self, cmd: int, frame: int, p: tuple[float, ...], z: float = 0.0) -> None:
+        params = [*p, *([0.0] * (4 - len(p)))]
+        self.conn.mav.command_int_send(self.target, 1, frame, cmd, 0, 0, *params, 0, 0, z)
+
+    def set_mode(self, mode: int) -> None:
+        self.command(176, 1, mode)
+
+    def pump(self, seconds: float) -> None:
+        """Read messages for ``seconds`` of wall time, recording them."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            msg = self.conn.recv_match(blocking=True, timeout=0.05)
+            if msg is not None and msg.get_srcSystem() == self.target:
+                self._take(msg)
+
+    def wait_sim(self, seconds: float) -> None:
+        """Read messages until ``seconds`` of the vehicle's time have passed."""
+        start = self.boot_ms
+        while self.boot_ms - start < seconds * 1000:
+            self.pump(0.05)
+
+    def _take(self, msg: Any) -> None:
+        kind = msg.get_type()
+        if kind == "HEARTBEAT" and msg.autopilot != 8:
+            self.mode = int(msg.custom_mode)
+        if hasattr(msg, "time_boot_ms"):
+            self.boot_ms = int(msg.time_boot_ms)
+        row: dict[str, Any] = {"msg": kind, "mode": self.mode, "cmd_course_deg": self.cmd_course}
+        if kind == "GLOBAL_POSITION_INT":
+            self.rel_alt = msg.relative_alt / 1000.0
+            self.course = math.degrees(math.atan2(msg.vy, msg.vx)) % 360.0
+            row.update(lat_deg=msg.lat / 1e7, lon_deg=msg.lon / 1e7, alt_amsl_m=msg.alt / 1000.0,
+                       rel_alt_m=self.rel_alt, vn_m_s=msg.vx / 100.0, ve_m_s=msg.vy / 100.0,
+                       vd_m_s=msg.vz / 100.0, hdg_deg=msg.hdg / 100.0)  # fmt: skip
+        elif kind == "ATTITUDE":
+            row.update(roll_deg=math.degrees(msg.roll), pitch_deg=math.degrees(msg.pitch),
+                       yaw_deg=math.degrees(msg.yaw))  # fmt: skip
+        elif kind == "VFR_HUD":
+            row.update(airspeed_m_s=msg.airspeed, groundspeed_m_s=msg.groundspeed,
+                       climb_m_s=msg.climb, throttle_pct=msg.throttle)  # fmt: skip
+        elif kind != "HEARTBEAT":
+            return
+        row["boot_ms"] = self.boot_ms
+        self.rows.append(row)
+
+    def write(self, path: Path, t0_ms: int) -> None:
+        with path.open("w", newline="") as fh:
+            w = csv.DictWriter(fh, COLUMNS, extrasaction="ignore")
+            w.writeheader()
+            for row in self.rows:
+                t = (row["boot_ms"] - t0_ms) / 1000.0
+                if t >= -2.0:
+                    w.writerow({**row, "t_s": f"{t:.3f}"})
+
+
+def take_off(rec: Recorder, altitude_m: float = 100.0) -> None:
+    """TAKEOFF mode to ``altitude_m``, arming until ArduPlane's pre-arm checks pass."""
+    rec.conn.mav.param_set_send(rec.target, 1, b"TKOFF_ALT", altitude_m, 9)
+    rec.set_mode(TAKEOFF)
+    rec.pump(1.0)
+    while not (rec.rel_alt >= altitude_m - 5.0):
+        rec.command(400, 1)  # arm (refused until the EKF and GPS are ready)
+        rec.pump(1.0)
+        print(f"taking off: mode {rec.mode}, {rec.rel_alt:.1f} m", file=sys.stderr)
+
+
+def heading_ramp(rec: Recorder, rate_dps: float) -> int:
+    """The heading-ramp experiment; the vehicle time of its first ramp command, ms."""
+    take_off(rec)
+    rec.set_mode(GUIDED)
+    rec.pump(1.0)
+    c0 = round(rec.course, 1)
+    rec.command_int(43002, 0, (0, c0, 10.0))
+    rec.command_int(43001, 3, (0, 0, 0.0), z=round(rec.rel_alt, 1))
+    rec.wait_sim(15.0)
+    t0 = rec.boot_ms
+    step_ms = 0
+    while rec.boot_ms - t0 < 60_000:
+        if rec.boot_ms - t0 >= step_ms and step_ms <= 40_000:
+            rec.cmd_course = (c0 + rate_dps * step_ms / 1000.0) % 360.0
+            rec.command_int(43002, 0, (0, round(rec.cmd_course, 2), 10.0))
+            step_ms += 100
+        rec.pump(0.02)
+    return t0
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m sitl.record_trace", description=__doc__)
+    p.add_argument("url", help="pymavlink connection string of the vehicle")
+    p.add_argument("experiment", choices=["heading-ramp"])
+    p.add_argument("out", type=Path)
+    p.add_argument("--rate-dps", type=float, default=6.0)
+    a = p.parse_args(argv)
+    rec = Recorder(a.url)
+    t0 = heading_ramp(rec, a.rate_dps)
+    rec.write(a.out, t0)
+    print(f"wrote {a.out}: {len(rec.rows)} messages, t0 = {t0} ms")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
