@@ -15,8 +15,10 @@ Pure.  Every figure comes from what ArduPlane itself does with the parameter:
 - ``GUIDED_P``: GUIDED's heading controller (``ModeGuided::update``, ``guidedHeading``, P only
   in the defaults) banks GUIDED_P centidegrees per radian of heading error, so the heading
   error decays with the time constant v/(K·g), K = GUIDED_P·π/18000 (rad of bank per rad of
-  error): the response lag the closed-loop margins are sized from.
+  error); with the service's feed-forward (``gcs_ppf.slew``) only what the roll-in leaves
+  does (``response_lag_s``, from which the closed-loop margins are sized).
 - ``TKOFF_ALT``: TAKEOFF mode climbs to it above home, then loiters.
+- ``RLL2SRV_TCONST``: the roll loop's time constant (how long a commanded bank takes).
 
 A parameter a vehicle did not answer is None here, and whatever depends on it keeps the
 mission's limits or the service's fixed settings for that vehicle (the paper's scenes on a
@@ -43,7 +45,8 @@ without ``GUIDED_P`` gets it, and a derived margin never exceeds it.  Derived fo
 built-in SITL's paper airframe (GUIDED_P for a 0.4 s heading loop at 100 m/s), v_max × lag
 is 289 m: the keep-outs of Table 3's obstacles then overlap into one wall, and flown
 closed loop the leader went 188 m into an obstacle (PPF's repulsions add between
-overlapping spheres).  At ArduPlane's speeds the derivation gives less (94 m at 28 m/s)."""
+overlapping spheres).  At ArduPlane's speeds the derivation gives less: 31 m at 28 m/s
+with the roll-in lag, 94 m with the heading time constant (without RLL2SRV_TCONST)."""
 DEFAULT_GUARD_HORIZON_S = 4.0
 """Separation-guard look-ahead tuned at 100–300 m/s: the shortest; an airframe that needs
 longer to climb or sink the safe distance gets that time."""
@@ -79,6 +82,8 @@ class Airframe:
     """``PTCH_LIM_MIN_DEG`` (``LIM_PITCH_MIN`` / 100 before 4.5); negative."""
     takeoff_alt_m: float | None = None
     """``TKOFF_ALT``."""
+    roll_time_constant_s: float | None = None
+    """``RLL2SRV_TCONST``: how fast the roll loop reaches a demanded bank."""
 
     @staticmethod
     def from_params(value: Callable[[str], float | None]) -> Airframe:
@@ -108,6 +113,7 @@ class Airframe:
             pitch_max_deg=positive(first(("PTCH_LIM_MAX_DEG", 1.0), ("LIM_PITCH_MAX", 0.01))),
             pitch_min_deg=first(("PTCH_LIM_MIN_DEG", 1.0), ("LIM_PITCH_MIN", 0.01)),
             takeoff_alt_m=positive(first(("TKOFF_ALT", 1.0))),
+            roll_time_constant_s=positive(first(("RLL2SRV_TCONST", 1.0))),
         )
 
     @staticmethod
@@ -203,12 +209,31 @@ def online_limits(airframes: Sequence[Airframe], speed_m_s: float) -> OnlineLimi
     )
 
 
+ROLL_IN_TIME_CONSTANTS = 4.0
+"""A bank is reached within this many roll time constants (98 % of a first-order step).
+Real ArduPlane (RLL2SRV_TCONST 0.25 s) peaked at 50° of bank 1.0 s after a course step."""
+
+
 def response_lag_s(airframe: Airframe, speed_m_s: float, telemetry_interval_s: float) -> float:
-    """How far behind its plan a vehicle flies, in seconds: GUIDED's heading time constant
-    at ``speed_m_s`` plus one telemetry interval (the plan starts from a position that old);
-    NaN without GUIDED_P."""
+    """How far behind its plan a vehicle flies, in seconds, plus one telemetry interval (the
+    plan starts from a position that old); NaN without GUIDED_P.
+
+    The service leads GUIDED's P-only heading controller by the error a planned turn needs
+    (``gcs_ppf.slew``), so a vehicle does not follow a turning plan behind by the heading
+    time constant v/(K·g) any more (2.6 s at 22 m/s: the 7–8° the issue measured); what is
+    left is the roll-in, ``ROLL_IN_TIME_CONSTANTS`` × RLL2SRV_TCONST (1.0 s by default), the
+    heading error it leaves then decaying with v/(K·g).  Without RLL2SRV_TCONST the heading
+    time constant itself is taken.  Measured on real ArduPlane 4.7 SITL (3 vehicles, ground
+    start, ``tests/integration/test_arduplane.py``): with the heading time constant (94 m
+    of margin at 28 m/s) the wingmen could not come nearer than 93–133 m to slots 141 m
+    from the leader (closer than the safe distance plus that margin); with 30 m they came
+    to 13.5 and 26.7 m, separation ≥ 103.8 m, clearance ≥ 157 m."""
     tau = airframe.heading_time_constant_s(speed_m_s)
-    return math.nan if tau is None else tau + telemetry_interval_s
+    if tau is None:
+        return math.nan
+    if airframe.roll_time_constant_s is not None:
+        return ROLL_IN_TIME_CONSTANTS * airframe.roll_time_constant_s + telemetry_interval_s
+    return tau + telemetry_interval_s
 
 
 def planning_margin_m(

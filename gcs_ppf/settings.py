@@ -26,8 +26,9 @@ class Settings(BaseSettings):
         default=None,
         ge=0.0,
         description="added to both safe distances when planning online; unset: v_max × the "
-        "vehicles' response lag (GUIDED_P's heading time constant + a telemetry interval), "
-        "at most 100 m, and 100 m for a vehicle that does not report GUIDED_P",
+        "vehicles' response lag (the roll-in, 4 × RLL2SRV_TCONST, or without it GUIDED_P's "
+        "heading time constant; + a telemetry interval), at most 100 m, and 100 m for a "
+        "vehicle that does not report GUIDED_P",
     )
     guidance: Literal["course", "point"] = Field(
         default="course",

@@ -223,6 +223,7 @@ AIRFRAME_PARAMS: tuple[str, ...] = (
     "LIM_ROLL_CD",
     "GUIDED_P",  # GUIDED heading controller: centidegrees of bank per radian of error
     "TKOFF_ALT",  # m above home that TAKEOFF mode climbs to
+    "RLL2SRV_TCONST",  # s: the roll loop's time constant
     *PITCH_LIMIT_PARAMS,
 )
 """The ArduPlane parameters the service reads from every vehicle (PARAM_REQUEST_READ) and

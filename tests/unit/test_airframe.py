@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -17,6 +18,7 @@ from gcs_ppf.airframe import (
     guard_tuning,
     online_limits,
     planning_margin_m,
+    response_lag_s,
     tick_envelope,
 )
 
@@ -31,15 +33,17 @@ PLANE_PARM = {  # ArduPlane 4.7 SITL, plane.parm defaults (../shared/arduplane-t
     "AIRSPEED_CRUISE": 22.0,
     "AIRSPEED_MAX": 30.0,
     "TKOFF_ALT": 50.0,
+    "RLL2SRV_TCONST": 0.25,
 }
 PLANE = Airframe.from_params(PLANE_PARM.get)
+NO_TCONST = dataclasses.replace(PLANE, roll_time_constant_s=None)
 
 
 def test_the_envelope_from_arduplane_47_parameters() -> None:
     expected = Airframe(
         climb_max_m_s=5.0, sink_max_m_s=5.0, airspeed_min_m_s=10.0, airspeed_cruise_m_s=22.0,
         airspeed_max_m_s=30.0, roll_limit_deg=65.0, guided_p=5000.0, pitch_max_deg=25.0,
-        pitch_min_deg=-20.0, takeoff_alt_m=50.0,
+        pitch_min_deg=-20.0, takeoff_alt_m=50.0, roll_time_constant_s=0.25,
     )  # fmt: skip
     assert expected == PLANE
     assert PLANE.as_dict()["guided_p"] == 5000.0
@@ -85,11 +89,23 @@ def test_the_fleets_online_limits_are_the_tightest_known() -> None:
     assert (none.v_min, none.v_max, none.max_yaw_rate, none.max_climb_angle) == (None,) * 4
 
 
+def test_the_response_lag_is_the_roll_in_with_the_feed_forward() -> None:
+    """Led for its P-controller, a vehicle follows a turning plan after the roll-in (4 roll
+    time constants: 1.0 s at RLL2SRV_TCONST 0.25, as real ArduPlane peaked at 50° of bank
+    1.0 s after a course step); without RLL2SRV_TCONST, the heading time constant."""
+    assert response_lag_s(PLANE, 28.0, 0.1) == pytest.approx(4 * 0.25 + 0.1)
+    tau = 28.0 / (5000.0 * math.pi / 18000.0 * G_M_S2)
+    assert response_lag_s(NO_TCONST, 28.0, 0.1) == pytest.approx(tau + 0.1)
+    assert math.isnan(response_lag_s(Airframe(roll_time_constant_s=0.25), 28.0, 0.1))
+
+
 def test_the_planning_margin_is_v_max_times_the_response_lag() -> None:
+    assert planning_margin_m([PLANE], 28.0, 0.1) == pytest.approx(28.0 * 1.1)
     k = 5000.0 * math.pi / 18000.0
     expected = 28.0 * (28.0 / (k * G_M_S2) + 0.1)
-    assert planning_margin_m([PLANE], 28.0, 0.1) == pytest.approx(expected)
+    assert planning_margin_m([NO_TCONST], 28.0, 0.1) == pytest.approx(expected)
     assert 90.0 < expected < 100.0
+    assert planning_margin_m([PLANE, NO_TCONST], 28.0, 0.1) == pytest.approx(expected)
     # a vehicle that does not report GUIDED_P keeps today's fixed margin
     assert planning_margin_m([PLANE, Airframe()], 28.0, 0.1) == DEFAULT_PLANNING_MARGIN_M
     assert planning_margin_m([], 28.0, 0.1) == DEFAULT_PLANNING_MARGIN_M
@@ -113,17 +129,20 @@ def test_a_tick_envelope_takes_speed_limits_at_the_fastest_reachable_speed() -> 
 
 
 def test_the_guard_asks_an_arduplane_only_what_tecs_climbs_within_the_horizon() -> None:
-    tuning = guard_tuning([PLANE, PLANE], [22.0, 22.0], 50.0, 0.1)
+    tuning = guard_tuning([NO_TCONST, NO_TCONST], [22.0, 22.0], 50.0, 0.1)
     lag = 22.0 / (PLANE.heading_gain or 1.0) / G_M_S2 + 0.1
     assert tuning.horizon_s == pytest.approx(50.0 / 5.0 + lag)  # 50 m at 5 m/s, after the lag
     assert np.allclose(tuning.resolution_up_m, 5.0 * tuning.horizon_s)
     assert np.allclose(tuning.resolution_down_m, 5.0 * tuning.horizon_s)
     assert np.allclose(tuning.margin_m, min(22.0 * lag, DEFAULT_GUARD_MARGIN_M))
     assert tuning.resolution_up_m[0] < DEFAULT_GUARD_RESOLUTION_M
-    slow = guard_tuning([PLANE], [16.0], 50.0, 0.1)  # what it flies during its lag
+    slow = guard_tuning([NO_TCONST], [16.0], 50.0, 0.1)  # what it flies during its lag
     lag16 = 16.0 / (PLANE.heading_gain or 1.0) / G_M_S2 + 0.1
     assert slow.margin_m[0] == pytest.approx(16.0 * lag16)
     assert slow.margin_m[0] < DEFAULT_GUARD_MARGIN_M
+    led = guard_tuning([PLANE], [22.0], 50.0, 0.1)  # the roll-in lag with the feed-forward
+    assert led.margin_m[0] == pytest.approx(22.0 * 1.1)
+    assert led.horizon_s == pytest.approx(50.0 / 5.0 + 1.1)
 
 
 def test_the_paper_airframe_keeps_the_figures_tuned_at_its_speeds() -> None:
