@@ -44,6 +44,8 @@ ARDUPLANE: dict[str, float] = {
     "TECS_SINK_MAX": 5.0,
     "NAVL1_PERIOD": 15.0,
     "NAVL1_DAMPING": 0.75,
+    "RLL2SRV_TCONST": 0.25,
+    "TECS_TIME_CONST": 5.0,
     "TKOFF_ALT": 50.0,
     "TKOFF_DIST": 200.0,
     "WP_LOITER_RAD": 80.0,
@@ -60,6 +62,9 @@ ARDUPLANE: dict[str, float] = {
 
 #: Time constant of the scaled airframe's heading loop at its initial speed, s.
 MISSION_HEADING_TAU_S = 0.4
+#: TECS time constant of the scaled airframe, s: its height loop 5× faster than ArduPlane's
+#: (0.4 s climb lag, 1.75 /s gain), as the paper's vehicles pitch at 30°/s.
+MISSION_TECS_TIME_CONST_S = 1.0
 #: Period of the scaled airframe's L1 navigation, s (ψ̇ = 4πζ/P × error: ~0.4 s).
 MISSION_L1_PERIOD_S = 4.0
 
@@ -89,6 +94,8 @@ def mission_airframe(limits: Limits, cruise_m_s: float) -> dict[str, float]:
         "TECS_SINK_MAX": limits.v_max * math.sin(math.radians(-pitch_min_deg)),
         "NAVL1_PERIOD": MISSION_L1_PERIOD_S,
         "NAVL1_DAMPING": 0.75,
+        "RLL2SRV_TCONST": 0.25,
+        "TECS_TIME_CONST": MISSION_TECS_TIME_CONST_S,
         "TKOFF_ALT": 50.0,
         "TKOFF_DIST": 200.0,
         "WP_LOITER_RAD": 60.0,

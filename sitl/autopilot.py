@@ -21,8 +21,11 @@ from sitl.modes import PlaneMode
 from sitl.navigation import AutoEvents, MissionRunner, NavTarget
 from sitl.params import ParamTable
 from sitl.physics import (
+    CLIMB_LAG_PER_TIME_CONST,
     GRAVITY_M_S2,
+    HEIGHT_GAIN_TIMES_TIME_CONST,
     ORBIT_MARGIN,
+    ROLL_LAG_PER_TCONST,
     TURN_EFFICIENCY,
     Envelope,
     Guidance,
@@ -348,6 +351,9 @@ class Autopilot:
         env.l1_damping[i] = p["NAVL1_DAMPING"]
         env.takeoff_climb_m_s[i] = 2.0 * p["TECS_CLMB_MAX"]
         env.speed_height_coupling[i] = p["SIM_SPD_HGT"]
+        env.roll_lag_s[i] = ROLL_LAG_PER_TCONST * p["RLL2SRV_TCONST"]
+        env.climb_lag_s[i] = CLIMB_LAG_PER_TIME_CONST * p["TECS_TIME_CONST"]
+        env.height_gain_1_s[i] = HEIGHT_GAIN_TIMES_TIME_CONST / p["TECS_TIME_CONST"]
         env.rotate_speed_m_s[i] = 0.9 * p["AIRSPEED_CRUISE"] * p["SIM_EAS2TAS"]
         self.envelope_dirty = False
 

@@ -68,6 +68,8 @@ def vehicle_param_specs(
         ParamSpec("GUIDED_P", a["GUIDED_P"], f, 0, 1e7, "GUIDED heading gain, cdeg/rad"),
         ParamSpec("TECS_CLMB_MAX", a["TECS_CLMB_MAX"], f, 0.1, 1000, "max climb rate, m/s"),
         ParamSpec("TECS_SINK_MAX", a["TECS_SINK_MAX"], f, 0.1, 1000, "max sink rate, m/s"),
+        ParamSpec("RLL2SRV_TCONST", a["RLL2SRV_TCONST"], f, 0.05, 5, "roll time constant, s"),
+        ParamSpec("TECS_TIME_CONST", a["TECS_TIME_CONST"], f, 0.5, 20, "TECS time const, s"),
         ParamSpec("NAVL1_PERIOD", a["NAVL1_PERIOD"], f, 1, 60, "L1 navigation period, s"),
         ParamSpec("NAVL1_DAMPING", a["NAVL1_DAMPING"], f, 0.6, 1, "L1 navigation damping"),
         ParamSpec("FS_GCS_ENABL", 0, i8, 0, 2, "GCS failsafe: 0 off, 1 heartbeat, 2 also RSSI"),

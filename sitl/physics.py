@@ -16,7 +16,7 @@ Kinematics are the paper's Eq. 5 with the flight-path angle as pitch (no wind, s
 
 The turn is what the bank gives, ψ̇ = −η g tan φ / v (η = ``TURN_EFFICIENCY``), within the
 airframe's SIM_YAW_RATE; the bank follows the autopilot's demand with a first-order lag
-(``TAU_ROLL_S``) and a roll-rate limit.  The demand is ArduPlane's:
+(``roll_lag_s``) and a roll-rate limit.  The demand is ArduPlane's:
 
 * GUIDED heading (MAV_CMD_GUIDED_CHANGE_HEADING, ArduPlane ``mode_guided.cpp``): a P-only
   controller, bank = GUIDED_P (centidegrees per radian) × course error, clipped to
@@ -26,10 +26,10 @@ airframe's SIM_YAW_RATE; the bank follows the autopilot's demand with a first-or
 * CIRCLE: the bank of a circle of WP_LOITER_RAD.
 
 Height is a TECS-like loop: the height demand moves towards the target at no more than
-TECS_CLMB_MAX / TECS_SINK_MAX, the climb-rate demand is ``K_HEIGHT`` × the height error
+TECS_CLMB_MAX / TECS_SINK_MAX, the climb-rate demand is ``height_gain_1_s`` × the height error
 (within those limits and the pitch limits; no feed-forward of the demand's rate, which is
 why a slewed GUIDED altitude barely climbs), and the climb rate follows it with a lag
-(``TAU_CLIMB_S``).  Speeding up costs height and slowing down gains it (TECS trades energy:
+(``climb_lag_s``).  Speeding up costs height and slowing down gains it (TECS trades energy:
 the envelope's ``speed_height_coupling``).  Speed follows its demand within SIM_ACCEL_MAX /
 SIM_DECEL_MAX.  A vehicle on the ground stays there unless it is taking off (ArduPlane's
 TAKEOFF mode): it rolls along its heading at ``GROUND_ACCEL_M_S2`` and lifts off at its
@@ -54,19 +54,22 @@ GRAVITY_M_S2 = 9.80665
 DT_S = 0.02
 
 # Fitted to real ArduPlane 4.7 SITL (plane.parm), see tests/sitl/test_arduplane_calibration.py.
-#: Lag of the bank behind its demand, s (course step +90°: 45° of bank within 0.7 s).
-TAU_ROLL_S = 0.2
+#: Lag of the bank behind its demand, × RLL2SRV_TCONST (0.25 s: 45° of bank within 0.7 s
+#: of a course step of +90°).
+ROLL_LAG_PER_TCONST = 0.8
 #: Fastest roll, rad/s (the same step rolled at ~90°/s).
 ROLL_RATE_MAX_RAD_S = math.radians(90.0)
 #: Turn rate as a fraction of a coordinated turn's g tan φ / v at the same bank (trace 02
 #: turned at ~75 % of it, trace 08 loitered 94 m wide at 40° of bank: 70 %).
 TURN_EFFICIENCY = 0.72
-#: Lag of the climb rate behind TECS's climb-rate demand, s (+50 m step: 3 m/s after 3 s).
-TAU_CLIMB_S = 2.0
+#: Lag of the climb rate behind TECS's climb-rate demand, × TECS_TIME_CONST (5 s: a 2 s
+#: lag, +50 m step: 3 m/s after 3 s).
+CLIMB_LAG_PER_TIME_CONST = 0.4
 #: The same lag in the takeoff climb, s (trace 01 climbed at 10 m/s 0.5 s after lift-off).
 TAU_TAKEOFF_CLIMB_S = 0.4
-#: TECS's height-error gain, 1/s (from the tail of the +50 m step and the param3 = 2 run).
-K_HEIGHT_1_S = 0.35
+#: TECS's height-error gain × TECS_TIME_CONST (5 s: 0.35 /s, from the tail of the +50 m
+#: step and the param3 = 2 run).
+HEIGHT_GAIN_TIMES_TIME_CONST = 1.75
 #: Lag of the airspeed behind its demand, s (within SIM_ACCEL_MAX / SIM_DECEL_MAX).
 TAU_SPEED_S = 1.0
 #: How often ArduPlane moves GUIDED's slewed altitude demand (``update_target_altitude``
@@ -166,6 +169,9 @@ class Envelope:
     rotate_speed_m_s: FloatArray
     speed_height_coupling: FloatArray
     """Fraction of the kinetic energy of a speed change that TECS pays in height."""
+    roll_lag_s: FloatArray
+    climb_lag_s: FloatArray
+    height_gain_1_s: FloatArray
 
 
 def default_envelope(
@@ -200,6 +206,9 @@ def default_envelope(
         takeoff_climb_m_s=np.full(n, 10.0),
         rotate_speed_m_s=np.full(n, 19.0),
         speed_height_coupling=np.zeros(n),
+        roll_lag_s=np.full(n, ROLL_LAG_PER_TCONST * 0.25),
+        climb_lag_s=np.full(n, CLIMB_LAG_PER_TIME_CONST * 5.0),
+        height_gain_1_s=np.full(n, HEIGHT_GAIN_TIMES_TIME_CONST / 5.0),
     )
 
 
@@ -358,7 +367,7 @@ def climb_demand_m_s(
     height_demand = state.height_demand_m + np.clip(
         demand - state.height_demand_m, -step_down, step_up
     )
-    climb = K_HEIGHT_1_S * (height_demand - z)
+    climb = env.height_gain_1_s * (height_demand - z)
     climb = np.clip(climb, -env.sink_max_m_s, env.climb_max_m_s)
     climb = np.where(guid.takeoff, env.takeoff_climb_m_s, climb)
     held = (guid.kind == GuidanceKind.HOLD) & ~guid.takeoff
@@ -372,7 +381,7 @@ def step(state: FleetState, env: Envelope, guid: Guidance, dt: float) -> FleetSt
     airborne = ~state.landed
 
     # Lateral: bank follows the demand, the turn is what the bank gives.
-    bank_rate = np.clip((bank_demand_rad(state, env, guid) - state.roll_rad) / TAU_ROLL_S,
+    bank_rate = np.clip((bank_demand_rad(state, env, guid) - state.roll_rad) / env.roll_lag_s,
                         -ROLL_RATE_MAX_RAD_S, ROLL_RATE_MAX_RAD_S)  # fmt: skip
     roll = np.where(airborne, state.roll_rad + bank_rate * dt, 0.0)
     yaw_rate = -TURN_EFFICIENCY * GRAVITY_M_S2 * np.tan(roll) / np.maximum(v, MIN_TURN_SPEED_M_S)
@@ -400,7 +409,7 @@ def step(state: FleetState, env: Envelope, guid: Guidance, dt: float) -> FleetSt
     climb_cmd = np.where(guid.thrust, climb_cmd, vs * math.sin(GLIDE_PITCH_RAD))
     climb_cmd = np.clip(climb_cmd, vs * np.sin(env.pitch_min_rad), vs * np.sin(env.pitch_max_rad))
     climb_rate_limit = vs * env.max_pitch_rate_rad_s  # the flight path turns no faster
-    tau = np.where(guid.takeoff, TAU_TAKEOFF_CLIMB_S, TAU_CLIMB_S)
+    tau = np.where(guid.takeoff, TAU_TAKEOFF_CLIMB_S, env.climb_lag_s)
     climb_accel = np.clip((climb_cmd - state.climb_m_s) / tau, -climb_rate_limit,
                           climb_rate_limit)  # fmt: skip
     climb = np.where(flying, state.climb_m_s + climb_accel * dt, 0.0)
