@@ -39,6 +39,12 @@ from gcs_ppf.scene import FloatArray
 G_M_S2 = 9.80665
 """Standard gravity (ArduPilot's ``GRAVITY_MSS``)."""
 
+TURN_EFFICIENCY = 0.72
+"""The turn a bank gives, as a fraction of a coordinated turn's g·tan(φ)/v: real ArduPlane
+SITL (plane.parm) turned at 72–75 % of it (tests/data/arduplane-traces 02, 08 and 09: a
+6°/s turn at 18.6° of bank where a coordinated one needs 14.1°), so the bank for a
+planned turn is atan(v·ψ̇ / (η·g))."""
+
 DEFAULT_PLANNING_MARGIN_M = 100.0
 """Closed-loop planning margin tuned and measured at the paper's 100–300 m/s: a vehicle
 without ``GUIDED_P`` gets it, and a derived margin never exceeds it.  Derived for the
@@ -139,13 +145,14 @@ class Airframe:
         """How long GUIDED takes to take 63 % off a small heading error at ``speed_m_s``:
         turn rate g·tan(K·e)/v ≈ (K·g/v)·e, so e decays with v/(K·g)."""
         k = self.heading_gain
-        return None if k is None else speed_m_s / (k * G_M_S2)
+        return None if k is None else speed_m_s / (k * TURN_EFFICIENCY * G_M_S2)
 
     def max_turn_rate(self, speed_m_s: float) -> float | None:
         """ω_max(v) = g·tan(ROLL_LIMIT_DEG)/v, rad/s."""
         if self.roll_limit_deg is None:
             return None
-        return G_M_S2 * math.tan(math.radians(self.roll_limit_deg)) / max(speed_m_s, 1e-6)
+        tan_bank = math.tan(math.radians(self.roll_limit_deg))
+        return TURN_EFFICIENCY * G_M_S2 * tan_bank / max(speed_m_s, 1e-6)
 
     def max_climb_angle(self, speed_m_s: float) -> float | None:
         """Steepest flight-path climb (rad) at ``speed_m_s``: the pitch limit, and what

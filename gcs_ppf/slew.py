@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from gcs_ppf.airframe import G_M_S2, Airframe
+from gcs_ppf.airframe import G_M_S2, TURN_EFFICIENCY, Airframe
 from gcs_ppf.online import Guidance
 
 LATERAL_ACCEL_MARGIN = 1.5
@@ -37,7 +37,7 @@ acceleration (the P-controller also banks to take out errors)."""
 def needed_bank_rad(turn_rate_rad_s: float, speed_m_s: float) -> float:
     """The bank of a coordinated turn at ``turn_rate_rad_s`` and airspeed ``speed_m_s``,
     atan(v·ψ̇/g), signed as the turn."""
-    return math.atan(speed_m_s * turn_rate_rad_s / G_M_S2)
+    return math.atan(speed_m_s * turn_rate_rad_s / (TURN_EFFICIENCY * G_M_S2))
 
 
 def course_lead_rad(
@@ -80,7 +80,8 @@ def lateral_accel_limit(
     """param3 of the heading command (m/s²): at least the plan's own limit
     (``plan_limit_m_s2``, v_max·ω_max), at least ``LATERAL_ACCEL_MARGIN`` × the planned
     turn's v·|ψ̇|, no more than ROLL_LIMIT_DEG allows anyway (ArduPlane clips there)."""
-    accel = max(plan_limit_m_s2, LATERAL_ACCEL_MARGIN * speed_m_s * abs(turn_rate_rad_s))
+    turn_accel = speed_m_s * abs(turn_rate_rad_s) / TURN_EFFICIENCY  # g·tan(the turn's bank)
+    accel = max(plan_limit_m_s2, LATERAL_ACCEL_MARGIN * turn_accel)
     if roll_limit_deg is not None:
         accel = min(accel, G_M_S2 * math.tan(math.radians(roll_limit_deg)))
     return max(accel, 0.05) if math.isfinite(accel) else 0.05

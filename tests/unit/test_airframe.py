@@ -14,6 +14,7 @@ from gcs_ppf.airframe import (
     DEFAULT_GUARD_RESOLUTION_M,
     DEFAULT_PLANNING_MARGIN_M,
     G_M_S2,
+    TURN_EFFICIENCY,
     Airframe,
     guard_tuning,
     online_limits,
@@ -63,9 +64,13 @@ def test_names_before_arduplane_45_and_values_that_cannot_be_limits() -> None:
 
 
 def test_turn_rate_and_flight_path_angles_at_a_speed() -> None:
-    assert PLANE.max_turn_rate(22.0) == pytest.approx(G_M_S2 * math.tan(math.radians(65)) / 22)
+    assert PLANE.max_turn_rate(22.0) == pytest.approx(
+        TURN_EFFICIENCY * G_M_S2 * math.tan(math.radians(65)) / 22
+    )
     assert PLANE.heading_gain == pytest.approx(0.8727, abs=1e-4)
-    assert PLANE.heading_time_constant_s(22.0) == pytest.approx(22.0 / (0.87266 * G_M_S2), 1e-4)
+    assert PLANE.heading_time_constant_s(22.0) == pytest.approx(
+        22.0 / (0.87266 * TURN_EFFICIENCY * G_M_S2), 1e-4
+    )
     # TECS: 5 m/s at 22 m/s is 13.1°, tighter than the 25° / 20° pitch limits
     assert PLANE.max_climb_angle(22.0) == pytest.approx(math.asin(5.0 / 22.0))
     assert PLANE.max_dive_angle(22.0) == pytest.approx(math.asin(5.0 / 22.0))
@@ -82,7 +87,9 @@ def test_the_fleets_online_limits_are_the_tightest_known() -> None:
     silent = Airframe()  # answered nothing: leaves the others' limits
     lim = online_limits([PLANE, slower, silent], 25.0)
     assert (lim.v_min, lim.v_max) == (12.0, 25.0)
-    assert lim.max_yaw_rate == pytest.approx(G_M_S2 * math.tan(math.radians(45.0)) / 25.0)
+    assert lim.max_yaw_rate == pytest.approx(
+        TURN_EFFICIENCY * G_M_S2 * math.tan(math.radians(45.0)) / 25.0
+    )
     assert lim.max_climb_angle == pytest.approx(math.asin(3.0 / 25.0))
     assert lim.max_dive_angle == pytest.approx(math.asin(5.0 / 25.0))
     none = online_limits([silent], 25.0)
@@ -94,7 +101,7 @@ def test_the_response_lag_is_the_roll_in_with_the_feed_forward() -> None:
     time constants: 1.0 s at RLL2SRV_TCONST 0.25, as real ArduPlane peaked at 50° of bank
     1.0 s after a course step); without RLL2SRV_TCONST, the heading time constant."""
     assert response_lag_s(PLANE, 28.0, 0.1) == pytest.approx(4 * 0.25 + 0.1)
-    tau = 28.0 / (5000.0 * math.pi / 18000.0 * G_M_S2)
+    tau = 28.0 / (5000.0 * math.pi / 18000.0 * TURN_EFFICIENCY * G_M_S2)
     assert response_lag_s(NO_TCONST, 28.0, 0.1) == pytest.approx(tau + 0.1)
     assert math.isnan(response_lag_s(Airframe(roll_time_constant_s=0.25), 28.0, 0.1))
 
@@ -102,10 +109,11 @@ def test_the_response_lag_is_the_roll_in_with_the_feed_forward() -> None:
 def test_the_planning_margin_is_v_max_times_the_response_lag() -> None:
     assert planning_margin_m([PLANE], 28.0, 0.1) == pytest.approx(28.0 * 1.1)
     k = 5000.0 * math.pi / 18000.0
-    expected = 28.0 * (28.0 / (k * G_M_S2) + 0.1)
-    assert planning_margin_m([NO_TCONST], 28.0, 0.1) == pytest.approx(expected)
-    assert 90.0 < expected < 100.0
-    assert planning_margin_m([PLANE, NO_TCONST], 28.0, 0.1) == pytest.approx(expected)
+    expected = 20.0 * (20.0 / (k * TURN_EFFICIENCY * G_M_S2) + 0.1)
+    assert planning_margin_m([NO_TCONST], 20.0, 0.1) == pytest.approx(expected)
+    assert 60.0 < expected < 70.0
+    assert planning_margin_m([PLANE, NO_TCONST], 20.0, 0.1) == pytest.approx(expected)
+    assert planning_margin_m([NO_TCONST], 28.0, 0.1) == DEFAULT_PLANNING_MARGIN_M  # 130 m
     # a vehicle that does not report GUIDED_P keeps today's fixed margin
     assert planning_margin_m([PLANE, Airframe()], 28.0, 0.1) == DEFAULT_PLANNING_MARGIN_M
     assert planning_margin_m([], 28.0, 0.1) == DEFAULT_PLANNING_MARGIN_M
@@ -130,14 +138,14 @@ def test_a_tick_envelope_takes_speed_limits_at_the_fastest_reachable_speed() -> 
 
 def test_the_guard_asks_an_arduplane_only_what_tecs_climbs_within_the_horizon() -> None:
     tuning = guard_tuning([NO_TCONST, NO_TCONST], [22.0, 22.0], 50.0, 0.1)
-    lag = 22.0 / (PLANE.heading_gain or 1.0) / G_M_S2 + 0.1
+    lag = 22.0 / (PLANE.heading_gain or 1.0) / (TURN_EFFICIENCY * G_M_S2) + 0.1
     assert tuning.horizon_s == pytest.approx(50.0 / 5.0 + lag)  # 50 m at 5 m/s, after the lag
     assert np.allclose(tuning.resolution_up_m, 5.0 * tuning.horizon_s)
     assert np.allclose(tuning.resolution_down_m, 5.0 * tuning.horizon_s)
     assert np.allclose(tuning.margin_m, min(22.0 * lag, DEFAULT_GUARD_MARGIN_M))
     assert tuning.resolution_up_m[0] < DEFAULT_GUARD_RESOLUTION_M
     slow = guard_tuning([NO_TCONST], [16.0], 50.0, 0.1)  # what it flies during its lag
-    lag16 = 16.0 / (PLANE.heading_gain or 1.0) / G_M_S2 + 0.1
+    lag16 = 16.0 / (PLANE.heading_gain or 1.0) / (TURN_EFFICIENCY * G_M_S2) + 0.1
     assert slow.margin_m[0] == pytest.approx(16.0 * lag16)
     assert slow.margin_m[0] < DEFAULT_GUARD_MARGIN_M
     led = guard_tuning([PLANE], [22.0], 50.0, 0.1)  # the roll-in lag with the feed-forward
@@ -158,7 +166,7 @@ def test_the_paper_airframe_keeps_the_figures_tuned_at_its_speeds() -> None:
     assert np.allclose(tuning.resolution_down_m, DEFAULT_GUARD_RESOLUTION_M)
     assert tuning.margin_m[0] == DEFAULT_GUARD_MARGIN_M
     assert tuning.margin_m[1] == pytest.approx(
-        100.0 * (100.0 / (paper.heading_gain or 1) / G_M_S2 + 0.1)
+        100.0 * (100.0 / (paper.heading_gain or 1) / (TURN_EFFICIENCY * G_M_S2) + 0.1)
     )
     lim = online_limits([paper], 300.0)  # Table 1's turn and climb stay the binding ones
     assert (lim.max_yaw_rate or 0.0) > math.pi / 6

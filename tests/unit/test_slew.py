@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from gcs_ppf.airframe import G_M_S2, Airframe
+from gcs_ppf.airframe import G_M_S2, TURN_EFFICIENCY, Airframe
 from gcs_ppf.online import Guidance
 from gcs_ppf.slew import (
     airspeed_command,
@@ -50,7 +50,7 @@ def test_in_a_steady_turn_the_lead_makes_the_p_controller_bank_what_the_turn_nee
     accel = lateral_accel_limit(turn_rate, speed, 8.4, ROLL_LIMIT_DEG)
     bank = p_controller_bank_rad(command - planned, GUIDED_P, accel, ROLL_LIMIT_DEG)
     assert bank == pytest.approx(needed_bank_rad(turn_rate, speed), rel=1e-9)
-    assert G_M_S2 * math.tan(bank) / speed == pytest.approx(turn_rate, rel=1e-9)
+    assert TURN_EFFICIENCY * G_M_S2 * math.tan(bank) / speed == pytest.approx(turn_rate, rel=1e-9)
     assert math.copysign(1.0, command - planned) == math.copysign(1.0, turn_rate)  # ahead
 
 
@@ -70,13 +70,13 @@ def test_a_course_ramp_is_followed_behind_without_the_lead_and_on_it_with() -> N
             error = math.remainder(command - course, math.tau)
             demand = p_controller_bank_rad(error, GUIDED_P, 10.0, ROLL_LIMIT_DEG)
             bank += (demand - bank) * dt / 0.25
-            course += G_M_S2 * math.tan(bank) / speed * dt
+            course += TURN_EFFICIENCY * G_M_S2 * math.tan(bank) / speed * dt
             t += dt
             lags.append(math.degrees(math.remainder(planned - course, math.tau)))
         return float(np.mean(lags[-500:]))
 
     k = GUIDED_P * math.pi / 18000.0
-    expected = math.degrees(math.atan(speed * turn_rate / G_M_S2) / k)
+    expected = math.degrees(math.atan(speed * turn_rate / (TURN_EFFICIENCY * G_M_S2)) / k)
     assert steady_lag_deg(False) == pytest.approx(expected, rel=0.05)
     assert expected > 5.0
     assert abs(steady_lag_deg(True)) < 0.3
@@ -93,7 +93,7 @@ def test_no_lead_without_guided_p_and_the_bank_capped_at_the_roll_limit() -> Non
 
 def test_the_lateral_accel_limit_allows_the_planned_bank_within_the_roll_limit() -> None:
     assert lateral_accel_limit(0.0, 22.0, 8.4) == pytest.approx(8.4)  # the plan's own limit
-    assert lateral_accel_limit(0.5, 22.0, 8.4) == pytest.approx(1.5 * 22.0 * 0.5)
+    assert lateral_accel_limit(0.5, 22.0, 8.4) == pytest.approx(1.5 * 22.0 * 0.5 / TURN_EFFICIENCY)
     roll_cap = G_M_S2 * math.tan(math.radians(30.0))
     assert lateral_accel_limit(0.5, 22.0, 8.4, 30.0) == pytest.approx(roll_cap)
     assert lateral_accel_limit(0.0, 0.0, 0.0) == pytest.approx(0.05)  # ArduPlane's minimum
@@ -145,7 +145,7 @@ def test_an_arduplane_gets_param3_zero_and_a_shaped_demand() -> None:
     assert cmd.rate_m_s == 0.0
     assert cmd.z_m == pytest.approx(115.0)  # 3 s at TECS_CLMB_MAX
     assert cmd.course_rad == pytest.approx(course_lead_rad(0.2, 22.0, 5000.0, 65.0))
-    assert cmd.lateral_accel_m_s2 == pytest.approx(8.4)
+    assert cmd.lateral_accel_m_s2 == pytest.approx(1.5 * 22.0 * 0.2 / TURN_EFFICIENCY)
 
 
 def test_a_vehicle_without_tecs_limits_is_flown_as_before() -> None:
