@@ -218,6 +218,7 @@ async def take_off(
     takeoff_alt_m: float,
     event: EventSink,
     retry: Retry = Retry(),
+    takeoff_dist_m: float | None = None,
 ) -> float:
     """A vehicle on the ground up to its takeoff altitude: TKOFF_ALT set and read back,
     TAKEOFF mode, armed (each confirmed), then until it is at ``TAKEOFF_DONE_FRACTION`` of
@@ -225,6 +226,8 @@ async def take_off(
     TKOFF_ALT."""
     read = await set_param(fleet, vehicle_id, "TKOFF_ALT", takeoff_alt_m, event, retry)
     alt = takeoff_alt_m if read is None or read <= 0.0 else read
+    if takeoff_dist_m is not None:  # ArduPlane ≥ 4.5: climb out straight, not in circles
+        await set_param(fleet, vehicle_id, "TKOFF_DIST", takeoff_dist_m, event, retry)
     await set_mode(fleet, vehicle_id, PlaneMode.TAKEOFF, event, retry)
     await arm(fleet, vehicle_id, event, retry)
     event("takeoff", vehicle_id, takeoff_alt_m=alt)
@@ -248,6 +251,7 @@ async def launch(
     takeoff_alt_m: float,
     event: EventSink,
     retry: Retry = Retry(),
+    takeoff_dist_m: float | None = None,
 ) -> None:
     """Every vehicle flying in GUIDED: those on the ground taken off (``take_off``), the
     others armed if they are not; all at once, then each switched to GUIDED (confirmed).
@@ -258,7 +262,7 @@ async def launch(
         if t is None:
             raise LaunchFailed(vid, "launch", reason="no telemetry")
         if on_ground(t):
-            await take_off(fleet, vid, takeoff_alt_m, event, retry)
+            await take_off(fleet, vid, takeoff_alt_m, event, retry, takeoff_dist_m)
         elif not t.armed:
             await arm(fleet, vid, event, retry)
 

@@ -60,6 +60,13 @@ class Settings(BaseSettings):
     takeoff_alt_m: float = Field(
         default=50.0, gt=0.0, description="TKOFF_ALT given to vehicles that start on the ground"
     )
+    takeoff_dist_m: float = Field(
+        default=1000.0,
+        gt=0.0,
+        description="TKOFF_DIST given to them: they climb straight out along their runways "
+        "towards a point this far ahead instead of circling 200 m ahead (ArduPlane's default), "
+        "so the formation starts as the plan assumes",
+    )
     vehicle_timeout_s: float = Field(
         default=5.0, gt=0.0, description="silence, in the vehicle's own seconds, that makes it lost"
     )

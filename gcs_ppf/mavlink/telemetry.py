@@ -223,6 +223,7 @@ AIRFRAME_PARAMS: tuple[str, ...] = (
     "LIM_ROLL_CD",
     "GUIDED_P",  # GUIDED heading controller: centidegrees of bank per radian of error
     "TKOFF_ALT",  # m above home that TAKEOFF mode climbs to
+    "TKOFF_DIST",  # m ahead of the takeoff point where TAKEOFF mode then loiters (4.5 on)
     "RLL2SRV_TCONST",  # s: the roll loop's time constant
     *PITCH_LIMIT_PARAMS,
 )

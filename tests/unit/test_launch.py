@@ -36,6 +36,7 @@ class FakePlane:
         self.climbs = climbs
         self.has_tkoff_alt = True
         self.tkoff_alt_m = 50.0
+        self.tkoff_dist_m: float | None = None
         self.heights_at_guided: list[float | None] = []
 
     def _later(self, **changes: Any) -> None:
@@ -48,11 +49,17 @@ class FakePlane:
         self.sent.append(msg)
         kind = msg.get_type()
         if kind in ("PARAM_SET", "PARAM_REQUEST_READ"):
-            if kind == "PARAM_SET":
+            name = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode()
+            name = name.rstrip("\x00")
+            if kind == "PARAM_SET" and name == "TKOFF_ALT":
                 self.tkoff_alt_m = float(msg.param_value)
+            elif kind == "PARAM_SET" and name == "TKOFF_DIST":
+                self.tkoff_dist_m = float(msg.param_value)
             if self.has_tkoff_alt:
-                value = self.tkoff_alt_m
-                params = (ParamValue("TKOFF_ALT", value, time.monotonic() + 0.003),)
+                now = time.monotonic() + 0.003
+                params: tuple[ParamValue, ...] = (ParamValue("TKOFF_ALT", self.tkoff_alt_m, now),)
+                if self.tkoff_dist_m is not None:
+                    params += (ParamValue("TKOFF_DIST", self.tkoff_dist_m, now),)
                 self._later(params=params)
             return
         if kind != "COMMAND_LONG":
@@ -192,6 +199,19 @@ def test_a_vehicle_on_the_ground_takes_off_and_goes_guided_only_near_its_tkoff_a
     assert flying.t.custom_mode == ground.t.custom_mode == PlaneMode.GUIDED
     assert commands_sent(flying, commands.MAV_CMD_COMPONENT_ARM_DISARM) == 0  # armed already
     assert ("takeoff", 2, {"takeoff_alt_m": 80.0}) in events
+
+
+def test_a_takeoff_distance_makes_them_climb_out_straight() -> None:
+    """TKOFF_DIST set (and read back) before TAKEOFF: ArduPlane then climbs towards a point
+    that far ahead rather than circling one 200 m ahead."""
+    plane = FakePlane(2, 0.0, mode=PlaneMode.MANUAL)
+    events, event = recorder()
+    run(launch.launch(FakeFleet(plane), [2], 60.0, event, FAST, takeoff_dist_m=1000.0))
+    assert plane.tkoff_dist_m == 1000.0
+    assert plane.tkoff_alt_m == 60.0
+    sets = [m.param_id for m in plane.sent if m.get_type() == "PARAM_SET"]
+    assert [s if isinstance(s, str) else s.decode() for s in sets] == ["TKOFF_ALT", "TKOFF_DIST"]
+    assert not [e for e in events if e[0] == "parameter_unanswered"]
 
 
 def test_the_takeoff_altitude_waited_for_is_the_one_read_back() -> None:
