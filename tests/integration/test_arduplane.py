@@ -241,9 +241,13 @@ def fly_arduplane(tmp_path: Path, mission_path: Path) -> None:
 
 
 @pytest.mark.arduplane
-@pytest.mark.parametrize("n", [3, 5])
-def test_formation_flown_on_arduplane_sitl(n: int, tmp_path: Path) -> None:
-    """From a ground start: the run completes, separation and obstacle clearance stay safe,
+@pytest.mark.parametrize(
+    "mission", ["arduplane_3", "arduplane_5", "arduplane_formation_takeoff_3",
+                "arduplane_formation_takeoff_5"],
+)  # fmt: skip
+def test_formation_flown_on_arduplane_sitl(mission: str, tmp_path: Path) -> None:
+    """From a ground start (line abreast 272 m apart, or a formation takeoff from runway
+    positions at the slots): the run completes, separation and obstacle clearance stay safe,
     no vehicle hits the ground once airborne, and every wingman is within the target
     accuracy of its local target point (Eq. 6, from the observer's tracks) at one moment."""
-    fly_arduplane(tmp_path, EXAMPLES / f"arduplane_{n}.json")
+    fly_arduplane(tmp_path, EXAMPLES / f"{mission}.json")
