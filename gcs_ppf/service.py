@@ -398,7 +398,10 @@ class FormationService:
         def event(kind: str, vehicle_id: int | None = None, **detail: Any) -> None:
             self._event(run, kind, vehicle_id, **detail)
 
-        await launch.launch(self.fleet, ids, self.settings.takeoff_alt_m, event)
+        await launch.launch(
+            self.fleet, ids, self.settings.takeoff_alt_m, event,
+            takeoff_dist_m=self.settings.takeoff_dist_m,
+        )  # fmt: skip
 
     async def _fly(self, run: Run) -> None:
         try:
