@@ -41,6 +41,7 @@ from gcs_ppf.online import (
     scene_now,
     separations,
     state_from_velocity,
+    warm_up,
 )
 from gcs_ppf.scene import obstacles_from_mission
 from gcs_ppf.settings import Settings
@@ -135,7 +136,9 @@ class FormationService:
     # Lifetime ----------------------------------------------------------------------------
     @contextlib.asynccontextmanager
     async def running(self) -> AsyncIterator[FormationService]:
-        """Run the background tasks (links, heartbeats, watchdog) for the body's duration."""
+        """Run the background tasks (links, heartbeats, watchdog) for the body's duration;
+        the planner's kernel is loaded first, before any telemetry can queue behind it."""
+        warm_up(self.settings.planner_dt_s)
         async with asyncio.TaskGroup() as tg:
             self._tasks = tg
             background = [

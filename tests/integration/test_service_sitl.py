@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
+from gcs_ppf.demo import FINISHED
 from gcs_ppf.demo import http_json as http
 from gcs_ppf.frames import local_target_point
 from gcs_ppf.geodesy import geodetic_to_enu
@@ -352,15 +353,47 @@ def test_a_wingman_lost_mid_run_leaves_and_the_rest_continue(tmp_path: Path) -> 
     assert flight.final["state"] == "completed", flight.final
     lost = [v["id"] for v in flight.final["vehicles"] if v["lost"]]
     assert lost == [3]
-    start_s, _, _ = check_safety(flight, exclude=[3])
+    check_safety(flight, exclude=[3])
     # Lost after the 5 s timeout counted in vehicle time (the watchdog looks every 0.2 s of
     # ours, 2 s of the SITL's at 10×; the SITL stamps its last messages up to 0.1 s early).
+    # Both ends in vehicle time (the SITL's vehicles share one clock): vehicle 3's last
+    # message as the listener heard it, and the event's mission time on the run's clock,
+    # which starts at the leader's time_boot_ms of the first tick (after the launch).
     store = Store(tmp_path / "gcs.db")
     run = store.runs(flight.mission_id)[0]
     lost_at = next(e.mission_time_s for e in store.events(run.id) if e.kind == "vehicle_lost")
-    last_heard = flight.tracks[3][-1, 0] - start_s
     assert lost_at is not None
-    assert 5.0 - 0.2 <= lost_at - last_heard <= 5.0 + 3.0, (lost_at, last_heard)
+    run_start = run_start_vehicle_time_s(tmp_path / "tlogs", flight.mission.leader.id)
+    last_heard = flight.tracks[3][-1, 0]
+    silent = run_start + lost_at - last_heard
+    print(
+        f"\nvehicle 3 last heard at {last_heard:.2f} s of vehicle time, declared lost at "
+        f"{run_start + lost_at:.2f} s (mission time {lost_at:.2f} s): {silent:.2f} s silent"
+    )
+    assert 5.0 - 0.2 <= silent <= 5.0 + 3.0, (run_start, lost_at, last_heard)
+
+
+RUN_TICK_COMMANDS = {43001, 43002, 192}
+"""What a run's tick sends (GUIDED_CHANGE_HEADING/_ALTITUDE, DO_REPOSITION); the launch
+sends none of them."""
+
+
+def run_start_vehicle_time_s(tlog_dir: Path, leader_id: int) -> float:
+    """The run's clock origin in vehicle seconds, from the service's tlogs: the first tick
+    reads the leader's ``time_boot_ms`` (of its latest message carrying one) and then, with
+    no await in between, sends the leader its first command; so it is the ``time_boot_ms``
+    of the last leader message the tlog has before that command."""
+    for path in sorted(tlog_dir.glob("*.tlog")):
+        log = mavutil.mavlink_connection(str(path), dialect="ardupilotmega")
+        boot_ms: int | None = None
+        while (msg := log.recv_match()) is not None:
+            if msg.get_srcSystem() == leader_id and hasattr(msg, "time_boot_ms"):
+                boot_ms = int(msg.time_boot_ms)
+            elif (msg.get_type() == "COMMAND_INT" and msg.target_system == leader_id
+                  and msg.command in RUN_TICK_COMMANDS):  # fmt: skip
+                assert boot_ms is not None
+                return boot_ms / 1000.0
+    raise AssertionError("no command of a run's tick to the leader in the tlogs")
 
 
 @pytest.mark.integration
@@ -457,4 +490,4 @@ def _finished(api: str, mid: int) -> dict[str, Any] | None:
         status, s = http("GET", f"{api}/missions/{mid}/status")
     except OSError:
         return None
-    return s if status == 200 and s["state"] in ("completed", "aborted", "failed") else None
+    return s if status == 200 and s["state"] in FINISHED else None
