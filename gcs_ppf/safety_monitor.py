@@ -80,6 +80,27 @@ class Monitor:
     active: dict[tuple[Kind, int, int | None], Violation] = field(default_factory=dict)
     count: int = 0
     deepest_m: dict[str, float] = field(default_factory=dict)
+    airborne: set[int] = field(default_factory=set)
+    """Vehicles that have been clear of the ground's keep-out (from then on it counts)."""
+
+    def watch(
+        self,
+        ids: list[int],
+        positions: FloatArray,
+        obstacles: Obstacles,
+        ground_z_m: float | None,
+        safe_distance_uav: float,
+        safe_distance_obstacle: float,
+    ) -> list[Violation]:
+        """One sample of reported positions: the violations that have just begun."""
+        if ground_z_m is not None:
+            clear = positions[:, 2] - ground_z_m >= safe_distance_obstacle
+            self.airborne.update(i for i, c in zip(ids, clear, strict=True) if c)
+        now = violations(
+            ids, positions, obstacles, ground_z_m, safe_distance_uav, safe_distance_obstacle,
+            [i in self.airborne for i in ids],
+        )  # fmt: skip
+        return self.update(now)
 
     def update(self, now: list[Violation]) -> list[Violation]:
         """Take this sample's violations; return those that have just begun."""

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs_ppf import launch, separation_guard, slew
+from gcs_ppf import launch, safety_monitor, separation_guard, slew
 from gcs_ppf.airframe import Airframe, guard_tuning, tick_envelope
 from gcs_ppf.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.fleet import Fleet, Vehicle
@@ -64,13 +64,16 @@ class RunState(StrEnum):
     """Planning and commanding every tick."""
     COMPLETED = "completed"
     """The leader reached the target; every vehicle loiters."""
+    COMPLETED_UNSAFE = "completed_unsafe"
+    """The leader reached the target, but a vehicle entered a keep-out on the way
+    (``safety_violation`` events): never a plain ``completed``."""
     ABORTED = "aborted"
     """Stopped by the operator; every vehicle loiters."""
     FAILED = "failed"
     """The leader was lost (or the run could not go on); every vehicle loiters."""
 
 
-FINISHED = {RunState.COMPLETED, RunState.ABORTED, RunState.FAILED}
+FINISHED = {RunState.COMPLETED, RunState.COMPLETED_UNSAFE, RunState.ABORTED, RunState.FAILED}
 
 
 @dataclass
@@ -94,6 +97,7 @@ class Run:
     leader_pos: Any = None  # ICS position at the last tick
     tick_latency_s: deque[float] = field(default_factory=lambda: deque(maxlen=10_000))
     task: asyncio.Task[None] | None = None
+    safety: safety_monitor.Monitor = field(default_factory=safety_monitor.Monitor)
 
 
 MAX_POSITION_AGE_S = 1.0
@@ -267,6 +271,7 @@ class FormationService:
             "formation_formed": run.formed,
             "min_separation_m": run.min_separation_m,
             "min_obstacle_clearance_m": run.min_clearance_m,
+            "safety_violations": run.safety.count,
             "tick_latency_ms": self._latency(run),
             "vehicles": per_vehicle,
         }
@@ -349,12 +354,17 @@ class FormationService:
     def _finish(self, run: Run, state: RunState, outcome: str) -> None:
         if run.state in FINISHED:
             return
+        if state == RunState.COMPLETED and run.safety.count:
+            state = RunState.COMPLETED_UNSAFE
+            outcome = f"{outcome}; {run.safety.count} safety violation(s)"
         run.state = state
         run.outcome = outcome
         summary = {
             "mission_time_s": run.mission_time_s,
             "min_separation_m": run.min_separation_m,
             "min_obstacle_clearance_m": run.min_clearance_m,
+            "safety_violations": run.safety.count,
+            "deepest_violation_m": run.safety.deepest_m,
             "tick_latency_ms": self._latency(run),
         }
         self.store.update_run(run.record.id, state, ended=True, outcome=outcome, summary=summary)
@@ -432,6 +442,8 @@ class FormationService:
                     await self.fleet.telemetry_event.wait()
             except TimeoutError:
                 pass
+            if await self._losses(run):  # not on the leader's clock: it may be the one lost
+                return
             received = self.fleet.telemetry_received_s
             now_v = self._vehicle_time_s(run)
             if now_v is None:
@@ -450,6 +462,38 @@ class FormationService:
             self._publish()
             if done:
                 return
+
+    async def _losses(self, run: Run) -> bool:
+        """Events for vehicles newly lost (the watchdog's verdict, in their own seconds);
+        True when the leader is lost: the run has then failed, every vehicle loitering."""
+        for v in run.mission.vehicles:
+            vehicle = self.fleet.by_id.get(v.id)
+            if vehicle is not None and vehicle.lost and v.id not in run.lost_ids:
+                run.lost_ids.add(v.id)
+                self._event(run, "vehicle_lost", v.id)
+        if run.mission.leader.id not in run.lost_ids:
+            return False
+        await self._loiter_all(run)
+        self._finish(run, RunState.FAILED, "leader lost")
+        return True
+
+    def _watch_safety(
+        self, run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]],
+        ground_z_m: float | None,
+    ) -> None:  # fmt: skip
+        """The safety monitor on the positions the vehicles report (not carried on, not
+        planned): a ``safety_violation`` event for each keep-out entered."""
+        if not located:
+            return
+        lim = run.mission.limits
+        began = run.safety.watch(
+            [v.system_id for v, _ in located], np.array([p for _, p in located], dtype=float),
+            obstacles_from_mission(run.mission).at(run.mission_time_s), ground_z_m,
+            lim.safe_distance_uav, lim.safe_distance_obstacle,
+        )  # fmt: skip
+        for v in began:
+            self._event(run, "safety_violation", v.vehicle_id, keep_out=v.kind, other=v.other,
+                        depth_m=round(v.depth_m, 1))  # fmt: skip
 
     def _located(self, run: Run) -> Iterator[tuple[Vehicle, tuple[float, float, float]]]:
         """The run's vehicles that have reported a position, with it in the ICS."""
@@ -486,17 +530,14 @@ class FormationService:
         """One planning tick; True when the run has ended."""
         mission = run.mission
         leader_id = mission.leader.id
-        for v in mission.vehicles:
-            vehicle = self.fleet.by_id.get(v.id)
-            if vehicle is not None and vehicle.lost and v.id not in run.lost_ids:
-                run.lost_ids.add(v.id)
-                self._event(run, "vehicle_lost", v.id)
-        if leader_id in run.lost_ids:
-            await self._loiter_all(run)
-            self._finish(run, RunState.FAILED, "leader lost")
-            return True
 
         located = list(self._located(run))  # one geodetic → ICS conversion per vehicle
+        ground = home_ground(
+            [(pos[2], v.telemetry.relative_alt_m) for v, pos in located
+             if v.telemetry.relative_alt_m is not None]
+        )  # fmt: skip
+        reporting = [(v, p) for v, p in located if v.system_id not in run.lost_ids]
+        self._watch_safety(run, reporting, mission.ground if mission.ground is not None else ground)
         states, active = self._states(located)
         if leader_id not in states:
             return False
@@ -519,10 +560,6 @@ class FormationService:
             self._finish(run, RunState.FAILED, "planner.max_time passed before the target")
             return True
 
-        ground = home_ground(
-            [(pos[2], v.telemetry.relative_alt_m) for v, pos in located
-             if v.telemetry.relative_alt_m is not None]
-        )  # fmt: skip
         airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
         lim = mission.limits
         telemetry_interval_s = 1.0 / self.settings.stream_rate_hz

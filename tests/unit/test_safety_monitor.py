@@ -77,3 +77,12 @@ def test_a_violation_is_reported_exactly_when_a_distance_is_short(
             if np.linalg.norm(p - pos[j]) < 50.0:
                 expect.add(("teammate", ids[i], ids[j]))
     assert found == expect
+
+
+def test_watching_counts_the_ground_once_a_vehicle_has_been_clear_of_it() -> None:
+    mon = Monitor()
+    low = np.array([[0.0, 0.0, 5.0]])
+    assert mon.watch([1], low, spheres(), 0.0, 50.0, 25.0) == []  # taking off
+    assert mon.watch([1], np.array([[0.0, 0.0, 80.0]]), spheres(), 0.0, 50.0, 25.0) == []
+    began = mon.watch([1], low, spheres(), 0.0, 50.0, 25.0)
+    assert [(v.kind, v.vehicle_id) for v in began] == [("ground", 1)]

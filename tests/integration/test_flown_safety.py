@@ -1,0 +1,35 @@
+"""Flown safety on loopback (issue 10): what the run does when the leader's link dies, as an
+independent listener and the service's own record see it."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from gcs_ppf.store import Store
+from tests.integration.test_service_sitl import MISSION, SPEEDUP, fly
+
+
+@pytest.mark.integration
+def test_the_leaders_link_dying_fails_the_run_within_the_lost_vehicle_timeout(
+    tmp_path: Path,
+) -> None:
+    """The leader goes silent 25 s into the flight (SITL time): the run notices although
+    its ticks run on the leader's clock (it used to stay ``running`` for ever) —
+    ``vehicle_lost`` for the leader, then the run ``failed`` ("leader lost"), while the
+    others still fly and report."""
+    flight = fly(tmp_path, json.loads(MISSION.read_text()), sitl_extra=["--fault", "1:die=25"])
+    assert flight.final["state"] == "failed", flight.final
+    assert flight.final["outcome"] == "leader lost"
+    store = Store(tmp_path / "gcs.db")  # the service's record, read after it stopped
+    run = store.runs(flight.mission_id)[0]
+    kinds = [(e.kind, e.vehicle_id) for e in store.events(run.id)]
+    assert ("vehicle_lost", 1) in kinds
+    assert kinds.index(("vehicle_lost", 1)) < kinds.index(("run_failed", None))
+    silent_from_s = flight.tracks[1][-1, 0]  # the leader's last position, on its clock
+    others_last_s = min(t[-1, 0] for vid, t in flight.tracks.items() if vid != 1)
+    assert others_last_s > silent_from_s  # the others were heard after the leader fell silent
+    print(f"\nleader silent from {silent_from_s:.1f} s of vehicle time; the others heard to "
+          f"{others_last_s:.1f} s; SITL at {SPEEDUP}x")  # fmt: skip
