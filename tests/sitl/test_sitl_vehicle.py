@@ -185,7 +185,9 @@ def test_guided_change_altitude_slews_from_here_or_climbs_as_fast_as_it_can() ->
     assert slew(sim, ALTITUDE, 0, 0, 5.0, z=800.0, frame=1) == DENIED  # MAV_FRAME_LOCAL_NED
     assert slew(sim, ALTITUDE, 0, 0, 5.0, z=488.0 + 500.0) == ACCEPTED  # 500 m ICS, AMSL
     run(sim, 10.0)
-    assert 300.2 <= sim.state.pos_enu_m[0, 2] <= 303.0
+    # far less than the 5 m/s × 10 s asked (the paper airframe's height loop is 5× faster
+    # than ArduPlane's, so more than ArduPlane's ~0.07 m/s)
+    assert 300.2 <= sim.state.pos_enu_m[0, 2] <= 300.0 + 0.2 * 5.0 * 10.0
     assert slew(sim, ALTITUDE, 0, 0, 0.0, z=488.0 + 500.0) == ACCEPTED
     run(sim, 4.0)
     assert sim.state.pos_enu_m[0, 2] > 310.0
