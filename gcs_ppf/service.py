@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs_ppf import launch, safety_monitor, separation_guard, slew
+from gcs_ppf import holding, launch, safety_monitor, separation_guard, slew
 from gcs_ppf.airframe import Airframe, guard_tuning, tick_envelope
 from gcs_ppf.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.fleet import Fleet, Vehicle
@@ -51,6 +51,8 @@ log = logging.getLogger("gcs_ppf.service")
 
 LOITER_AHEAD_M = 800.0  # after the mission each vehicle circles a point this far ahead …
 LOITER_STACK_M = 100.0  # … at its own height: vehicle k of the mission this much above
+HOLD_TURN_RADII = 1.5  # a holding circle is this many of the vehicle's tightest turns wide …
+HOLD_MIN_RADIUS_M = 80.0  # … and at least ArduPlane's WP_LOITER_RAD
 
 
 class RunState(StrEnum):
@@ -372,24 +374,40 @@ class FormationService:
         self._publish()
 
     async def _loiter_all(self, run: Run) -> None:
-        for v in run.mission.vehicles:
-            await self.fleet.send(v.id, commands.set_mode(v.id, PlaneMode.LOITER))
+        """Abort, failure: every vehicle holds at its height on a circle clear of every
+        obstacle (``gcs_ppf.holding``); one that has not reported a state, in LOITER."""
+        states, _ = self._states(list(self._located(run)))
+        await self._hold(run, states, stacked=False)
 
     async def _loiter_stacked(self, run: Run, states: dict[int, VehicleState]) -> None:
         """After the mission: each vehicle circles a point ahead of it, vehicle k of the
         mission ``LOITER_STACK_M``·k above the target, so the circles of a formation that
         flies close together do not cross at one height (plain LOITER would)."""
+        await self._hold(run, states, stacked=True)
+
+    async def _hold(self, run: Run, states: dict[int, VehicleState], stacked: bool) -> None:
+        """Each vehicle to a holding circle that cuts no obstacle's keep-out (twice the safe
+        distance) at the radius it flies (``HOLD_TURN_RADII`` turn radii at its speed)."""
         mission = run.mission
+        obstacles = obstacles_from_mission(mission).at(run.mission_time_s)
+        keep_out = 2.0 * mission.limits.safe_distance_obstacle
         for k, v in enumerate(mission.vehicles):
             s = states.get(v.id)
-            if s is None:
+            vehicle = self.fleet.by_id.get(v.id)
+            if s is None or vehicle is None:
                 await self.fleet.send(v.id, commands.set_mode(v.id, PlaneMode.LOITER))
                 continue
-            x = s.pos_m[0] + LOITER_AHEAD_M * math.cos(s.yaw_rad)
-            y = s.pos_m[1] + LOITER_AHEAD_M * math.sin(s.yaw_rad)
-            z = mission.target[2] + LOITER_STACK_M * k
-            lat, lon, alt = enu_to_geodetic(x, y, z, mission.origin)
-            await self.fleet.send(v.id, commands.reposition(v.id, lat, lon, alt))
+            airframe_omega = Airframe.from_telemetry(vehicle.telemetry).max_turn_rate(s.speed_m_s)
+            omega = min(airframe_omega or math.inf, mission.limits.max_yaw_rate)
+            radius = max(HOLD_MIN_RADIUS_M, HOLD_TURN_RADII * s.speed_m_s / omega)
+            z = mission.target[2] + LOITER_STACK_M * k if stacked else s.pos_m[2]
+            hold = holding.holding_circle(
+                np.array(s.pos_m), s.yaw_rad, z, radius, LOITER_AHEAD_M, obstacles, keep_out
+            )
+            if hold.clearance_m < keep_out:
+                self._event(run, "hold_not_clear", v.id, clearance_m=round(hold.clearance_m, 1))
+            lat, lon, alt = enu_to_geodetic(hold.x_m, hold.y_m, hold.z_m, mission.origin)
+            await self.fleet.send(v.id, commands.reposition(v.id, lat, lon, alt, radius))
             if self.settings.guidance == "course":  # the guided altitude outlives the course
                 altitude = slew.sendable_altitude(alt)
                 await self.fleet.send(v.id, commands.guided_change_altitude(v.id, altitude, 0.0))

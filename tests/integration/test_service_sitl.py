@@ -16,7 +16,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -56,12 +56,14 @@ def free_port_block(span: int) -> int:
 
 class Listener:
     """Records GLOBAL_POSITION_INT of each vehicle from its own TCP port: (time_boot_ms, lat,
-    lon, alt AMSL, height above home)."""
+    lon, alt AMSL, height above home), and when each arrived: (our wall-clock seconds,
+    time_boot_ms), the vehicles' clock against ours."""
 
     def __init__(self, ports: dict[int, int]) -> None:
         self.samples: dict[int, list[tuple[int, float, float, float, float]]] = {
             i: [] for i in ports
         }
+        self.arrivals: dict[int, list[tuple[float, int]]] = {i: [] for i in ports}
         self._stop = threading.Event()
         self._threads = [
             threading.Thread(target=self._run, args=(sysid, port), daemon=True)
@@ -74,6 +76,7 @@ class Listener:
             while not self._stop.is_set():
                 msg = conn.recv_match(type="GLOBAL_POSITION_INT", blocking=True, timeout=0.5)
                 if msg is not None and msg.get_srcSystem() == sysid:
+                    self.arrivals[sysid].append((time.time(), msg.time_boot_ms))
                     geo = (msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3)
                     self.samples[sysid].append((msg.time_boot_ms, *geo, msg.relative_alt * 1e-3))
         finally:
@@ -152,6 +155,8 @@ class Flight:
     tracks: dict[int, np.ndarray]
     serve: list[str]
     env: dict[str, str]
+    # Per vehicle, [K,2] rows of (our wall-clock s, vehicle s) of the listener's samples.
+    clocks: dict[int, np.ndarray] = field(default_factory=dict)
 
 
 def fly(tmp_path: Path, mission_doc: dict[str, Any], *, sitl_extra: Sequence[str] = (),
@@ -185,7 +190,9 @@ def fly(tmp_path: Path, mission_doc: dict[str, Any], *, sitl_extra: Sequence[str
             final = wait_for(lambda: _finished(api, mid), 120, "the mission to finish")
             if after is not None:
                 after(api, mid)
-    return Flight(mission, api, mid, final, tracks_enu(listener, mission), serve, env)
+    clocks = {i: np.array(rows, dtype=float).reshape(-1, 2) * (1.0, 1e-3)
+              for i, rows in listener.arrivals.items()}  # fmt: skip
+    return Flight(mission, api, mid, final, tracks_enu(listener, mission), serve, env, clocks)
 
 
 def check_safety(flight: Flight, exclude: Sequence[int] = ()) -> tuple[float, float, float]:
@@ -249,6 +256,17 @@ def test_table3_flown_closed_loop_is_safe_and_survives_a_restart(tmp_path: Path)
         assert [(r["mission_id"], r["state"]) for r in runs] == [(mid, "completed")]
         _, events = http("GET", f"{api}/missions/{mid}/events")
         assert events[-1]["kind"] == "run_completed"
+
+
+def repositions(tlog_dir: Path) -> dict[int, float]:
+    """The loiter radius (param3) of the last DO_REPOSITION the service sent each vehicle."""
+    radius: dict[int, float] = {}
+    for path in tlog_dir.glob("*.tlog"):
+        log = mavutil.mavlink_connection(str(path), dialect="ardupilotmega")
+        while (msg := log.recv_match(type="COMMAND_INT")) is not None:
+            if msg.command == 192:
+                radius[int(msg.target_system)] = float(msg.param3)
+    return radius
 
 
 def commands_sent(tlog_dir: Path) -> set[int]:
@@ -356,21 +374,26 @@ def test_a_wingman_lost_mid_run_leaves_and_the_rest_continue(tmp_path: Path) -> 
     check_safety(flight, exclude=[3])
     # Lost after the 5 s timeout counted in vehicle time (the watchdog looks every 0.2 s of
     # ours, 2 s of the SITL's at 10×; the SITL stamps its last messages up to 0.1 s early).
-    # Both ends in vehicle time (the SITL's vehicles share one clock): vehicle 3's last
-    # message as the listener heard it, and the event's mission time on the run's clock,
-    # which starts at the leader's time_boot_ms of the first tick (after the launch).
+    # Both ends in vehicle time, as the listener heard it (the SITL's vehicles share one
+    # clock): vehicle 3's last message, and the leader's clock when the service recorded
+    # the event (its wall time).  Not the event's mission time: the run's clock is the
+    # telemetry the service has processed, which lags the vehicles when the service does.
     store = Store(tmp_path / "gcs.db")
     run = store.runs(flight.mission_id)[0]
-    lost_at = next(e.mission_time_s for e in store.events(run.id) if e.kind == "vehicle_lost")
-    assert lost_at is not None
-    run_start = run_start_vehicle_time_s(tmp_path / "tlogs", flight.mission.leader.id)
+    event = next(e for e in store.events(run.id) if e.kind == "vehicle_lost")
+    leader = flight.clocks[flight.mission.leader.id]
+    assert leader[0, 0] < event.wall_s < leader[-1, 0]
+    declared = float(np.interp(event.wall_s, leader[:, 0], leader[:, 1]))
     last_heard = flight.tracks[3][-1, 0]
-    silent = run_start + lost_at - last_heard
+    silent = declared - last_heard
+    assert event.mission_time_s is not None
+    run_clock = run_start_vehicle_time_s(tmp_path / "tlogs", flight.mission.leader.id)
     print(
         f"\nvehicle 3 last heard at {last_heard:.2f} s of vehicle time, declared lost at "
-        f"{run_start + lost_at:.2f} s (mission time {lost_at:.2f} s): {silent:.2f} s silent"
+        f"{declared:.2f} s: {silent:.2f} s silent (the run's clock stamped the event "
+        f"{run_clock + event.mission_time_s:.2f} s)"
     )
-    assert 5.0 - 0.2 <= silent <= 5.0 + 3.0, (run_start, lost_at, last_heard)
+    assert 5.0 - 0.2 <= silent <= 5.0 + 3.0, (declared, last_heard)
 
 
 RUN_TICK_COMMANDS = {43001, 43002, 192}
@@ -397,20 +420,26 @@ def run_start_vehicle_time_s(tlog_dir: Path, leader_id: int) -> float:
 
 
 @pytest.mark.integration
-def test_a_run_that_outlasts_planner_max_time_fails_and_the_vehicles_loiter(
+def test_a_run_that_outlasts_planner_max_time_fails_and_the_vehicles_hold_clear(
     tmp_path: Path,
 ) -> None:
+    """Failed at max_time: every vehicle is sent to a holding circle (GUIDED, DO_REPOSITION
+    with its radius) chosen clear of the obstacles (``gcs_ppf.holding``), not a plain LOITER
+    around wherever it happens to be."""
     doc = json.loads(MISSION.read_text())
     doc["planner"]["max_time"] = 10.0  # the leader needs some 90 s
 
-    def all_loiter(api: str, mid: int) -> None:
+    def all_hold(api: str, mid: int) -> None:
         def modes() -> bool:
             _, vehicles = http("GET", f"{api}/vehicles")
-            return {v["mode"] for v in vehicles} == {"LOITER"}
+            return {v["mode"] for v in vehicles} == {"GUIDED"}
 
-        wait_for(modes, 10, "every vehicle in LOITER")
+        wait_for(modes, 10, "every vehicle holding in GUIDED")
 
-    flight = fly(tmp_path, doc, after=all_loiter)
+    flight = fly(tmp_path, doc, after=all_hold)
+    holds = repositions(tmp_path / "tlogs")
+    assert {v.id for v in flight.mission.vehicles} <= set(holds)
+    assert all(radius >= 80.0 for radius in holds.values())
     assert flight.final["state"] == "failed", flight.final
     assert "max_time" in (flight.final["outcome"] or ""), flight.final
     run = Store(tmp_path / "gcs.db").runs(flight.mission_id)[0]
