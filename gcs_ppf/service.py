@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs_ppf import holding, launch, safety_monitor, separation_guard, slew
+from gcs_ppf import holding, launch, obedience, safety_monitor, separation_guard, slew
 from gcs_ppf.airframe import Airframe, guard_tuning, tick_envelope
 from gcs_ppf.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.fleet import Fleet, Vehicle
@@ -51,6 +51,8 @@ log = logging.getLogger("gcs_ppf.service")
 
 LOITER_AHEAD_M = 800.0  # after the mission each vehicle circles a point this far ahead …
 LOITER_STACK_M = 100.0  # … at its own height: vehicle k of the mission this much above
+NOT_RESPONDING_S = 3.0  # vehicle seconds out of GUIDED or refusing the course: not responding
+COURSE_COMMAND = {"course": 43002, "point": 192}  # the command each guidance mode flies by
 HOLD_TURN_RADII = 1.5  # a holding circle is this many of the vehicle's tightest turns wide …
 HOLD_MIN_RADIUS_M = 80.0  # … and at least ArduPlane's WP_LOITER_RAD
 
@@ -100,11 +102,19 @@ class Run:
     tick_latency_s: deque[float] = field(default_factory=lambda: deque(maxlen=10_000))
     task: asyncio.Task[None] | None = None
     safety: safety_monitor.Monitor = field(default_factory=safety_monitor.Monitor)
+    obedience: obedience.Obedience = field(
+        default_factory=lambda: obedience.Obedience(NOT_RESPONDING_S)
+    )
 
 
 MAX_POSITION_AGE_S = 1.0
 """A position older than this (vehicle seconds) is not carried further on: a silent vehicle
 is the watchdog's business, not dead reckoning's."""
+
+
+def lim_uav_minus_obs(mission: Mission) -> float:
+    """The radius that makes an obstacle's keep-out the teammates' safe distance."""
+    return mission.limits.safe_distance_uav - mission.limits.safe_distance_obstacle
 
 
 def passes_within(start: Any, end: Any, point: Any, radius: float) -> bool:
@@ -513,6 +523,28 @@ class FormationService:
             self._event(run, "safety_violation", v.vehicle_id, keep_out=v.kind, other=v.other,
                         depth_m=round(v.depth_m, 1))  # fmt: skip
 
+    def _obedience(
+        self, run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]]
+    ) -> bool:
+        """Which vehicles obey (GUIDED, the course command ACCEPTED): events when one stops
+        for ``not_responding_s`` of vehicle time or comes back; True if it is the leader."""
+        command = COURSE_COMMAND[self.settings.guidance]
+        reports = []
+        for v, _ in located:
+            ack = v.telemetry.ack(command)
+            guided = v.telemetry.custom_mode == PlaneMode.GUIDED
+            reports.append(obedience.Report(v.system_id, guided, ack.result if ack else None))
+        flagged, cleared = run.obedience.update(run.mission_time_s, reports)
+        by_id = {v.system_id: v.telemetry for v, _ in located}
+        for vid in flagged:
+            t = by_id[vid]
+            ack = t.ack(command)
+            self._event(run, "vehicle_not_responding", vid, mode=t.mode_name,
+                        last_ack=ack.result if ack else None)  # fmt: skip
+        for vid in cleared:
+            self._event(run, "vehicle_responding", vid)
+        return run.mission.leader.id in flagged
+
     def _located(self, run: Run) -> Iterator[tuple[Vehicle, tuple[float, float, float]]]:
         """The run's vehicles that have reported a position, with it in the ICS."""
         for v in run.mission.vehicles:
@@ -577,6 +609,17 @@ class FormationService:
             await self._loiter_all(run)
             self._finish(run, RunState.FAILED, "planner.max_time passed before the target")
             return True
+
+        if self._obedience(run, located):
+            await self._loiter_all(run)
+            self._finish(run, RunState.FAILED, "leader not responding")
+            return True
+        uncontrolled = run.obedience.not_responding & set(states)
+        active -= uncontrolled  # not planned for, not commanded: avoided as traffic
+        if uncontrolled:
+            radius = max(lim_uav_minus_obs(mission), mission.limits.collision_radius)
+            traffic = obedience.as_obstacles(states, uncontrolled, radius)
+            obstacles = obedience.with_obstacles(obstacles, traffic)
 
         airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
         lim = mission.limits
