@@ -21,8 +21,9 @@ airframe's SIM_YAW_RATE; the bank follows the autopilot's demand with a first-or
 * GUIDED heading (MAV_CMD_GUIDED_CHANGE_HEADING, ArduPlane ``mode_guided.cpp``): a P-only
   controller, bank = GUIDED_P (centidegrees per radian) × course error, clipped to
   ±min(atan(param3 / g), ROLL_LIMIT_DEG) — the aircraft lags a turning course command;
-* waypoints and loiters: L1 navigation, lateral acceleration 4πζ v sin η / NAVL1_PERIOD
-  towards the desired course (plus the centripetal v²/r on a loiter circle);
+* waypoints: L1 navigation, lateral acceleration 4πζ v sin η / NAVL1_PERIOD towards the
+  desired course; loiters as ArduPlane's L1 loiter, straight for the centre until the
+  circle's own demand (radial PD + v²/r) takes over (``loiter_accel_left``);
 * CIRCLE: the bank of a circle of WP_LOITER_RAD.
 
 Height is a TECS-like loop: the height demand moves towards the target at no more than
@@ -327,6 +328,36 @@ def commanded_course_rad(state: FleetState, env: Envelope, guid: Guidance) -> Fl
     return course
 
 
+def loiter_accel_left(
+    state: FleetState, env: Envelope, guid: Guidance, v: FloatArray
+) -> FloatArray:
+    """Lateral acceleration (to the left) of a loiter, as ArduPlane's L1 loiter flies one:
+    outside the circle it first heads for the centre (the L1 law on the angle between the
+    velocity and the line to the centre), and once the circle's own demand — a PD on the
+    radial error plus the centripetal v²/r — asks for the turn in the loiter's direction
+    at least as hard, it flies the circle. (Adding the centripetal term from the start, as
+    this model first did, flew a steady 11–25° off the bearing to a guided point.)"""
+    omega = 2.0 * math.pi / env.l1_period_s
+    away = state.pos_enu_m[:, :2] - guid.target_enu_m[:, :2]  # centre → vehicle
+    dist = np.maximum(np.hypot(away[:, 0], away[:, 1]), 0.1)
+    ux, uy = away[:, 0] / dist, away[:, 1] / dist
+    vx, vy = v * np.cos(state.yaw_rad), v * np.sin(state.yaw_rad)
+    inward = -(vx * ux + vy * uy)  # speed towards the centre
+    sideways = -(ux * vy - uy * vx)  # speed across the line to the centre (clockwise +)
+    to_centre = np.clip(np.arctan2(sideways, inward), -math.pi / 2, math.pi / 2)
+    capture = 4.0 * math.pi * env.l1_damping * v * np.sin(to_centre) / env.l1_period_s
+    r = effective_radius_m(guid.radius_m, state.speed_m_s, env)
+    error = dist - r
+    turn = np.where(guid.direction >= 0, 1.0, -1.0)  # +1 clockwise
+    along = sideways * turn  # speed along the loiter's direction
+    pd = error * omega**2 - inward * 2.0 * env.l1_damping * omega  # radial error and its rate
+    pd = np.where((inward < 0) & (along < 0), np.maximum(pd, 0.0), pd)
+    circle = turn * (pd + along * along / np.maximum(0.5 * r, r + error))
+    capturing = (error > 0) & (turn * capture < turn * circle)
+    out: FloatArray = -np.where(capturing, capture, circle)  # clockwise + → left −
+    return out
+
+
 def bank_demand_rad(state: FleetState, env: Envelope, guid: Guidance) -> FloatArray:
     """The bank each autopilot asks for (MAVLink sign: positive turns clockwise)."""
     kind = guid.kind
@@ -338,9 +369,8 @@ def bank_demand_rad(state: FleetState, env: Envelope, guid: Guidance) -> FloatAr
     # L1 towards the desired course (sin η saturates beyond ±90°), plus a loiter's v²/r.
     eta = np.clip(error, -math.pi / 2, math.pi / 2)
     accel_left = 4.0 * math.pi * env.l1_damping * v * np.sin(eta) / env.l1_period_s
-    r_eff = effective_radius_m(guid.radius_m, state.speed_m_s, env)
-    orbit_ff = -np.sign(guid.direction) * v * v / r_eff
-    accel_left = accel_left + np.where(kind == GuidanceKind.ORBIT, orbit_ff, 0.0)
+    orbit = loiter_accel_left(state, env, guid, v)
+    accel_left = np.where(kind == GuidanceKind.ORBIT, orbit, accel_left)
     bank_nav = -np.arctan(accel_left / GRAVITY_M_S2)
     circle = np.sign(guid.direction) * np.arctan(v * v / (GRAVITY_M_S2 * np.maximum(
         np.abs(guid.radius_m), 1.0)))  # fmt: skip

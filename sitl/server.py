@@ -35,6 +35,11 @@ from sitl.physics import DT_S
 MAX_BUFFERED = 1 << 20
 #: MAVLink signing epoch, 2015-01-01 UTC (timestamps count 10 µs from it).
 SIGNING_EPOCH_S = 1420070400
+#: Physics steps run between two reads of the links (0.1 s of simulated time): a SITL behind
+#: its schedule on a busy machine catches up in small batches, so a command waits at most
+#: this long for the vehicle to see it (with 200 steps, 4 s of vehicle time, measured flown
+#: closed loop: commands took up to 5–6 s to act, and vehicles flew into obstacles).
+MAX_STEPS_UNREAD = 5
 
 
 def signing_key(text: str) -> bytes:
@@ -270,7 +275,7 @@ async def pace(
             t0 += (target - sim.sim_s) / speedup - 0.25
             target = (now - t0) * speedup
         batch = 0
-        while sim.sim_s + DT_S <= target + 1e-9 and batch < 200:
+        while sim.sim_s + DT_S <= target + 1e-9 and batch < MAX_STEPS_UNREAD:
             for i, out in sim.step(loop.time()):
                 links[i].send(out, None)
             batch += 1
@@ -278,7 +283,7 @@ async def pace(
                 stop.set()
                 return
         wait = t0 + (sim.sim_s + DT_S) / speedup - loop.time()
-        await asyncio.sleep(max(wait, 0.0) if batch < 200 else 0.0)
+        await asyncio.sleep(max(wait, 0.0) if batch < MAX_STEPS_UNREAD else 0.0)
 
 
 async def serve(

@@ -91,7 +91,7 @@ def test_reposition_needs_command_int_and_change_mode_flag() -> None:
     ap = sim.autopilots[0]
     assert ap.mode == PlaneMode.GUIDED
     assert ap.nav.radius_m == 250
-    run(sim, 60.0)
+    run(sim, 90.0)  # straight for the point 3 km away (ArduPlane L1 loiter), then the circle
     d = math.dist(sim.state.pos_enu_m[0, :2], (5000, 2000))
     assert 200 < d < 320  # circling the point at ≈ 250 m
     assert sim.state.pos_enu_m[0, 2] == pytest.approx(400, abs=5)
