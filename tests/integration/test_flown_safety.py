@@ -7,20 +7,43 @@ import json
 from pathlib import Path
 
 import pytest
+from pymavlink import mavutil
 
+from gcs_ppf.demo import http_json as http
 from gcs_ppf.store import Store
-from tests.integration.test_service_sitl import MISSION, SPEEDUP, fly
+from tests.integration.test_service_sitl import MISSION, SPEEDUP, fly, wait_for
+
+
+def mission_time(api: str, mid: int) -> float:
+    try:
+        _, status = http("GET", f"{api}/missions/{mid}/status")
+    except OSError:
+        return 0.0
+    return float(status.get("mission_time_s") or 0.0)
 
 
 @pytest.mark.integration
 def test_the_leaders_link_dying_fails_the_run_within_the_lost_vehicle_timeout(
     tmp_path: Path,
 ) -> None:
-    """The leader goes silent 25 s into the flight (SITL time): the run notices although
+    """The leader goes silent 10 s into the run (SIM_KILL): the run notices although
     its ticks run on the leader's clock (it used to stay ``running`` for ever) —
     ``vehicle_lost`` for the leader, then the run ``failed`` ("leader lost"), while the
     others still fly and report."""
-    flight = fly(tmp_path, json.loads(MISSION.read_text()), sitl_extra=["--fault", "1:die=25"])
+
+    def kill_the_leader(api: str, mid: int) -> None:
+        """10 s of mission time into the run, the leader goes silent (SIM_KILL)."""
+        wait_for(lambda: mission_time(api, mid) >= 10.0, 120, "10 s of the run")
+        port = next(int(line.rsplit(":", 1)[1]) for line in (tmp_path / "sitl.log").open()
+                    if line.startswith("vehicle 1:"))  # fmt: skip
+        conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=201)
+        try:
+            conn.wait_heartbeat(timeout=10)
+            conn.mav.param_set_send(1, 1, b"SIM_KILL", 1.0, 2)
+        finally:
+            conn.close()
+
+    flight = fly(tmp_path, json.loads(MISSION.read_text()), during=kill_the_leader)
     assert flight.final["state"] == "failed", flight.final
     assert flight.final["outcome"] == "leader lost"
     store = Store(tmp_path / "gcs.db")  # the service's record, read after it stopped
