@@ -39,7 +39,12 @@ def test_the_leaders_link_dying_fails_the_run_within_the_lost_vehicle_timeout(
         conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=201)
         try:
             conn.wait_heartbeat(timeout=10)
-            conn.mav.param_set_send(1, 1, b"SIM_KILL", 1.0, 2)
+            for _ in range(10):  # until it falls silent (a second without a message)
+                conn.mav.param_set_send(1, 1, b"SIM_KILL", 1.0, 2)
+                if conn.recv_match(blocking=True, timeout=1.0) is None:
+                    break
+                while conn.recv_match(blocking=False) is not None:
+                    pass
         finally:
             conn.close()
 
