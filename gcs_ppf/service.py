@@ -112,6 +112,18 @@ MAX_POSITION_AGE_S = 1.0
 is the watchdog's business, not dead reckoning's."""
 
 
+def formation_tolerance(mission: Mission) -> float:
+    """``separation_guard.formation_tolerance_m`` of the mission's slots."""
+    slots = np.array([v.slot for v in mission.vehicles if v.slot is not None], dtype=float)
+    return separation_guard.formation_tolerance_m(slots, mission.limits.safe_distance_uav)
+
+
+def in_formation(g: Guidance, tolerance_m: float) -> list[bool]:
+    """The leader, and each wingman within ``tolerance_m`` of its local target point."""
+    return [i == 0 or (d is not None and d <= tolerance_m)
+            for i, d in enumerate(g.local_target_distance_m)]  # fmt: skip
+
+
 def lim_uav_minus_obs(mission: Mission) -> float:
     """The radius that makes an obstacle's keep-out the teammates' safe distance."""
     return mission.limits.safe_distance_uav - mission.limits.safe_distance_obstacle
@@ -656,6 +668,7 @@ class FormationService:
                 resolution_down_m=tuning.resolution_down_m,
                 release_m=tuning.margin_m,
                 previous=run.last.resolving if run.last is not None else None,
+                in_formation=in_formation(g, formation_tolerance(mission)),
             )
             g = replace(g, guided_point_m=points, resolving=resolving)
         self._note_changes(run, g)

@@ -71,7 +71,8 @@ def test_guided_points_lie_ahead_on_the_plan(table3: Mission) -> None:
     change = np.remainder(yaws[j + 12] - yaws[j - 12] + np.pi, 2 * np.pi) - np.pi
     assert np.allclose(g.turn_rate_rad_s[1:], change[1:] / (24 * 0.02))
     assert g.speed_ahead_m_s is not None
-    assert np.allclose(g.speed_ahead_m_s, plan.speed[-1])  # the speed to command
+    # the speed to command: as planned 1 s on (the autopilot's speed response)
+    assert np.allclose(g.speed_ahead_m_s, plan.speed[round(1.0 / 0.02) - 1])
     assert g.state[0] == "s3"  # the leader waits for its wingmen
     assert np.all(g.speed_m_s >= 100.0 - 1e-9)
     assert g.local_target_distance_m[0] is None

@@ -10,7 +10,7 @@ import pytest
 
 from gcs_ppf.mission import Mission
 from gcs_ppf.scene import Scene, scene_from_mission
-from gcs_ppf.separation_guard import closest_approach, resolve
+from gcs_ppf.separation_guard import closest_approach, formation_tolerance_m, resolve
 
 
 def pair(wingman: list[float], yaw: float, ground: float | None = None) -> Scene:
@@ -133,3 +133,22 @@ def test_resolutions_and_margins_may_be_per_vehicle_and_differ_up_and_down() -> 
         horizon_s=4.0, resolution_m=150.0,
     )  # fmt: skip
     assert resolving == [False, True]
+
+
+def test_two_vehicles_flying_formation_are_left_to_the_planner() -> None:
+    """As TCAS in formation flight: the same converging pair, both in formation (the leader
+    and a wingman near its slot), gets no resolution; one of them out of it, it does."""
+    scene = pair([200.0, 150.0, 330.0], -math.pi / 2)
+    guided = scene.fleet.pos + np.array([1500.0, 0.0, 0.0])
+    kw = {"distance_m": 100.0, "horizon_s": 4.0, "resolution_m": 150.0}
+    _, both = resolve(scene, guided, in_formation=[True, True], **kw)  # type: ignore[arg-type]
+    assert both == [False, False]
+    _, one = resolve(scene, guided, in_formation=[True, False], **kw)  # type: ignore[arg-type]
+    assert one == [False, True]
+
+
+def test_the_formation_tolerance_keeps_the_closest_slots_a_safe_distance_apart() -> None:
+    slots = np.array([[-100.0, 100.0, 0.0], [-100.0, -100.0, 0.0], [-200.0, 200.0, 0.0]])
+    tol = formation_tolerance_m(slots, 50.0)
+    assert tol == pytest.approx((math.hypot(100.0, 100.0) - 50.0) / 2.0)
+    assert formation_tolerance_m(np.array([[-50.0, 0.0, 0.0]]), 50.0) == 0.0  # no room
