@@ -103,6 +103,19 @@ async def _wait(condition: Callable[[], bool], timeout_s: float, poll_s: float) 
         await asyncio.sleep(poll_s)
 
 
+def _shown_since(
+    fleet: Vehicles, vehicle_id: int, since: float, reached: Callable[[VehicleTelemetry], bool]
+) -> bool:
+    """A HEARTBEAT received after ``since`` shows the command done."""
+    t = fleet.telemetry(vehicle_id)
+    return (
+        t is not None
+        and t.last_heartbeat_s is not None
+        and t.last_heartbeat_s >= since
+        and (reached(t))
+    )
+
+
 async def confirmed_command(
     fleet: Vehicles,
     vehicle_id: int,
@@ -116,7 +129,10 @@ async def confirmed_command(
     """Send ``make()`` until its COMMAND_ACK (for ``command``) and then a HEARTBEAT show it
     done (``reached``); returns the number of sends.  A lost ACK, or an ACCEPTED the
     heartbeat does not show, is sent again, up to ``retry.attempts`` sends; a refusal is
-    final.  Raises ``LaunchFailed`` (after a ``command_failed`` event)."""
+    final.  An ACK lost while a later HEARTBEAT shows the command done confirms it (flown
+    with 20 % loss each way, a mode change that got no ACK in three sends failed the run;
+    a lost ACK is as likely as a lost command).  Raises ``LaunchFailed`` (after a
+    ``command_failed`` event)."""
     first_sent: float | None = None
     last_result: str = "no COMMAND_ACK"
     for attempt in range(1, retry.attempts + 1):
@@ -133,6 +149,9 @@ async def confirmed_command(
             return a is not None and a.received_s >= since and a.result != MAV_RESULT_IN_PROGRESS
 
         if not await _wait(acked, retry.ack_timeout_s, retry.poll_s):
+            if _shown_since(fleet, vehicle_id, first_sent, reached):  # the ACK alone was lost
+                event("command_ack_lost", vehicle_id, command=what, confirmed_by="HEARTBEAT")
+                return attempt
             last_result = "no COMMAND_ACK"
             continue
         t = fleet.telemetry(vehicle_id)
@@ -145,13 +164,7 @@ async def confirmed_command(
         acked_at = ack.received_s
 
         def shown(acked_at: float = acked_at) -> bool:
-            t = fleet.telemetry(vehicle_id)
-            return (
-                t is not None
-                and t.last_heartbeat_s is not None
-                and t.last_heartbeat_s >= acked_at
-                and reached(t)
-            )
+            return _shown_since(fleet, vehicle_id, acked_at, reached)
 
         if await _wait(shown, retry.state_timeout_s, retry.poll_s):
             return attempt

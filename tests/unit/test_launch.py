@@ -68,12 +68,19 @@ class FakePlane:
         step = steps.pop(0) if steps else "ok"
         if step == "lost":
             return
+        if step == "ack_lost":  # done, but its COMMAND_ACK never arrives
+            step = "ok"
+            self._apply(msg)
+            return
         now = time.monotonic() + 0.003
         result = ACCEPTED if step in ("ok", "unshown") else int(step)
         acks = tuple(a for a in self.t.command_acks if a.command != msg.command)
         self._later(command_acks=(*acks, CommandAck(msg.command, result, now)))
         if step != "ok":
             return
+        self._apply(msg)
+
+    def _apply(self, msg: Any) -> None:
         state: dict[str, Any] = {}
         if msg.command == commands.MAV_CMD_DO_SET_MODE:
             state["custom_mode"] = int(msg.param2)
@@ -149,6 +156,15 @@ def test_a_lost_ack_is_resent() -> None:
     assert commands_sent(plane, commands.MAV_CMD_COMPONENT_ARM_DISARM) == 3
     assert plane.t.armed
     assert [e[0] for e in events] == ["command_resent", "command_resent"]
+
+
+def test_a_lost_ack_of_a_command_the_heartbeat_shows_done_confirms_it() -> None:
+    plane = FakePlane(1, 100.0)
+    plane.script[commands.MAV_CMD_DO_SET_MODE] = ["ack_lost"]
+    events, event = recorder()
+    assert run(launch.set_mode(FakeFleet(plane), 1, PlaneMode.GUIDED, event, FAST)) == 1
+    assert commands_sent(plane, commands.MAV_CMD_DO_SET_MODE) == 1
+    assert [e[0] for e in events] == ["command_ack_lost"]
 
 
 def test_an_accepted_command_the_heartbeat_does_not_show_is_resent() -> None:
