@@ -124,9 +124,11 @@ def in_formation(g: Guidance, tolerance_m: float) -> list[bool]:
             for i, d in enumerate(g.local_target_distance_m)]  # fmt: skip
 
 
-def lim_uav_minus_obs(mission: Mission) -> float:
-    """The radius that makes an obstacle's keep-out the teammates' safe distance."""
-    return mission.limits.safe_distance_uav - mission.limits.safe_distance_obstacle
+def traffic_radius_m(mission: Mission) -> float:
+    """The radius of a sphere standing for an uncontrolled vehicle: its keep-out (radius +
+    safe_distance_obstacle) is then the teammates' safe distance (at least the vehicle)."""
+    lim = mission.limits
+    return max(lim.safe_distance_uav - lim.safe_distance_obstacle, lim.collision_radius)
 
 
 def passes_within(start: Any, end: Any, point: Any, radius: float) -> bool:
@@ -629,8 +631,7 @@ class FormationService:
         uncontrolled = run.obedience.not_responding & set(states)
         active -= uncontrolled  # not planned for, not commanded: avoided as traffic
         if uncontrolled:
-            radius = max(lim_uav_minus_obs(mission), mission.limits.collision_radius)
-            traffic = obedience.as_obstacles(states, uncontrolled, radius)
+            traffic = obedience.as_obstacles(states, uncontrolled, traffic_radius_m(mission))
             obstacles = obedience.with_obstacles(obstacles, traffic)
 
         airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
