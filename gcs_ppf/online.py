@@ -89,7 +89,6 @@ def scene_now(
     obstacles: Obstacles,
     margin_m: float = 0.0,
     home_ground_m: float | None = None,
-    pitch_limits_rad: tuple[float, float] | None = None,
     envelope: OnlineLimits | None = None,
 ) -> Scene:
     """The mission's scene with the vehicles where telemetry says they are.
@@ -98,10 +97,9 @@ def scene_now(
     (and the leader leaves PPF for its final approach), so the plan keeps a margin for it.
     The ground is the mission's, or else ``home_ground_m`` (ICS z of the ground under the
     vehicles' homes, see ``home_ground``): real aircraft do not fly in free space.
-    ``pitch_limits_rad`` (steepest climb, steepest dive, both positive; see
-    ``fleet_pitch_limits``) keeps the planned flight paths within what the airframes fly;
     ``envelope`` (``gcs_ppf.airframe.online_limits``, from the vehicles' parameters)
-    tightens the speed range, the turn rate and the flight-path angles further.  A speed
+    tightens the speed range, the turn rate and the flight-path angles (pitch limits and
+    TECS rates) to what the airframes fly.  A speed
     range that does not meet the mission's is the airframes' (they fly what they can).
     """
     base = scene_from_mission(mission)
@@ -114,11 +112,6 @@ def scene_now(
             ground=-math.inf if ground is None else ground,
         ),
     )
-    if pitch_limits_rad is not None:
-        climb, dive = pitch_limits_rad
-        base = replace(
-            base, limits=base.limits._replace(max_climb_angle=climb, max_dive_angle=dive)
-        )
     if envelope is not None:
         base = replace(base, limits=_within_envelope(base.limits, envelope))
     fleet = base.fleet.copy()
@@ -160,21 +153,6 @@ def home_ground(heights: list[tuple[float, float]]) -> float | None:
     their homes (ArduPlane's relative altitude is above home; the terrain is taken as flat
     there, which is what ArduPlane itself assumes without terrain data)."""
     return max((z - above_home for z, above_home in heights), default=None)
-
-
-def fleet_pitch_limits(
-    limits_deg: list[tuple[float | None, float | None]],
-) -> tuple[float, float] | None:
-    """The steepest climb and dive (rad, positive) every vehicle can fly, from each one's
-    (max, min) pitch limits in degrees (ArduPlane's PTCH_LIM_MAX_DEG, PTCH_LIM_MIN_DEG);
-    limits not (yet) known are left out; None if none is known."""
-    climbs = [hi for hi, _ in limits_deg if hi is not None and hi > 0.0]
-    dives = [-lo for _, lo in limits_deg if lo is not None and lo < 0.0]
-    if not climbs and not dives:
-        return None
-    climb = math.radians(min(climbs)) if climbs else math.pi / 2
-    dive = math.radians(min(dives)) if dives else math.pi / 2
-    return climb, dive
 
 
 FINAL_APPROACH_TURN_RADII = 5.0  # within this many turn radii, with the target ahead …

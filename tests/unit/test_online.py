@@ -12,7 +12,6 @@ from gcs_ppf.mission import Mission
 from gcs_ppf.online import (
     VehicleState,
     clearance,
-    fleet_pitch_limits,
     guidance,
     home_ground,
     planned_turn_rate,
@@ -86,25 +85,13 @@ def test_a_lost_wingman_is_left_out(table3: Mission) -> None:
     assert np.allclose(g.guided_point_m[4], scene.fleet.pos[4])
 
 
-def test_the_fleets_pitch_limits_are_the_tightest_known() -> None:
-    assert fleet_pitch_limits([]) is None
-    assert fleet_pitch_limits([(None, None), (None, None)]) is None
-    climb, dive = fleet_pitch_limits([(20.0, -25.0), (15.0, None), (None, -30.0)]) or (0, 0)
-    assert climb == pytest.approx(math.radians(15.0))
-    assert dive == pytest.approx(math.radians(25.0))
-    climb, dive = fleet_pitch_limits([(20.0, None)]) or (0, 0)
-    assert climb == pytest.approx(math.radians(20.0))
-    assert dive == math.pi / 2
-
-
 def test_pitch_limits_reach_the_planned_scene(table3: Mission) -> None:
     states = _states_at_start(table3)
     ids = {v.id for v in table3.vehicles}
     free = scene_now(table3, states, ids, obstacles_from_mission(table3))
     assert free.limits.max_climb_angle == math.pi / 2
-    limited = scene_now(
-        table3, states, ids, obstacles_from_mission(table3), pitch_limits_rad=(0.3, 0.4)
-    )
+    envelope = OnlineLimits(max_climb_angle=0.3, max_dive_angle=0.4)
+    limited = scene_now(table3, states, ids, obstacles_from_mission(table3), envelope=envelope)
     assert (limited.limits.max_climb_angle, limited.limits.max_dive_angle) == (0.3, 0.4)
 
 
