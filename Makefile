@@ -37,7 +37,7 @@ test: lint
 	$(VENV)/bin/pytest
 
 bench: install
-	$(PY) -m gcs_ppf.benchmark
+	$(PY) -m gcs_ppf.offline.benchmark
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache

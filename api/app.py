@@ -1,4 +1,4 @@
-"""The FastAPI app: thin routes over ``gcs_ppf.service.FormationService``.
+"""The FastAPI app: thin routes over ``gcs_ppf.service.runs.FormationService``.
 
 Every error a client can cause answers 4xx with a message a person understands:
 422 for a body or path that does not validate (pydantic names the field), 404 for an
@@ -16,11 +16,11 @@ from fastapi import Depends, FastAPI, Path, Request, WebSocket, WebSocketDisconn
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
 
-from gcs_ppf.errors import ServiceError
 from gcs_ppf.mission import Mission, Obstacle
-from gcs_ppf.service import FormationService
-from gcs_ppf.settings import Settings
-from gcs_ppf.store import Store, StoredMission, StoredRun
+from gcs_ppf.service.errors import ServiceError
+from gcs_ppf.service.runs import FormationService
+from gcs_ppf.service.settings import Settings
+from gcs_ppf.service.store import Store, StoredMission, StoredRun
 
 
 class LinkRequest(BaseModel):
@@ -144,7 +144,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     async def plan(mission_id: MissionId, service: Service, every_s: float = 1.0) -> dict[str, Any]:
         """The offline plan from the same planner: metrics (CONVENTIONS §4) and the
         trajectories decimated to one point every ``every_s`` seconds."""
-        from gcs_ppf.offline import plan_mission
+        from gcs_ppf.offline.plan import plan_mission
 
         mission = service.mission(mission_id).mission
         every_s = min(max(every_s, mission.planner.dt), 60.0)

@@ -11,10 +11,10 @@ from typing import Any
 
 from tqdm import tqdm
 
-from gcs_ppf import output
 from gcs_ppf.mission import Mission, MissionError, load_mission_file
-from gcs_ppf.offline import PlanRun, plan_mission
-from gcs_ppf.planner import Method
+from gcs_ppf.offline import output
+from gcs_ppf.offline.plan import PlanRun, plan_mission
+from gcs_ppf.planning.planner import Method
 
 SWEEP_DTS = (0.1, 0.05, 0.02, 0.01, 0.005)  # Fig. 9 of the paper
 EXIT_BAD_INPUT = 2
@@ -139,7 +139,7 @@ def _write_outputs(
     sweep: list[dict[str, float]] | None,
     plots: bool,
 ) -> None:
-    from gcs_ppf import plots as fig  # matplotlib only when plotting
+    from gcs_ppf.offline import plots as fig  # matplotlib only when plotting
 
     lim = mission.limits
     runs = [run, baseline] if run.method == "ppf" else [baseline, run]
@@ -246,7 +246,7 @@ def serve_command(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
     from api.app import create_app
-    from gcs_ppf.settings import Settings
+    from gcs_ppf.service.settings import Settings
 
     given = {"links": args.link, "host": args.host, "port": args.port, "db": args.db}
     try:
@@ -274,7 +274,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command == "serve":
         return serve_command(args)
     if args.command == "arduplane-sitl":
-        from gcs_ppf.arduplane_sitl import arduplane_sitl_command
+        from gcs_ppf.tools.arduplane_sitl import arduplane_sitl_command
 
         return arduplane_sitl_command(
             args.mission,
@@ -285,7 +285,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             workdir=args.workdir,
         )
     if args.command == "demo":
-        from gcs_ppf.demo import run_demo
+        from gcs_ppf.tools.demo import run_demo
 
         try:
             mission = load_mission_file(args.mission)

@@ -123,7 +123,7 @@ class Mission(_Strict):
     ground: float | None = None
     """ICS z (metres) of flat ground that vehicles keep ``limits.safe_distance_obstacle``
     above; None (default) is the paper's free space.  The service falls back on the
-    ground under the vehicles' homes (see ``gcs_ppf.online``)."""
+    ground under the vehicles' homes (see ``gcs_ppf.guidance.online``)."""
     vehicles: list[Vehicle] = Field(min_length=1, max_length=1000)
     obstacles: list[Obstacle] = Field(default_factory=list, max_length=10_000)
 

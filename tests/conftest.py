@@ -9,7 +9,7 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 from gcs_ppf.mission import Mission, load_mission_file
-from gcs_ppf.offline import PlanRun, plan_mission
+from gcs_ppf.offline.plan import PlanRun, plan_mission
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = ROOT / "examples"

@@ -219,7 +219,7 @@ def guided_change_heading(
     m/s², allows; it holds the course until a mode change or a DO_REPOSITION.  Its controller
     (``ModeGuided::update``) is P only by default: bank (centidegrees) = GUIDED_P × heading
     error (radians), clipped to ±min(atan(param3/g), ROLL_LIMIT_DEG), so a course that keeps
-    moving is flown behind (``gcs_ppf.slew`` leads it).
+    moving is flown behind (``gcs_ppf.guidance.slew`` leads it).
     """
     course = _finite("course_deg", course_deg) % 360.0
     if float(np.float32(course)) >= 360.0:  # the wire's float32 rounds 359.99999… up
@@ -250,7 +250,8 @@ def guided_change_altitude(
     z = 0 and z = −1 (DENIED), so they are refused here.  param3 = 0 lets TECS climb or sink
     as fast as it can (up to TECS_CLMB_MAX / TECS_SINK_MAX); param3 > 0 is *not* a climb-rate
     cap: each update moves the demand from the current altitude by param3 × Δt, so TECS barely
-    climbs (measured on ArduPlane 4.7 SITL: 3.6 m in 60 s asked at 2 m/s; ``gcs_ppf.slew``).
+    climbs (measured on ArduPlane 4.7 SITL: 3.6 m in 60 s asked at 2 m/s;
+    ``gcs_ppf.guidance.slew``).
     """
     alt = _finite("alt_amsl_m", alt_amsl_m)
     rate = _finite("rate_m_s", rate_m_s)

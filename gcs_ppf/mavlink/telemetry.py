@@ -229,7 +229,7 @@ AIRFRAME_PARAMS: tuple[str, ...] = (
 )
 """The ArduPlane parameters the service reads from every vehicle (PARAM_REQUEST_READ) and
 keeps, under the names of ArduPlane 4.5 on and of the versions before; see
-``gcs_ppf.airframe`` for what each one limits."""
+``gcs_ppf.guidance.airframe`` for what each one limits."""
 
 
 def _param_value(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:

@@ -11,7 +11,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from api.app import create_app
-from gcs_ppf.settings import Settings
+from gcs_ppf.service.settings import Settings
 from tests.conftest import EXAMPLES
 
 

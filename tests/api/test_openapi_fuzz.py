@@ -13,7 +13,7 @@ from hypothesis import settings
 from schemathesis.checks import not_a_server_error
 
 from api.app import create_app
-from gcs_ppf.settings import Settings
+from gcs_ppf.service.settings import Settings
 
 _app = create_app(Settings(db=Path(":memory:"), tlog_dir=None))
 schema = schemathesis.openapi.from_asgi("/openapi.json", _app)

@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 from pymavlink import mavutil
 
-from gcs_ppf.demo import http_json as http
-from gcs_ppf.store import Store
+from gcs_ppf.service.store import Store
+from gcs_ppf.tools.demo import http_json as http
 from tests.integration.test_service_sitl import MISSION, SPEEDUP, fly, wait_for
 
 

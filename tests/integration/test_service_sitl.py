@@ -24,12 +24,12 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
-from gcs_ppf.demo import FINISHED
-from gcs_ppf.demo import http_json as http
 from gcs_ppf.frames import local_target_point
 from gcs_ppf.geodesy import geodetic_to_enu
 from gcs_ppf.mission import Mission
-from gcs_ppf.store import Store
+from gcs_ppf.service.store import Store
+from gcs_ppf.tools.demo import FINISHED
+from gcs_ppf.tools.demo import http_json as http
 from tests.conftest import EXAMPLES, ROOT
 
 SPEEDUP = 10
@@ -424,8 +424,8 @@ def test_a_run_that_outlasts_planner_max_time_fails_and_the_vehicles_hold_clear(
     tmp_path: Path,
 ) -> None:
     """Failed at max_time: every vehicle is sent to a holding circle (GUIDED, DO_REPOSITION
-    with its radius) chosen clear of the obstacles (``gcs_ppf.holding``), not a plain LOITER
-    around wherever it happens to be."""
+    with its radius) chosen clear of the obstacles (``gcs_ppf.guidance.holding``), not a plain
+    LOITER around wherever it happens to be."""
     doc = json.loads(MISSION.read_text())
     doc["planner"]["max_time"] = 10.0  # the leader needs some 90 s
 
@@ -478,7 +478,7 @@ def deviation_from_offline_plan(
     mission: Mission, tracks: dict[int, np.ndarray], start_s: float, duration_s: float
 ) -> float:
     """Largest distance between flown and offline-planned positions over the run."""
-    from gcs_ppf.offline import plan_mission
+    from gcs_ppf.offline.plan import plan_mission
 
     doc = mission.model_dump()
     for v in doc["vehicles"]:

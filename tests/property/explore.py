@@ -18,7 +18,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gcs_ppf.mission import Mission
-from gcs_ppf.offline import plan_mission
+from gcs_ppf.offline.plan import plan_mission
 from tests.property import scenes
 
 

@@ -22,7 +22,7 @@ from hypothesis import assume
 from hypothesis import strategies as st
 
 from gcs_ppf.mission import Limits, Mission
-from gcs_ppf.ppf.kernel import influence_radius
+from gcs_ppf.planning.ppf.kernel import influence_radius
 
 START_GAP = 300.0
 #: Height a start needs above the ground's keep-out: levelling out from the steepest start

@@ -5,7 +5,7 @@ from __future__ import annotations
 from hypothesis import given
 
 from gcs_ppf.mission import Mission
-from gcs_ppf.offline import plan_mission
+from gcs_ppf.offline.plan import plan_mission
 from tests.checks import assert_within_kinematic_limits
 from tests.property.scenes import feasible_missions
 

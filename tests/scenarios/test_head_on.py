@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from gcs_ppf.mission import Mission
-from gcs_ppf.offline import plan_mission
+from gcs_ppf.offline.plan import plan_mission
 
 
 def head_on(radius: float, speed: float, offset: float, obstacle_speed: float = 0.0) -> Mission:

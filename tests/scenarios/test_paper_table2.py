@@ -6,9 +6,9 @@ import math
 
 import numpy as np
 
-from gcs_ppf.metrics import local_target_points
 from gcs_ppf.mission import Mission
-from gcs_ppf.offline import PlanRun
+from gcs_ppf.offline.plan import PlanRun
+from gcs_ppf.planning.metrics import local_target_points
 from tests.checks import assert_within_kinematic_limits
 
 PAPER_FORMATION_TIME_S = 22.0

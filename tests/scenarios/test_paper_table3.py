@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from gcs_ppf.mission import Mission
-from gcs_ppf.offline import PlanRun
+from gcs_ppf.offline.plan import PlanRun
 from tests.checks import assert_within_kinematic_limits
 
 PAPER_FLIGHT_TIME_S = 68.5

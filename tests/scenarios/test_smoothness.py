@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from gcs_ppf.offline import PlanRun
+from gcs_ppf.offline.plan import PlanRun
 
 
 @pytest.mark.parametrize("scene", ["table2", "table3"])

@@ -1,0 +1,93 @@
+"""Whether each vehicle obeys the service during a run: in GUIDED, its commands acknowledged
+ACCEPTED — and, when not for longer than a bound of its own time, ``vehicle_not_responding``.
+
+Pure bookkeeping, fed once per tick with what the vehicles report (HEARTBEAT mode, the last
+COMMAND_ACK of the course command). Flown with a lossy link (issue 10), a leader stayed in
+MANUAL while the service sent it 2,851 commands, 1,800 answered FAILED, and nothing noticed:
+now a vehicle that has not obeyed for ``bound_s`` of vehicle time is flagged, the others
+treat it as an uncontrolled moving obstacle, and it is cleared once it obeys again.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gcs_ppf.guidance.online import VehicleState
+from gcs_ppf.planning.scene import Obstacles
+
+MAV_RESULT_ACCEPTED = 0
+MAV_RESULT_IN_PROGRESS = 5
+OBEYED = (MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS)
+
+
+@dataclass(frozen=True, slots=True)
+class Report:
+    """What one vehicle shows at a tick: whether it is in GUIDED, and the result of the last
+    COMMAND_ACK of the command the service flies it by (None: none yet)."""
+
+    vehicle_id: int
+    guided: bool
+    last_ack_result: int | None
+
+
+@dataclass
+class Obedience:
+    """Per vehicle, since when (vehicle seconds) it has not obeyed, and which are flagged."""
+
+    bound_s: float
+    since_s: dict[int, float] = field(default_factory=dict)
+    not_responding: set[int] = field(default_factory=set)
+
+    @staticmethod
+    def obeys(report: Report) -> bool:
+        ack = report.last_ack_result
+        return report.guided and (
+            ack is None or ack in (MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS)
+        )
+
+    def update(self, now_s: float, reports: list[Report]) -> tuple[list[int], list[int]]:
+        """One tick at vehicle time ``now_s``: the vehicles newly flagged, and those that
+        obey again."""
+        flagged: list[int] = []
+        cleared: list[int] = []
+        for r in reports:
+            if self.obeys(r):
+                self.since_s.pop(r.vehicle_id, None)
+                if r.vehicle_id in self.not_responding:
+                    self.not_responding.discard(r.vehicle_id)
+                    cleared.append(r.vehicle_id)
+                continue
+            since = self.since_s.setdefault(r.vehicle_id, now_s)
+            if now_s - since >= self.bound_s and r.vehicle_id not in self.not_responding:
+                self.not_responding.add(r.vehicle_id)
+                flagged.append(r.vehicle_id)
+        return flagged, cleared
+
+
+def as_obstacles(
+    states: dict[int, VehicleState], vehicle_ids: set[int], radius_m: float
+) -> Obstacles:
+    """Vehicles that do not obey as moving spheres (where they are, flying as they fly), so
+    that the others avoid them as uncontrolled traffic; ``radius_m`` makes the obstacle's
+    keep-out (radius + safe_distance_obstacle) the teammates' safe distance."""
+    rows = [(states[i], i) for i in sorted(vehicle_ids) if i in states]
+    m = len(rows)
+    center = np.array([s.pos_m for s, _ in rows], dtype=float).reshape(m, 3)
+    velocity = np.array(
+        [(s.speed_m_s * math.cos(s.pitch_rad) * math.cos(s.yaw_rad),
+          s.speed_m_s * math.cos(s.pitch_rad) * math.sin(s.yaw_rad),
+          s.speed_m_s * math.sin(s.pitch_rad)) for s, _ in rows], dtype=float,
+    ).reshape(m, 3)  # fmt: skip
+    return Obstacles(center, np.full(m, radius_m), velocity)
+
+
+def with_obstacles(a: Obstacles, b: Obstacles) -> Obstacles:
+    """Both sets of spheres."""
+    return Obstacles(
+        np.concatenate([a.center, b.center]),
+        np.concatenate([a.radius, b.radius]),
+        np.concatenate([a.velocity, b.velocity]),
+    )

@@ -1,0 +1,332 @@
+"""Online planning: from the vehicles' telemetry to each vehicle's guided point and speed.
+
+Pure: the service hands in the mission, the latest state of each vehicle (already in the
+ICS) and the obstacles as they are now; this runs PPF forward from there and picks, for
+each vehicle, a guided point ahead on its planned heading (see ``guidance``) and the speed
+the plan asks for.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from gcs_ppf.frames import local_target_point
+from gcs_ppf.geodesy import velocity_ned_to_enu
+from gcs_ppf.guidance.airframe import OnlineLimits
+from gcs_ppf.mission import Mission
+from gcs_ppf.planning.planner import STATE_NAMES, advance
+from gcs_ppf.planning.ppf.kernel import KernelLimits
+from gcs_ppf.planning.scene import FloatArray, Obstacles, Scene, scene_from_mission
+
+
+@dataclass(frozen=True)
+class VehicleState:
+    """A vehicle as the planner sees it: ICS position (m), flight-path pitch and yaw (rad,
+    from the velocity, not the attitude: a real aircraft flies at an angle of attack)."""
+
+    pos_m: tuple[float, float, float]
+    pitch_rad: float
+    yaw_rad: float
+    speed_m_s: float
+
+
+def state_from_velocity(
+    pos_m: tuple[float, float, float],
+    vn_m_s: float,
+    ve_m_s: float,
+    vd_m_s: float,
+    age_s: float = 0.0,
+) -> VehicleState:
+    """VehicleState from an ICS position and a NED velocity (GLOBAL_POSITION_INT), carried
+    ``age_s`` seconds on along that velocity.
+
+    Each vehicle's position arrives at its own moment within the stream's period; planned
+    as if simultaneous, the formation's geometry is off by up to v × period (20 m at 200 m/s
+    and 10 Hz), more than the target accuracy.  Carrying every position on to the tick's
+    moment puts them at one instant.
+    """
+    ve, vn, vu = velocity_ned_to_enu(vn_m_s, ve_m_s, vd_m_s)
+    horizontal = math.hypot(ve, vn)
+    x, y, z = pos_m
+    return VehicleState(
+        pos_m=(x + ve * age_s, y + vn * age_s, z + vu * age_s),
+        pitch_rad=math.atan2(vu, horizontal),
+        yaw_rad=math.atan2(vn, ve),
+        speed_m_s=math.sqrt(horizontal**2 + vu**2),
+    )
+
+
+@dataclass(frozen=True)
+class Guidance:
+    """What one planning tick decided, per vehicle in scene order (leader first).
+
+    Two ways to fly it (``gcs_ppf.service.settings.Settings.guidance``): to the guided point, or on
+    the course with the guided point's altitude, approached at the climb rate.
+    """
+
+    ids: list[int]
+    guided_point_m: FloatArray  # [N,3] ICS; z is the planned altitude
+    speed_m_s: FloatArray  # [N] planned speed lead_s on
+    course_rad: FloatArray  # [N] ICS yaw to fly now
+    turn_rate_rad_s: FloatArray  # [N] planned yaw rate there (+: left), for feed-forward
+    climb_rate_m_s: FloatArray  # [N] vertical speed towards the altitude (inf: all it can)
+    state: list[str]  # PPF state of the first planned step
+    avoiding: list[bool]
+    formed: list[bool]
+    local_target_distance_m: list[float | None]  # None for the leader
+    leader_arrives_within_lookahead: bool
+    resolving: list[bool] = field(default_factory=list)  # vertical conflict resolution
+    speed_ahead_m_s: FloatArray | None = None  # [N] planned speed speed_lead_s on
+
+
+def scene_now(
+    mission: Mission,
+    states: dict[int, VehicleState],
+    active_ids: set[int],
+    obstacles: Obstacles,
+    margin_m: float = 0.0,
+    home_ground_m: float | None = None,
+    envelope: OnlineLimits | None = None,
+) -> Scene:
+    """The mission's scene with the vehicles where telemetry says they are.
+
+    ``margin_m`` widens both safe distances: flown closed loop, an aircraft lags its plan
+    (and the leader leaves PPF for its final approach), so the plan keeps a margin for it.
+    The ground is the mission's, or else ``home_ground_m`` (ICS z of the ground under the
+    vehicles' homes, see ``home_ground``): real aircraft do not fly in free space.
+    ``envelope`` (``gcs_ppf.guidance.airframe.online_limits``, from the vehicles' parameters)
+    tightens the speed range, the turn rate and the flight-path angles (pitch limits and
+    TECS rates) to what the airframes fly.  A speed
+    range that does not meet the mission's is the airframes' (they fly what they can).
+    """
+    base = scene_from_mission(mission)
+    ground = mission.ground if mission.ground is not None else home_ground_m
+    base = replace(
+        base,
+        limits=base.limits._replace(
+            safe_distance_uav=base.limits.safe_distance_uav + margin_m,
+            safe_distance_obstacle=base.limits.safe_distance_obstacle + margin_m,
+            ground=-math.inf if ground is None else ground,
+        ),
+    )
+    if envelope is not None:
+        base = replace(base, limits=_within_envelope(base.limits, envelope))
+    fleet = base.fleet.copy()
+    lim = base.limits
+    for i, vid in enumerate(fleet.ids.tolist()):
+        s = states.get(vid)
+        fleet.active[i] = s is not None and vid in active_ids
+        if s is None:
+            continue
+        fleet.pos[i] = s.pos_m
+        fleet.pitch[i] = max(-math.pi / 2, min(math.pi / 2, s.pitch_rad))
+        fleet.yaw[i] = s.yaw_rad
+        fleet.speed[i] = min(max(s.speed_m_s, lim.v_min), lim.v_max)
+    return replace(base, fleet=fleet, obstacles=obstacles)
+
+
+def _within_envelope(lim: KernelLimits, env: OnlineLimits) -> KernelLimits:
+    v_min = lim.v_min if env.v_min is None else max(lim.v_min, env.v_min)
+    v_max = lim.v_max if env.v_max is None else min(lim.v_max, env.v_max)
+    if v_min > v_max:  # the mission asks what the airframes cannot fly
+        v_min = lim.v_min if env.v_min is None else env.v_min
+        v_max = lim.v_max if env.v_max is None else env.v_max
+        v_min = min(v_min, v_max)
+
+    def tighter(a: float, b: float | None) -> float:
+        return a if b is None else min(a, b)
+
+    return lim._replace(
+        v_min=v_min,
+        v_max=v_max,
+        max_yaw_rate=tighter(lim.max_yaw_rate, env.max_yaw_rate),
+        max_climb_angle=tighter(lim.max_climb_angle, env.max_climb_angle),
+        max_dive_angle=tighter(lim.max_dive_angle, env.max_dive_angle),
+    )
+
+
+def home_ground(heights: list[tuple[float, float]]) -> float | None:
+    """ICS z of the ground from (ICS z, height above home) of each vehicle: the highest of
+    their homes (ArduPlane's relative altitude is above home; the terrain is taken as flat
+    there, which is what ArduPlane itself assumes without terrain data)."""
+    return max((z - above_home for z, above_home in heights), default=None)
+
+
+FINAL_APPROACH_TURN_RADII = 5.0  # within this many turn radii, with the target ahead …
+FINAL_APPROACH_ANGLE = math.pi / 3  # … within this angle off the nose: fly at it
+GO_AROUND_TURN_RADII = 3.0  # closer, with the target off to the side: fly away first
+
+
+def leader_approach(scene: Scene) -> str:
+    """How the leader closes on its target: ``"plan"`` (PPF), ``"final"`` (line of sight
+    through the target, at its altitude) or ``"go_around"`` (straight on).
+
+    Offline the leader meets its target on the first pass.  Flown closed loop it can pass
+    it high or wide (the aircraft lags the plan), and PPF would then circle the target on
+    the tightest turn for ever: the target sits inside the turn circle.  A fixed-wing pilot
+    goes around: away to a few turn radii, then back in line, altitude settled meanwhile.
+    """
+    fleet = scene.fleet
+    omega = min(scene.limits.max_pitch_rate, scene.limits.max_yaw_rate)
+    turn_radius = fleet.speed[0] / omega
+    to_target = scene.target - fleet.pos[0]
+    distance = math.hypot(to_target[0], to_target[1])
+    off_nose = abs(math.remainder(math.atan2(to_target[1], to_target[0]) - fleet.yaw[0], math.tau))
+    if distance < FINAL_APPROACH_TURN_RADII * turn_radius and off_nose <= FINAL_APPROACH_ANGLE:
+        return "final"
+    if distance < GO_AROUND_TURN_RADII * turn_radius:
+        return "go_around"
+    return "plan"
+
+
+def guidance(
+    scene: Scene,
+    *,
+    lookahead_s: float,
+    dt: float,
+    carrot_m: float = 1500.0,
+    lead_s: float = 0.5,
+    climb_rate_floor_m_s: float = 1.0,
+    turn_window_s: float = 0.5,
+    speed_lead_s: float = 1.0,
+) -> Guidance:
+    """Run PPF ``lookahead_s`` ahead from ``scene`` and read off, for each vehicle, its speed,
+    course and climb rate as planned ``lead_s`` on, its speed ``speed_lead_s`` on, and its
+    guided point.
+
+    The speed to command is the one ``speed_lead_s`` on (1 s, the autopilot's speed
+    response): the planned change within ``lead_s`` can be smaller than the change worth
+    commanding, so a plan replanned every tick from the measured speed would never be flown
+    faster or slower; but the speed ``lookahead_s`` (3 s) on overshoots — flown on Table 2's
+    level scene a wingman passed its slot by 180 m while the leader sped up (the formation
+    formed in 2 of 4 runs; 4 of 4 at 1 s, worst wingman 2.4–8.0 m at best).
+
+    The guided point is the planned position ``lookahead_s`` ahead carried ``carrot_m``
+    further along the planned heading, at the planned altitude.  A fixed wing in GUIDED flies
+    to its point and circles it once near (ArduPlane's loiter), so a point only a few seconds
+    ahead would be circled; far out on the planned heading it steers the aircraft onto the
+    plan instead, and the leader flies through its target rather than circling it.  Flown
+    as course and altitude instead, the vehicle turns when the plan turns rather than when
+    the direction to a far point does: pursuing the point, the formation never formed
+    closed loop (the worst wingman came to 38.8–41.0 m of its slot at best); flying the
+    course it forms (``tests/integration``).  The climb rate is the planned vertical speed
+    plus ``climb_rate_floor_m_s``, so a level plan still corrects a small altitude error;
+    the leader on its final approach or go-around climbs as it can.  The planned turn
+    rate there is the yaw change over ``turn_window_s`` centred on it (the saturated sign
+    of Eq. 19 can alternate between full and partial steps), 0 for the leader flying the
+    line of sight or going around.
+    """
+    steps = max(1, round(lookahead_s / dt))
+    run = advance(scene, dt, steps)
+    tr = run.trajectory
+    k_lead = min(len(tr) - 1, max(0, round(lead_s / dt) - 1))
+    fleet = scene.fleet
+    ids = fleet.ids.tolist()
+    ahead = tr.pos[-1].copy()
+    yaw = tr.yaw[-1].copy()
+    course = tr.yaw[k_lead].copy()
+    climb = np.abs(tr.speed[k_lead] * np.sin(tr.pitch[k_lead])) + climb_rate_floor_m_s
+    turn_rate = planned_turn_rate(fleet.yaw, tr.t, tr.yaw, k_lead, turn_window_s)
+    approach = leader_approach(scene)
+    if run.arrived or approach == "final":  # through the target, on the line of sight
+        ahead[0] = scene.target
+        to_target = scene.target - fleet.pos[0]
+        yaw[0] = course[0] = math.atan2(to_target[1], to_target[0])
+        climb[0] = math.inf
+        turn_rate[0] = 0.0
+    elif approach == "go_around":  # straight on at the target's altitude, then come back
+        ahead[0] = (fleet.pos[0, 0], fleet.pos[0, 1], scene.target[2])
+        yaw[0] = course[0] = fleet.yaw[0]
+        climb[0] = math.inf
+        turn_rate[0] = 0.0
+    guided = ahead + carrot_m * np.stack([np.cos(yaw), np.sin(yaw), np.zeros_like(yaw)], axis=1)
+    guided[~fleet.active] = fleet.pos[~fleet.active]
+    gaps = [
+        float(np.linalg.norm(
+            local_target_point(fleet.pos[0], float(fleet.pitch[0]), float(fleet.yaw[0]),
+                               fleet.slot[i]) - fleet.pos[i]
+        ))
+        for i in range(1, len(ids))
+    ]  # fmt: skip
+    return Guidance(
+        ids=ids,
+        guided_point_m=guided,
+        speed_m_s=tr.speed[k_lead].copy(),
+        course_rad=course,
+        turn_rate_rad_s=turn_rate,
+        climb_rate_m_s=climb,
+        state=[STATE_NAMES[int(s)] for s in tr.state[0]],
+        avoiding=[bool(a) for a in tr.avoiding[0]],
+        formed=[bool(f) for f in tr.formed[0]],
+        local_target_distance_m=[None, *gaps],
+        leader_arrives_within_lookahead=run.arrived,
+        speed_ahead_m_s=tr.speed[min(len(tr) - 1, max(0, round(speed_lead_s / dt) - 1))].copy(),
+    )
+
+
+_WARM_UP_MISSION = {
+    "target": [3000.0, 0.0, 300.0],
+    "vehicles": [
+        {"id": 1, "role": "leader", "position": [0.0, 0.0, 300.0], "pitch": 0.0, "yaw": 0.0},
+        {"id": 2, "role": "wingman", "position": [0.0, -300.0, 300.0], "pitch": 0.0,
+         "yaw": 0.0, "slot": [-300.0, -300.0, 0.0]},
+    ],
+    "obstacles": [{"center": [1500.0, 800.0, 300.0], "radius": 200.0}],
+}  # fmt: skip
+
+
+def warm_up(dt: float) -> None:
+    """Load the planner's compiled kernel (numba's cache, or compile it) with the types a
+    tick plans with, so that no run's first tick pays for it: measured on this repository's
+    2-core machine the first ``guidance`` call took 0.33 s idle and ~0.7 s busy, while every
+    vehicle flew on its launch commands (6.5 s of vehicle time at a SITL's 10×) and the
+    telemetry queued behind it."""
+    mission = Mission.model_validate(_WARM_UP_MISSION)
+    base = scene_from_mission(mission)
+    states = {
+        int(vid): VehicleState(tuple(base.fleet.pos[i]), 0.0, 0.0, 150.0)
+        for i, vid in enumerate(base.fleet.ids)
+    }
+    scene = scene_now(mission, states, set(states), base.obstacles, 100.0, 0.0)
+    guidance(scene, lookahead_s=10 * dt, dt=dt)
+
+
+def planned_turn_rate(
+    yaw0: FloatArray, t: FloatArray, yaw: FloatArray, k: int, window_s: float
+) -> FloatArray:
+    """Yaw rate [N] (rad/s) of a plan around its record ``k``: the wrapped yaw change over
+    ``window_s`` centred there (clipped to the plan, whose records ``t`` [K], ``yaw`` [K,N]
+    follow the start ``yaw0`` [N] at t = 0)."""
+    times = np.concatenate([[0.0], t])
+    yaws = np.concatenate([yaw0[None], yaw])
+    j = k + 1  # record k is after step k + 1
+    half = window_s / 2.0 + 1e-9  # the records' own times count in
+    lo = int(np.searchsorted(times, times[j] - half, side="left"))
+    hi = int(np.searchsorted(times, times[j] + half, side="right")) - 1
+    lo, hi = max(0, min(lo, j)), min(len(times) - 1, max(hi, j))
+    if hi == lo:
+        return np.zeros_like(yaw0)
+    change = np.remainder(yaws[hi] - yaws[lo] + np.pi, 2.0 * np.pi) - np.pi
+    out: FloatArray = change / (times[hi] - times[lo])
+    return out
+
+
+def separations(positions: FloatArray) -> float | None:
+    """Smallest centre-to-centre distance among the given [N,3] positions."""
+    n = positions.shape[0]
+    if n < 2:
+        return None
+    gaps = np.linalg.norm(positions[:, None] - positions[None], axis=-1)
+    gaps[np.arange(n), np.arange(n)] = np.inf
+    return float(gaps.min())
+
+
+def clearance(positions: FloatArray, obstacles: Obstacles) -> float | None:
+    """Smallest distance from the given positions to any obstacle surface."""
+    if obstacles.radius.shape[0] == 0 or positions.shape[0] == 0:
+        return None
+    d = np.linalg.norm(positions[:, None] - obstacles.center[None], axis=-1) - obstacles.radius
+    return float(d.min())

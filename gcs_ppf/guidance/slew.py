@@ -1,0 +1,189 @@
+"""What the GUIDED slew commands carry so that ArduPlane flies the plan: the course with the
+heading error its P-only controller needs to bank for the planned turn, the lateral
+acceleration that lets it, and an altitude demand that TECS can follow.
+
+Pure.  The ArduPlane behaviour relied on (ArduPlane 4.7, ``ModeGuided::update`` and
+``GCS_MAVLINK_Plane::handle_command_int_guided_slew_commands``; measured on its SITL with the
+plane.parm defaults, ``../shared/arduplane-traces``):
+
+- ``MAV_CMD_GUIDED_CHANGE_HEADING``: commanded bank (centidegrees) = GUIDED_P × heading error
+  (radians), clipped to ±min(atan(param3 / g), ROLL_LIMIT_DEG); the aircraft then turns at
+  g·tan(bank)/airspeed.  A course that keeps moving (a turning plan) is followed behind by
+  the error that gives the bank the turn needs: 0.87° of bank per degree of error with
+  GUIDED_P 5000, so a 20° bank needs 23° of error.  Commanding the planned course plus that
+  error (feed-forward) puts the aircraft on the planned course in a steady turn.
+- ``MAV_CMD_GUIDED_CHANGE_ALTITUDE``: param3 > 0 is not a climb-rate cap (each update moves
+  the demand from the *current* altitude by param3 × Δt, and TECS barely climbs: 3.6 m in
+  60 s asked at 2 m/s); param3 = 0 is "as fast as possible" (TECS at up to TECS_CLMB_MAX,
+  4.0 m/s over a 50 m step).  So the service sends param3 = 0 and shapes the demand itself:
+  the planned altitude a few seconds ahead, never further from the current altitude than
+  TECS can climb (sink) in that time.  z = 0 and z = −1 are DENIED (``is_equal`` with a
+  float epsilon): never sent.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from gcs_ppf.guidance.airframe import G_M_S2, TURN_EFFICIENCY, Airframe
+from gcs_ppf.guidance.online import Guidance
+
+LATERAL_ACCEL_MARGIN = 1.5
+"""param3 of the heading command allows this many times the planned turn's lateral
+acceleration (the P-controller also banks to take out errors)."""
+
+
+def needed_bank_rad(turn_rate_rad_s: float, speed_m_s: float) -> float:
+    """The bank of a coordinated turn at ``turn_rate_rad_s`` and airspeed ``speed_m_s``,
+    atan(v·ψ̇/g), signed as the turn."""
+    return math.atan(speed_m_s * turn_rate_rad_s / (TURN_EFFICIENCY * G_M_S2))
+
+
+def course_lead_rad(
+    turn_rate_rad_s: float,
+    speed_m_s: float,
+    guided_p: float | None,
+    roll_limit_deg: float | None = None,
+) -> float:
+    """The heading error GUIDED's P-controller needs to bank for the planned turn: needed
+    bank in centidegrees / GUIDED_P, in the turn's direction (radians; 0 without GUIDED_P,
+    the bank capped at ROLL_LIMIT_DEG)."""
+    if guided_p is None or guided_p <= 0.0 or not math.isfinite(turn_rate_rad_s):
+        return 0.0
+    bank = needed_bank_rad(turn_rate_rad_s, speed_m_s)
+    if roll_limit_deg is not None:
+        cap = math.radians(roll_limit_deg)
+        bank = max(-cap, min(cap, bank))
+    return math.degrees(bank) * 100.0 / guided_p
+
+
+def course_command_rad(
+    planned_course_rad: float,
+    turn_rate_rad_s: float,
+    speed_m_s: float,
+    guided_p: float | None,
+    roll_limit_deg: float | None = None,
+) -> float:
+    """The course to command (ICS yaw, rad, counter-clockwise: a positive turn rate turns
+    left): the planned one led by ``course_lead_rad``."""
+    lead = course_lead_rad(turn_rate_rad_s, speed_m_s, guided_p, roll_limit_deg)
+    return math.remainder(planned_course_rad + lead, math.tau)
+
+
+def lateral_accel_limit(
+    turn_rate_rad_s: float,
+    speed_m_s: float,
+    plan_limit_m_s2: float,
+    roll_limit_deg: float | None = None,
+) -> float:
+    """param3 of the heading command (m/s²): at least the plan's own limit
+    (``plan_limit_m_s2``, v_max·ω_max), at least ``LATERAL_ACCEL_MARGIN`` × the planned
+    turn's v·|ψ̇|, no more than ROLL_LIMIT_DEG allows anyway (ArduPlane clips there)."""
+    turn_accel = speed_m_s * abs(turn_rate_rad_s) / TURN_EFFICIENCY  # g·tan(the turn's bank)
+    accel = max(plan_limit_m_s2, LATERAL_ACCEL_MARGIN * turn_accel)
+    if roll_limit_deg is not None:
+        accel = min(accel, G_M_S2 * math.tan(math.radians(roll_limit_deg)))
+    return max(accel, 0.05) if math.isfinite(accel) else 0.05
+
+
+def altitude_demand(
+    planned_z_m: float,
+    current_z_m: float,
+    horizon_s: float,
+    climb_max_m_s: float,
+    sink_max_m_s: float,
+) -> float:
+    """The altitude to send with param3 = 0: the planned one, but no further from the
+    current altitude than TECS climbs (sinks) in ``horizon_s``."""
+    top = current_z_m + climb_max_m_s * horizon_s
+    bottom = current_z_m - sink_max_m_s * horizon_s
+    return min(max(planned_z_m, bottom), top)
+
+
+REFUSED_ALTITUDES = (0.0, -1.0)
+"""ArduPlane DENIES a CHANGE_ALTITUDE to these (``is_equal`` within a float epsilon)."""
+_REFUSED_WINDOW_M = 0.01
+
+
+def sendable_altitude(alt_m: float) -> float:
+    """``alt_m`` moved 2 cm up if it is within 1 cm of a value ArduPlane refuses."""
+    if any(abs(alt_m - r) < _REFUSED_WINDOW_M for r in REFUSED_ALTITUDES):
+        return alt_m + 2.0 * _REFUSED_WINDOW_M
+    return alt_m
+
+
+@dataclass(frozen=True)
+class SlewCommand:
+    """One vehicle's course and altitude commands for one tick."""
+
+    course_rad: float
+    """ICS yaw to command (MAV_CMD_GUIDED_CHANGE_HEADING param2 after conversion)."""
+    lateral_accel_m_s2: float
+    """param3 of the heading command."""
+    z_m: float
+    """ICS altitude demand (MAV_CMD_GUIDED_CHANGE_ALTITUDE z after conversion)."""
+    rate_m_s: float
+    """param3 of the altitude command: 0 is "as fast as possible"."""
+
+
+def slew_command(
+    g: Guidance,
+    i: int,
+    airframe: Airframe,
+    current_z_m: float,
+    plan_accel_limit_m_s2: float,
+    horizon_s: float,
+) -> SlewCommand:
+    """Vehicle ``i`` of ``g``'s course (led for its P-controller when it reports GUIDED_P)
+    and altitude: with TECS limits known, param3 = 0 and the demand shaped
+    (``altitude_demand``, the planned altitude ``horizon_s`` ahead); without, the planned
+    altitude at the planned vertical speed (how ArduPlane-like simulators without TECS
+    were flown).  A vertical resolution is flown as fast as possible, unshaped (the guard
+    asks only what the airframe climbs within its horizon)."""
+    speed = float(g.speed_m_s[i])
+    turn = float(g.turn_rate_rad_s[i])
+    course = course_command_rad(
+        float(g.course_rad[i]), turn, speed, airframe.guided_p, airframe.roll_limit_deg
+    )
+    accel = lateral_accel_limit(turn, speed, plan_accel_limit_m_s2, airframe.roll_limit_deg)
+    planned_z = float(g.guided_point_m[i, 2])
+    resolving = bool(g.resolving and g.resolving[i])
+    climb, sink = airframe.climb_max_m_s, airframe.sink_max_m_s
+    if resolving:
+        return SlewCommand(course, accel, planned_z, 0.0)
+    if climb is not None and sink is not None:
+        z = altitude_demand(planned_z, current_z_m, horizon_s, climb, sink)
+        return SlewCommand(course, accel, z, 0.0)
+    rate = float(g.climb_rate_m_s[i])
+    return SlewCommand(course, accel, planned_z, rate if math.isfinite(rate) else 0.0)
+
+
+def airspeed_command(
+    planned_speed_m_s: float,
+    airspeed_m_s: float | None,
+    groundspeed_m_s: float | None,
+    airframe: Airframe,
+) -> float:
+    """The airspeed to command (DO_CHANGE_SPEED) for a planned speed over the ground.
+
+    The plan lives in the ground frame (positions and speeds from GLOBAL_POSITION_INT), but
+    ArduPlane holds an airspeed, and its airspeed (equivalent, EAS) is not its speed over
+    the ground even without wind: the true airspeed is EAS × the density ratio, about 6–7 %
+    more at 700 m AMSL (``../shared/arduplane-traces``: VFR_HUD groundspeed 6–7 % above
+    airspeed).  Commanded as is, a plan that slows a vehicle down is never flown: the
+    vehicle keeps flying faster than planned, and the next plan starts from that speed.  So
+    the planned speed is scaled by the vehicle's own airspeed / groundspeed (VFR_HUD; 1 when
+    unknown or implausible) and kept within AIRSPEED_MIN..AIRSPEED_MAX (ArduPlane FAILS a
+    speed outside them)."""
+    ratio = 1.0
+    if airspeed_m_s is not None and groundspeed_m_s is not None and groundspeed_m_s > 1.0:
+        measured = airspeed_m_s / groundspeed_m_s
+        if 0.5 <= measured <= 2.0:
+            ratio = measured
+    speed = planned_speed_m_s * ratio
+    if airframe.airspeed_min_m_s is not None:
+        speed = max(speed, airframe.airspeed_min_m_s)
+    if airframe.airspeed_max_m_s is not None:
+        speed = min(speed, airframe.airspeed_max_m_s)
+    return speed

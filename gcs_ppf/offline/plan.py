@@ -1,0 +1,83 @@
+"""Offline planning: run the planner over a whole mission, timed, chunk by chunk.
+
+This is the imperative shell around the pure ``planner.advance``: it owns the clock (the
+wall time of planning alone, after the one-time compilation) and reports progress.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from gcs_ppf.mission import Mission
+from gcs_ppf.planning.metrics import FlightContext, compute_metrics
+from gcs_ppf.planning.planner import Method, Trajectory, advance, initial_record
+from gcs_ppf.planning.scene import Scene, scene_from_mission
+
+Progress = Callable[[float], None]  # called with the flight time planned so far
+
+
+@dataclass(frozen=True)
+class PlanRun:
+    """A planned mission: the full trajectory (initial state first) and its figures."""
+
+    method: Method
+    dt: float
+    scene: Scene
+    trajectory: Trajectory
+    arrived: bool
+    wall_time_s: float
+    metrics: dict[str, Any]
+
+
+def warm_up(scene: Scene, dt: float, method: Method) -> None:
+    """Compile (or load from numba's cache) the kernel, so that timing excludes it."""
+    advance(scene, dt, 1, method=method)
+
+
+def flight_context(mission: Mission, scene: Scene) -> FlightContext:
+    return FlightContext(
+        target=scene.target,
+        slot=scene.fleet.slot,
+        obstacles=scene.obstacles,
+        target_accuracy=mission.limits.target_accuracy,
+        collision_radius=mission.limits.collision_radius,
+        ground=mission.ground,
+    )
+
+
+def plan_mission(
+    mission: Mission,
+    *,
+    method: Method | None = None,
+    dt: float | None = None,
+    progress: Progress | None = None,
+    chunk_s: float = 1.0,
+) -> PlanRun:
+    """Plan ``mission`` until the leader reaches its target or ``planner.max_time``."""
+    method = method or mission.planner.method
+    dt = dt or mission.planner.dt
+    scene = scene_from_mission(mission)
+    warm_up(scene, dt, method)
+    chunk = max(1, round(chunk_s / dt))
+    total_steps = max(1, round(mission.planner.max_time / dt))
+    parts = [initial_record(scene)]
+    state, t, steps, wall, arrived = scene, 0.0, 0, 0.0, False
+    while steps < total_steps and not arrived:
+        n = min(chunk, total_steps - steps)
+        start = time.perf_counter()
+        result = advance(state, dt, n, method=method, t0=t)
+        wall += time.perf_counter() - start
+        parts.append(result.trajectory)
+        state, arrived = result.scene, result.arrived
+        steps += result.steps
+        t += result.elapsed_s
+        if progress is not None:
+            progress(t)
+    trajectory = Trajectory.concatenate(parts)
+    metrics = compute_metrics(trajectory, flight_context(mission, scene), planning_wall_time_s=wall)
+    metrics["method"] = method
+    metrics["dt_s"] = dt
+    return PlanRun(method, dt, scene, trajectory, arrived, wall, metrics)

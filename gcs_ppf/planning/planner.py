@@ -1,0 +1,128 @@
+"""The planner's pure entry point: advance a scene by some steps of PPF (or APF).
+
+``advance`` takes a ``Scene`` and returns the scene after the steps and the trajectory
+it recorded; inputs are never mutated.  The service calls it online from telemetry, the
+offline runner calls it chunk by chunk until the leader arrives.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from gcs_ppf.planning.rollout import APF, PPF, run_fleet
+from gcs_ppf.planning.scene import BoolArray, FloatArray, IntArray, Scene
+
+Method = Literal["ppf", "apf"]
+STATE_NAMES = {1: "s1", 2: "s2", 3: "s3"}  # PPF state codes of Trajectory.state
+StateArray = NDArray[np.int8]
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """Recorded steps: K records of N vehicles (vehicle order as in the scene).
+
+    t[K] s; pos[K,N,3] m; pitch, yaw[K,N] rad; speed[K,N] m/s; state[K,N] PPF state
+    1–3; avoiding[K,N] repelled by an obstacle or teammate; formed[K,N] wingman within
+    the target accuracy of its local target point (as seen at the start of the step).
+    """
+
+    ids: IntArray
+    t: FloatArray
+    pos: FloatArray
+    pitch: FloatArray
+    yaw: FloatArray
+    speed: FloatArray
+    state: StateArray
+    avoiding: BoolArray
+    formed: BoolArray
+
+    @staticmethod
+    def concatenate(parts: list[Trajectory]) -> Trajectory:
+        first = parts[0]
+        fields = [f for f in first.__dataclass_fields__ if f != "ids"]
+        joined = {f: np.concatenate([getattr(p, f) for p in parts]) for f in fields}
+        return Trajectory(ids=first.ids, **joined)
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+
+@dataclass(frozen=True)
+class Advance:
+    """Result of ``advance``: the scene afterwards, what was recorded, and whether the
+    leader arrived (then ``elapsed_s`` stops at the arrival instant)."""
+
+    scene: Scene
+    trajectory: Trajectory
+    arrived: bool
+    steps: int
+    elapsed_s: float
+
+
+def initial_record(scene: Scene, t0: float = 0.0) -> Trajectory:
+    """The scene's state as a one-record trajectory at time ``t0``."""
+    f = scene.fleet
+    n = f.ids.shape[0]
+    return Trajectory(
+        ids=f.ids.copy(),
+        t=np.array([t0]),
+        pos=f.pos[None].copy(),
+        pitch=f.pitch[None].copy(),
+        yaw=f.yaw[None].copy(),
+        speed=f.speed[None].copy(),
+        state=np.ones((1, n), dtype=np.int8),
+        avoiding=np.zeros((1, n), dtype=bool),
+        formed=np.zeros((1, n), dtype=bool),
+    )
+
+
+def advance(
+    scene: Scene,
+    dt: float,
+    n_steps: int,
+    *,
+    method: Method = "ppf",
+    record_every: int = 1,
+    t0: float = 0.0,
+) -> Advance:
+    """Run ``n_steps`` planner steps of ``dt`` seconds from ``scene`` (stopping early when
+    the leader reaches the target).  Records every ``record_every``-th step and the last;
+    record times are ``t0`` plus the flight time since the start."""
+    if dt <= 0.0 or n_steps < 0 or record_every < 1:
+        raise ValueError("advance: dt > 0, n_steps >= 0 and record_every >= 1 are required")
+    fleet = scene.fleet.copy()
+    obstacles = scene.obstacles.copy()
+    n = fleet.ids.shape[0]
+    k = n_steps // record_every + 2
+    rec_t = np.zeros(k)
+    rec_pos = np.zeros((k, n, 3))
+    rec_pitch = np.zeros((k, n))
+    rec_yaw = np.zeros((k, n))
+    rec_speed = np.zeros((k, n))
+    rec_state = np.zeros((k, n), dtype=np.int8)
+    rec_avoiding = np.zeros((k, n), dtype=bool)
+    rec_formed = np.zeros((k, n), dtype=bool)
+    steps, records, elapsed, arrived = run_fleet(
+        fleet.pos, fleet.pitch, fleet.yaw, fleet.speed, fleet.slot, fleet.rank,
+        fleet.active, obstacles.center, obstacles.radius, obstacles.velocity,
+        scene.target, scene.limits, float(dt), PPF if method == "ppf" else APF,
+        int(n_steps), int(record_every), rec_t, rec_pos, rec_pitch, rec_yaw, rec_speed,
+        rec_state, rec_avoiding, rec_formed,
+    )  # fmt: skip
+    trajectory = Trajectory(
+        ids=fleet.ids.copy(),
+        t=t0 + rec_t[:records],
+        pos=rec_pos[:records],
+        pitch=rec_pitch[:records],
+        yaw=rec_yaw[:records],
+        speed=rec_speed[:records],
+        state=rec_state[:records],
+        avoiding=rec_avoiding[:records],
+        formed=rec_formed[:records],
+    )
+    after = Scene(fleet=fleet, obstacles=obstacles, target=scene.target, limits=scene.limits)
+    return Advance(after, trajectory, bool(arrived), int(steps), float(elapsed))

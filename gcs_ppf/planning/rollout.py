@@ -1,0 +1,159 @@
+"""Rolling the fleet forward: many steps of a planner's kernel, recorded.
+
+Shared by both methods (``PPF`` = the paper's planner, ``APF`` = the classical baseline):
+the loop, the recording and the arrival test live here once; each method contributes
+only its ``*_fleet_step``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from gcs_ppf.planning.apf import apf_fleet_step
+from gcs_ppf.planning.ppf.kernel import KernelLimits, fleet_step, nearby_obstacles
+
+PPF = 0
+APF = 1
+NEIGHBOUR_LIST_STEPS = 25  # PPF refreshes each vehicle's nearby obstacles this often
+
+
+@njit(cache=True)
+def leader_arrival_fraction(
+    start: np.ndarray, end: np.ndarray, target: np.ndarray, accuracy: float
+) -> float:
+    """Fraction s ∈ [0, 1] of the step start → end after which the leader is within the
+    target accuracy, or −1 if it is not within it anywhere on the step.
+
+    Checking the whole segment, not just its end, keeps a coarse Δt from stepping over
+    the target sphere (30 m a step at 300 m/s and Δt = 0.1 s)."""
+    ax = end[0] - start[0]
+    ay = end[1] - start[1]
+    az = end[2] - start[2]
+    bx = target[0] - start[0]
+    by = target[1] - start[1]
+    bz = target[2] - start[2]
+    a2 = ax * ax + ay * ay + az * az
+    if bx * bx + by * by + bz * bz <= accuracy * accuracy:
+        return 0.0
+    if a2 == 0.0:
+        return -1.0
+    s = min(max((ax * bx + ay * by + az * bz) / a2, 0.0), 1.0)
+    cx = bx - s * ax
+    cy = by - s * ay
+    cz = bz - s * az
+    return s if cx * cx + cy * cy + cz * cz <= accuracy * accuracy else -1.0
+
+
+@njit(cache=True)
+def run_fleet(
+    pos: np.ndarray,
+    pitch: np.ndarray,
+    yaw: np.ndarray,
+    speed: np.ndarray,
+    slot: np.ndarray,
+    rank: np.ndarray,
+    active: np.ndarray,
+    obs_center: np.ndarray,
+    obs_radius: np.ndarray,
+    obs_velocity: np.ndarray,
+    target: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+    method: int,
+    n_steps: int,
+    record_every: int,
+    rec_dt: np.ndarray,
+    rec_pos: np.ndarray,
+    rec_pitch: np.ndarray,
+    rec_yaw: np.ndarray,
+    rec_speed: np.ndarray,
+    rec_state: np.ndarray,
+    rec_avoiding: np.ndarray,
+    rec_formed: np.ndarray,
+) -> tuple[int, int, float, bool]:
+    """Run up to ``n_steps`` steps in place, stopping when the leader reaches the target.
+
+    Records every ``record_every``-th step and the last one into the ``rec_*`` arrays
+    (``rec_dt[k]`` is the flight time since the start of this run).  The final step is cut
+    short at the point where the leader enters the target accuracy, every vehicle's
+    state interpolated to that instant.  Returns (steps taken, records written, elapsed
+    flight time); the leader has arrived iff the elapsed time is below ``n_steps · dt``.
+    """
+    n = pos.shape[0]
+    state = np.ones(n, dtype=np.int8)
+    avoiding = np.zeros(n, dtype=np.bool_)
+    formed = np.zeros(n, dtype=np.bool_)
+    direction = np.empty((n, 3))
+    local_target = np.empty((n, 3))
+    next_motion = np.empty((n, 3))
+    prev_pos = np.empty((n, 3))
+    prev_motion = np.empty((n, 3))
+    near_start = np.zeros(n + 1, dtype=np.int64)
+    near_obstacles = np.empty(n * obs_center.shape[0], dtype=np.int64)
+    elapsed = 0.0
+    records = 0
+    for step in range(n_steps):
+        prev_pos[:, :] = pos
+        prev_motion[:, 0] = speed
+        prev_motion[:, 1] = pitch
+        prev_motion[:, 2] = yaw
+        if method == PPF:
+            if step % NEIGHBOUR_LIST_STEPS == 0:
+                nearby_obstacles(
+                    pos, obs_center, obs_radius, obs_velocity, lim, dt, NEIGHBOUR_LIST_STEPS,
+                    near_start, near_obstacles,
+                )  # fmt: skip
+            fleet_step(
+                pos, pitch, yaw, speed, slot, rank, active, obs_center, obs_radius,
+                obs_velocity, target, lim, dt, state, avoiding, formed, direction,
+                local_target, next_motion, near_start, near_obstacles,
+            )  # fmt: skip
+        else:
+            apf_fleet_step(
+                pos, pitch, yaw, speed, slot, rank, active, obs_center, obs_radius,
+                obs_velocity, target, lim, dt, state, avoiding, formed, direction,
+                local_target, next_motion,
+            )  # fmt: skip
+        s = leader_arrival_fraction(prev_pos[0], pos[0], target, lim.target_accuracy)
+        arrived = s >= 0.0
+        if arrived:
+            for i in range(n):
+                if not active[i]:
+                    continue
+                for c in range(3):
+                    pos[i, c] = prev_pos[i, c] + s * (pos[i, c] - prev_pos[i, c])
+                speed[i] = prev_motion[i, 0] + s * (speed[i] - prev_motion[i, 0])
+                pitch[i] = prev_motion[i, 1] + s * (pitch[i] - prev_motion[i, 1])
+                turn = yaw[i] - prev_motion[i, 2]
+                if turn > math.pi:
+                    turn -= 2.0 * math.pi
+                elif turn <= -math.pi:
+                    turn += 2.0 * math.pi
+                yaw[i] = prev_motion[i, 2] + s * turn
+                if yaw[i] > math.pi:
+                    yaw[i] -= 2.0 * math.pi
+                elif yaw[i] <= -math.pi:
+                    yaw[i] += 2.0 * math.pi
+            for j in range(obs_center.shape[0]):
+                for c in range(3):
+                    obs_center[j, c] -= (1.0 - s) * obs_velocity[j, c] * dt
+            elapsed += s * dt
+        else:
+            elapsed += dt
+        due = arrived or (step + 1) % record_every == 0 or step == n_steps - 1
+        if due and records < rec_dt.shape[0]:
+            rec_dt[records] = elapsed
+            rec_pos[records] = pos
+            rec_pitch[records] = pitch
+            rec_yaw[records] = yaw
+            rec_speed[records] = speed
+            rec_state[records] = state
+            rec_avoiding[records] = avoiding
+            rec_formed[records] = formed
+            records += 1
+        if arrived:
+            return step + 1, records, elapsed, True
+    return n_steps, records, elapsed, False

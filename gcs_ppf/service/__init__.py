@@ -1,0 +1,1 @@
+"""The asyncio shell: missions and runs, the tick, fleet, links, launch, store and settings."""

@@ -1,0 +1,255 @@
+"""The vehicles the service talks to: MAVLink links, discovery by heartbeat, liveness.
+
+Owns the links (``gcs_ppf.service.links``) and what is known of each vehicle; sends our heartbeat
+on every link, asks new vehicles for their telemetry streams (SET_MESSAGE_INTERVAL only) and
+their airframe parameters (``gcs_ppf.guidance.airframe``), and marks silent ones lost
+(the timeout in the vehicle's own seconds, ``gcs_ppf.guidance.vehicle_clock``).  The service's runs
+read ``by_id`` and call ``send``; ``telemetry_event`` wakes them when positions arrive.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from collections.abc import Callable, Coroutine
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from gcs_ppf.geodesy import geodetic_to_enu
+from gcs_ppf.guidance.airframe import Airframe
+from gcs_ppf.guidance.vehicle_clock import VehicleClock
+from gcs_ppf.mavlink import commands
+from gcs_ppf.mavlink.ardupilot import mode_name
+from gcs_ppf.mavlink.telemetry import AIRFRAME_PARAMS, VehicleTelemetry, apply
+from gcs_ppf.mission import Mission
+from gcs_ppf.service.errors import Conflict, NotFound, ServiceError
+from gcs_ppf.service.links import MavlinkLink, parse_link_url
+from gcs_ppf.service.settings import Settings
+
+log = logging.getLogger("gcs_ppf.service.fleet")
+
+STREAMED = {  # message id → rate factor of settings.stream_rate_hz
+    33: 1.0,  # GLOBAL_POSITION_INT
+    30: 1.0,  # ATTITUDE
+    74: 0.5,  # VFR_HUD
+    2: 0.2,  # SYSTEM_TIME
+    1: 0.2,  # SYS_STATUS
+}
+
+
+@dataclass
+class Vehicle:
+    """A vehicle discovered by its heartbeat on a link."""
+
+    system_id: int
+    link_id: int
+    telemetry: VehicleTelemetry
+    last_heard_s: float
+    lost: bool = False
+    clock: VehicleClock = field(default_factory=VehicleClock)
+
+
+@dataclass
+class LinkEntry:
+    id: int
+    url: str
+    link: MavlinkLink
+    task: asyncio.Task[None] | None = None
+
+
+class Fleet:
+    """Links and vehicles; ``spawn`` runs a coroutine as a task of the service."""
+
+    def __init__(
+        self, settings: Settings, spawn: Callable[[Coroutine[Any, Any, Any]], asyncio.Task[Any]]
+    ) -> None:
+        self.settings = settings
+        self._spawn = spawn
+        self._links: dict[int, LinkEntry] = {}
+        self._next_link_id = 1
+        self.by_id: dict[int, Vehicle] = {}
+        self.telemetry_event = asyncio.Event()
+        self.telemetry_received_s = 0.0  # perf_counter of the latest position message
+
+    def close(self) -> None:
+        """Close every link (the service is stopping)."""
+        for entry in list(self._links.values()):
+            entry.link.close()
+            if entry.task is not None:
+                entry.task.cancel()
+
+    # Links -------------------------------------------------------------------------------
+    async def add_link(self, url: str) -> dict[str, Any]:
+        try:
+            parse_link_url(url)
+        except (ValueError, NotImplementedError) as exc:
+            raise ServiceError(f"url: {exc}") from None
+        if any(e.url == url for e in self._links.values()):
+            raise Conflict(f"url: a link to {url} exists already")
+        link_id = self._next_link_id
+        self._next_link_id += 1
+        tlog = None
+        if self.settings.tlog_dir is not None:
+            tlog = Path(self.settings.tlog_dir) / f"link{link_id}-{int(time.time())}.tlog"
+            tlog.parent.mkdir(parents=True, exist_ok=True)
+
+        def on_message(_link: MavlinkLink, msg: Any) -> None:
+            self._on_message(link_id, msg)
+
+        link = MavlinkLink(
+            url,
+            on_message,
+            source_system=self.settings.system_id,
+            tlog_path=tlog,
+        )
+        entry = LinkEntry(link_id, url, link)
+        entry.task = self._spawn(link.run())
+        self._links[link_id] = entry
+        log.info("link %d: %s", link_id, url)
+        return self._link_info(entry)
+
+    def links(self) -> list[dict[str, Any]]:
+        return [self._link_info(e) for e in self._links.values()]
+
+    async def remove_link(self, link_id: int) -> None:
+        entry = self._links.pop(link_id, None)
+        if entry is None:
+            raise NotFound(f"link {link_id} does not exist")
+        entry.link.close()
+        if entry.task is not None:
+            entry.task.cancel()
+
+    def _link_info(self, entry: LinkEntry) -> dict[str, Any]:
+        vehicles = sorted(v.system_id for v in self.by_id.values() if v.link_id == entry.id)
+        return {
+            "id": entry.id,
+            "url": entry.url,
+            "connected": entry.link.connected,
+            "vehicles": vehicles,
+        }
+
+    # Vehicles ----------------------------------------------------------------------------
+    def _on_message(self, link_id: int, msg: Any) -> None:
+        sysid = int(msg.get_srcSystem())
+        if sysid == self.settings.system_id or msg.get_srcComponent() != 1:
+            return  # our own echo, or a component that is not the autopilot
+        now = time.monotonic()
+        vehicle = self.by_id.get(sysid)
+        if vehicle is None:
+            if msg.get_type() != "HEARTBEAT" or msg.type == 6:  # MAV_TYPE_GCS
+                return  # vehicles are discovered by their heartbeats
+            vehicle = Vehicle(sysid, link_id, apply(None, msg, now), now)
+            self.by_id[sysid] = vehicle
+            log.info("vehicle %d discovered on link %d", sysid, link_id)
+            self._spawn(self._request_streams(vehicle))
+        else:
+            vehicle.telemetry = apply(vehicle.telemetry, msg, now)
+            vehicle.link_id = link_id
+        vehicle.last_heard_s = now
+        boot_ms = getattr(msg, "time_boot_ms", None)
+        if isinstance(boot_ms, int):
+            vehicle.clock.observe(now, boot_ms)
+        if vehicle.lost and msg.get_type() == "HEARTBEAT":
+            vehicle.lost = False
+            log.info("vehicle %d is back", sysid)
+        if msg.get_type() == "GLOBAL_POSITION_INT":
+            self.telemetry_received_s = time.perf_counter()
+            self.telemetry_event.set()
+
+    async def _request_streams(self, vehicle: Vehicle) -> None:
+        """Ask a new vehicle for the telemetry the planner needs, by SET_MESSAGE_INTERVAL
+        only (a REQUEST_DATA_STREAM after it would set the whole stream group's rate and
+        override these intervals on ArduPilot), and for its airframe parameters."""
+        for msg_id, factor in STREAMED.items():
+            interval_us = int(1e6 / (self.settings.stream_rate_hz * factor))
+            await self.send(
+                vehicle.system_id,
+                commands.set_message_interval(vehicle.system_id, msg_id, interval_us),
+            )
+        await self.request_airframe_params(vehicle.system_id)
+
+    async def request_airframe_params(self, system_id: int, *, missing_only: bool = False) -> None:
+        """Ask for the parameters of the airframe's envelope (``gcs_ppf.guidance.airframe``; the
+        planner and the separation guard keep within them): every one of ``AIRFRAME_PARAMS``
+        or, ``missing_only``, those not answered yet.  ArduPlane answers for the names it
+        has (those of 4.5 on or of the versions before) and ignores the others."""
+        vehicle = self.by_id.get(system_id)
+        for name in AIRFRAME_PARAMS:
+            if missing_only and vehicle is not None and vehicle.telemetry.param(name) is not None:
+                continue
+            await self.send(system_id, commands.param_request_read(system_id, name))
+
+    def telemetry(self, system_id: int) -> VehicleTelemetry | None:
+        """What is known of vehicle ``system_id``, if it has been heard."""
+        vehicle = self.by_id.get(system_id)
+        return None if vehicle is None else vehicle.telemetry
+
+    async def send(self, system_id: int, msg: Any) -> None:
+        """Send ``msg`` on the link the vehicle was last heard on (if any)."""
+        vehicle = self.by_id.get(system_id)
+        if vehicle is None:
+            return
+        entry = self._links.get(vehicle.link_id)
+        if entry is not None:
+            await entry.link.send(msg)
+
+    async def heartbeats(self) -> None:
+        """Our HEARTBEAT on every link, for ever (CONVENTIONS §5)."""
+        while True:
+            for entry in list(self._links.values()):
+                await entry.link.send(commands.gcs_heartbeat())
+            await asyncio.sleep(1.0 / self.settings.heartbeat_hz)
+
+    async def watchdog(self) -> None:
+        """Mark vehicles lost after the timeout of silence, in their own seconds."""
+        while True:
+            now = time.monotonic()
+            for v in self.by_id.values():  # the timeout is in vehicle seconds
+                silent = v.clock.vehicle_seconds(now - v.last_heard_s)
+                if not v.lost and silent > self.settings.vehicle_timeout_s:
+                    v.lost = True
+                    log.warning(
+                        "vehicle %d lost (silent %.1f s of its time, %.1f s of ours)",
+                        v.system_id, silent, now - v.last_heard_s,
+                    )  # fmt: skip
+            await asyncio.sleep(0.2)
+
+    def vehicles(self) -> list[dict[str, Any]]:
+        now = time.monotonic()
+        out = []
+        for v in sorted(self.by_id.values(), key=lambda v: v.system_id):
+            t = v.telemetry
+            out.append(
+                {
+                    "system_id": v.system_id,
+                    "link_id": v.link_id,
+                    "mode": mode_name(t.custom_mode) if t.custom_mode is not None else None,
+                    "armed": t.armed,
+                    "lost": v.lost,
+                    "seconds_since_heard": round(now - v.last_heard_s, 3),
+                    "position": {
+                        "lat_deg": t.lat_deg,
+                        "lon_deg": t.lon_deg,
+                        "alt_amsl_m": t.alt_amsl_m,
+                    },
+                    "attitude": {
+                        "roll_rad": t.roll_rad,
+                        "pitch_rad": t.pitch_rad,
+                        "yaw_rad": t.yaw_rad,
+                    },
+                    "airspeed_m_s": t.airspeed_m_s,
+                    "groundspeed_m_s": t.groundspeed_m_s,
+                    "pitch_limits_deg": {"max": t.pitch_max_deg, "min": t.pitch_min_deg},
+                    "airframe": Airframe.from_telemetry(t).as_dict(),
+                }
+            )
+        return out
+
+    @staticmethod
+    def vehicle_enu(vehicle: Vehicle, mission: Mission) -> tuple[float, float, float] | None:
+        t = vehicle.telemetry
+        if t.lat_deg is None or t.lon_deg is None or t.alt_amsl_m is None:
+            return None
+        return geodetic_to_enu(t.lat_deg, t.lon_deg, t.alt_amsl_m, mission.origin)

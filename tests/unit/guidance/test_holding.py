@@ -1,0 +1,61 @@
+"""Holding circles clear of the obstacles' keep-outs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as hs
+
+from gcs_ppf.guidance.airframe import TURN_EFFICIENCY
+from gcs_ppf.guidance.holding import holding_circle, path_clearance, ring_clearance
+from gcs_ppf.planning.scene import Obstacles
+
+
+def spheres(*cr: tuple[float, float, float, float]) -> Obstacles:
+    a = np.array(cr, dtype=float).reshape(len(cr), 4)
+    return Obstacles(a[:, :3].copy(), a[:, 3].copy(), np.zeros((len(cr), 3)))
+
+
+def test_without_obstacles_the_circle_is_straight_ahead() -> None:
+    hold = holding_circle(np.array([0.0, 0.0, 100.0]), 0.0, 100.0, 90.0, 800.0, spheres(), 50.0)
+    assert (hold.x_m, hold.y_m, hold.z_m) == pytest.approx((800.0, 0.0, 100.0))
+    assert hold.clearance_m == math.inf
+
+
+def test_an_obstacle_ahead_moves_the_circle_off_it_and_the_way_there_clear() -> None:
+    """Issue 10: vehicles left circling straight ahead flew into the obstacle beyond the
+    target. The circle chosen keeps the keep-out, ring and approach."""
+    obstacle = spheres((800.0, 0.0, 100.0, 300.0))
+    pos = np.array([0.0, 0.0, 100.0])
+    hold = holding_circle(pos, 0.0, 100.0, 90.0, 800.0, obstacle, 50.0)
+    assert hold.clearance_m >= 50.0
+    assert ring_clearance(hold.x_m, hold.y_m, 100.0, 90.0 / TURN_EFFICIENCY, obstacle) >= 50.0
+    assert ring_clearance(hold.x_m, hold.y_m, 100.0, 90.0, obstacle) >= 50.0
+    assert math.hypot(hold.x_m - 800.0, hold.y_m) > 300.0 + 90.0
+
+
+def test_path_clearance_is_the_segments_closest_approach() -> None:
+    obs = spheres((50.0, 30.0, 0.0, 10.0))
+    a, b = np.array([0.0, 0.0, 0.0]), np.array([100.0, 0.0, 0.0])
+    assert path_clearance(a, b, obs) == pytest.approx(20.0)
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    ox=hs.floats(-3000, 3000), oy=hs.floats(-3000, 3000), r=hs.floats(50, 900),
+    yaw=hs.floats(-math.pi, math.pi),
+)  # fmt: skip
+def test_whenever_a_clear_circle_exists_nearby_the_one_chosen_is_clear(
+    ox: float, oy: float, r: float, yaw: float
+) -> None:
+    """One sphere anywhere (not on the vehicle): some candidate keeps the keep-out (a
+    sphere cannot surround a vehicle from every side), so the choice keeps it."""
+    pos = np.array([0.0, 0.0, 300.0])
+    obs = spheres((ox, oy, 300.0, r))
+    if np.hypot(ox, oy) - r < 100.0:  # the vehicle itself in the keep-out: nothing to test
+        return
+    hold = holding_circle(pos, yaw, 300.0, 120.0, 800.0, obs, 50.0)
+    assert hold.clearance_m >= 50.0

@@ -1,0 +1,54 @@
+"""Vehicles that stop obeying: flagged after the bound of their own time, cleared when they
+obey again, avoided meanwhile as moving traffic."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from gcs_ppf.guidance.obedience import Obedience, Report, as_obstacles, with_obstacles
+from gcs_ppf.guidance.online import VehicleState
+from gcs_ppf.planning.scene import Obstacles
+
+FAILED, DENIED, ACCEPTED = 4, 2, 0
+
+
+def test_a_vehicle_out_of_guided_is_flagged_after_the_bound_and_cleared_when_back() -> None:
+    ob = Obedience(bound_s=3.0)
+    ok, manual = Report(2, True, ACCEPTED), Report(2, False, FAILED)
+    assert ob.update(0.0, [ok]) == ([], [])
+    assert ob.update(1.0, [manual]) == ([], [])
+    assert ob.update(3.9, [manual]) == ([], [])  # 2.9 s: not yet
+    assert ob.update(4.0, [manual]) == ([2], [])
+    assert ob.update(5.0, [manual]) == ([], [])  # flagged once
+    assert ob.update(6.0, [ok]) == ([], [2])
+    assert ob.not_responding == set()
+
+
+@pytest.mark.parametrize("result", [FAILED, DENIED])
+def test_commands_refused_in_guided_count_as_not_obeying(result: int) -> None:
+    """Issue 10: 1,800 FAILED answers went unnoticed."""
+    ob = Obedience(bound_s=2.0)
+    ob.update(0.0, [Report(1, True, result)])
+    assert ob.update(2.5, [Report(1, True, result)]) == ([1], [])
+
+
+def test_a_blip_shorter_than_the_bound_is_not_flagged() -> None:
+    ob = Obedience(bound_s=3.0)
+    ob.update(0.0, [Report(3, False, None)])
+    ob.update(2.0, [Report(3, True, None)])
+    assert ob.update(10.0, [Report(3, False, None)]) == ([], [])  # the clock starts again
+
+
+def test_uncontrolled_vehicles_become_spheres_flying_as_they_fly() -> None:
+    states = {4: VehicleState((100.0, 200.0, 300.0), 0.0, math.pi / 2, 20.0),
+              5: VehicleState((0.0, 0.0, 0.0), 0.0, 0.0, 10.0)}  # fmt: skip
+    obs = as_obstacles(states, {4}, 25.0)
+    assert obs.center.tolist() == [[100.0, 200.0, 300.0]]
+    assert obs.velocity[0] == pytest.approx([0.0, 20.0, 0.0], abs=1e-9)
+    assert obs.radius.tolist() == [25.0]
+    both = with_obstacles(Obstacles(np.zeros((1, 3)), np.ones(1), np.zeros((1, 3))), obs)
+    assert both.radius.tolist() == [1.0, 25.0]
+    assert as_obstacles(states, set(), 25.0).radius.shape == (0,)

@@ -1,0 +1,151 @@
+"""Online planning from telemetry: guided points ahead on the planned path."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from gcs_ppf.guidance.airframe import OnlineLimits
+from gcs_ppf.guidance.online import (
+    VehicleState,
+    clearance,
+    guidance,
+    home_ground,
+    planned_turn_rate,
+    scene_now,
+    separations,
+    state_from_velocity,
+)
+from gcs_ppf.mission import Mission
+from gcs_ppf.planning.planner import advance
+from gcs_ppf.planning.scene import obstacles_from_mission
+
+
+def test_state_from_ned_velocity() -> None:
+    s = state_from_velocity((1.0, 2.0, 3.0), vn_m_s=100.0, ve_m_s=0.0, vd_m_s=-10.0)
+    assert s.yaw_rad == pytest.approx(math.pi / 2)  # north is +90° from east
+    assert s.pitch_rad == pytest.approx(math.atan2(10.0, 100.0))  # climbing
+    assert s.speed_m_s == pytest.approx(math.hypot(100.0, 10.0))
+
+
+def test_a_position_is_carried_on_along_its_velocity_by_its_age() -> None:
+    s = state_from_velocity((1.0, 2.0, 3.0), vn_m_s=100.0, ve_m_s=50.0, vd_m_s=-10.0, age_s=0.1)
+    assert s.pos_m == pytest.approx((1.0 + 5.0, 2.0 + 10.0, 3.0 + 1.0))
+    assert s.speed_m_s == pytest.approx(math.sqrt(100.0**2 + 50.0**2 + 10.0**2))
+
+
+def _states_at_start(mission: Mission) -> dict[int, VehicleState]:
+    out = {}
+    for v in mission.vehicles:
+        speed = v.speed or mission.limits.v_init
+        vn = speed * math.sin(v.yaw) * math.cos(v.pitch)
+        ve = speed * math.cos(v.yaw) * math.cos(v.pitch)
+        vd = -speed * math.sin(v.pitch)
+        out[v.id] = state_from_velocity(v.position, vn, ve, vd)
+    return out
+
+
+def test_guided_points_lie_ahead_on_the_plan(table3: Mission) -> None:
+    states = _states_at_start(table3)
+    ids = {v.id for v in table3.vehicles}
+    scene = scene_now(table3, states, ids, obstacles_from_mission(table3))
+    g = guidance(scene, lookahead_s=3.0, dt=0.02, carrot_m=1000.0)
+    assert g.ids == [1, 2, 3, 4, 5]
+    start = scene.fleet.pos
+    ahead = np.linalg.norm(g.guided_point_m - start, axis=1)
+    assert np.all(ahead > 1000.0 - 3.0 * 300.0)  # the carrot, beyond 3 s of flight
+    assert np.all(ahead <= 1000.0 + 3.0 * 300.0 + 1e-6)
+    plan = advance(scene, 0.02, 150).trajectory  # the same 3 s of PPF
+    assert np.allclose(g.guided_point_m[:, 2], plan.pos[-1, :, 2])  # planned altitude
+    bearing = g.guided_point_m[:, :2] - plan.pos[-1, :, :2]
+    assert np.allclose(np.arctan2(bearing[:, 1], bearing[:, 0]), plan.yaw[-1])
+    lead = 0.5 / 0.02 - 1  # course and climb rate as planned 0.5 s on
+    assert np.allclose(g.course_rad, plan.yaw[round(lead)])
+    climb = np.abs(plan.speed[round(lead)] * np.sin(plan.pitch[round(lead)]))
+    assert np.allclose(g.climb_rate_m_s, climb + 1.0)
+    yaws = np.concatenate([scene.fleet.yaw[None], plan.yaw])  # the turn rate there
+    j = round(lead) + 1
+    change = np.remainder(yaws[j + 12] - yaws[j - 12] + np.pi, 2 * np.pi) - np.pi
+    assert np.allclose(g.turn_rate_rad_s[1:], change[1:] / (24 * 0.02))
+    assert g.speed_ahead_m_s is not None
+    # the speed to command: as planned 1 s on (the autopilot's speed response)
+    assert np.allclose(g.speed_ahead_m_s, plan.speed[round(1.0 / 0.02) - 1])
+    assert g.state[0] == "s3"  # the leader waits for its wingmen
+    assert np.all(g.speed_m_s >= 100.0 - 1e-9)
+    assert g.local_target_distance_m[0] is None
+
+
+def test_a_lost_wingman_is_left_out(table3: Mission) -> None:
+    states = _states_at_start(table3)
+    scene = scene_now(table3, states, {1, 2, 3, 4}, obstacles_from_mission(table3))
+    assert scene.fleet.active.tolist() == [True, True, True, True, False]
+    g = guidance(scene, lookahead_s=1.0, dt=0.02)
+    assert np.allclose(g.guided_point_m[4], scene.fleet.pos[4])
+
+
+def test_pitch_limits_reach_the_planned_scene(table3: Mission) -> None:
+    states = _states_at_start(table3)
+    ids = {v.id for v in table3.vehicles}
+    free = scene_now(table3, states, ids, obstacles_from_mission(table3))
+    assert free.limits.max_climb_angle == math.pi / 2
+    envelope = OnlineLimits(max_climb_angle=0.3, max_dive_angle=0.4)
+    limited = scene_now(table3, states, ids, obstacles_from_mission(table3), envelope=envelope)
+    assert (limited.limits.max_climb_angle, limited.limits.max_dive_angle) == (0.3, 0.4)
+
+
+def test_separation_and_clearance(table3: Mission) -> None:
+    pos = np.array([[0.0, 0.0, 0.0], [30.0, 40.0, 0.0], [1000.0, 0.0, 0.0]])
+    assert separations(pos) == pytest.approx(50.0)
+    assert separations(pos[:1]) is None
+    obstacles = obstacles_from_mission(table3)
+    assert clearance(np.array([[3000.0, 3000.0, 500.0]]), obstacles) == pytest.approx(50.0)
+
+
+def test_the_ground_is_the_missions_or_else_under_the_vehicles_homes(table3: Mission) -> None:
+    states = _states_at_start(table3)
+    ids = {v.id for v in table3.vehicles}
+    obstacles = obstacles_from_mission(table3)
+    assert scene_now(table3, states, ids, obstacles).limits.ground == -math.inf
+    homes = home_ground([(300.0, 310.0), (200.0, 190.0)])  # one home at −10, one at 10
+    assert homes == pytest.approx(10.0)  # the higher one
+    assert home_ground([]) is None
+    assert scene_now(table3, states, ids, obstacles, 0.0, homes).limits.ground == homes
+    own = table3.model_copy(update={"ground": -50.0})
+    assert scene_now(own, states, ids, obstacles, 0.0, homes).limits.ground == -50.0
+
+
+def test_the_planned_turn_rate_is_the_yaw_change_around_the_lead() -> None:
+    t = np.arange(1, 101, dtype=np.float64) * 0.02
+    yaw = np.stack([0.3 * t, -0.1 * t, np.full_like(t, 3.1)], axis=1)
+    yaw[:, 2] += np.where(t > 0.6, 0.1, 0.0)  # crosses ±π within the window
+    yaw = np.remainder(yaw + np.pi, 2 * np.pi) - np.pi
+    rate = planned_turn_rate(np.array([0.0, 0.0, 3.1]), t, yaw, 24, 0.5)
+    assert rate[:2] == pytest.approx([0.3, -0.1])
+    assert rate[2] == pytest.approx(0.1 / 0.48)  # over 0.26–0.74 s, wrapped, not −2π
+    edge = planned_turn_rate(np.array([0.0, 0.0, 3.1]), t, yaw, 0, 0.5)  # clipped at t = 0
+    assert edge[0] == pytest.approx(0.3)
+    assert planned_turn_rate(np.zeros(1), t[:1], yaw[:1, :1], 0, 0.0) == pytest.approx([0.0])
+
+
+def test_the_airframes_envelope_tightens_the_planned_scene(table3: Mission) -> None:
+    states = _states_at_start(table3)
+    ids = {v.id for v in table3.vehicles}
+    obstacles = obstacles_from_mission(table3)
+    env = OnlineLimits(v_min=120.0, v_max=250.0, max_yaw_rate=0.2, max_climb_angle=0.25,
+                       max_dive_angle=0.3)  # fmt: skip
+    lim = scene_now(table3, states, ids, obstacles, envelope=env).limits
+    assert (lim.v_min, lim.v_max, lim.max_yaw_rate) == (120.0, 250.0, 0.2)
+    assert (lim.max_climb_angle, lim.max_dive_angle) == (0.25, 0.3)
+    assert lim.max_pitch_rate == table3.limits.max_pitch_rate
+    loose = OnlineLimits(v_min=50.0, v_max=400.0, max_yaw_rate=2.0)  # the mission's bind
+    lim = scene_now(table3, states, ids, obstacles, envelope=loose).limits
+    assert (lim.v_min, lim.v_max) == (table3.limits.v_min, table3.limits.v_max)
+    assert lim.max_yaw_rate == table3.limits.max_yaw_rate
+    # an ArduPlane's 10–30 m/s never meets the paper's 100–300: it flies what it can
+    small = scene_now(table3, states, ids, obstacles, envelope=OnlineLimits(10.0, 30.0))
+    assert (small.limits.v_min, small.limits.v_max) == (10.0, 30.0)
+    assert np.all(small.fleet.speed <= 30.0)
+    unknown = scene_now(table3, states, ids, obstacles, envelope=OnlineLimits())
+    assert unknown.limits == scene_now(table3, states, ids, obstacles).limits

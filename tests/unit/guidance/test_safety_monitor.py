@@ -1,0 +1,88 @@
+"""The safety monitor: keep-outs entered, from reported positions alone."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as hs
+
+from gcs_ppf.guidance.safety_monitor import Monitor, violations
+from gcs_ppf.planning.scene import Obstacles
+
+
+def spheres(*centres_radii: tuple[float, float, float, float]) -> Obstacles:
+    m = len(centres_radii)
+    a = np.array(centres_radii, dtype=float).reshape(m, 4)
+    return Obstacles(a[:, :3].copy(), a[:, 3].copy(), np.zeros((m, 3)))
+
+
+def test_inside_an_obstacles_safe_distance_is_a_violation_with_its_depth() -> None:
+    obs = spheres((0.0, 0.0, 100.0, 50.0))
+    pos = np.array([[0.0, 60.0, 100.0], [0.0, 500.0, 100.0]])  # 10 m and 450 m from it
+    found = violations([1, 2], pos, obs, None, 50.0, 25.0)
+    assert [(v.kind, v.vehicle_id, v.other) for v in found] == [("obstacle", 1, 0)]
+    assert found[0].depth_m == pytest.approx(15.0)
+
+
+def test_teammates_closer_than_the_safe_distance_count_once_per_pair() -> None:
+    pos = np.array([[0.0, 0.0, 100.0], [30.0, 0.0, 100.0], [1000.0, 0.0, 100.0]])
+    found = violations([7, 3, 9], pos, spheres(), None, 50.0, 25.0)
+    assert [(v.kind, v.vehicle_id, v.other) for v in found] == [("teammate", 3, 7)]
+    assert found[0].depth_m == pytest.approx(20.0)
+
+
+def test_the_ground_counts_only_for_vehicles_that_have_flown() -> None:
+    pos = np.array([[0.0, 0.0, 10.0], [500.0, 0.0, 10.0]])
+    found = violations([1, 2], pos, spheres(), 0.0, 50.0, 25.0, airborne=[True, False])
+    assert [(v.kind, v.vehicle_id) for v in found] == [("ground", 1)]
+    assert found[0].depth_m == pytest.approx(15.0)
+
+
+def test_the_monitor_reports_a_violation_when_it_begins_and_counts_each_once() -> None:
+    mon = Monitor()
+    obs = spheres((0.0, 0.0, 0.0, 50.0))
+    inside = violations([1], np.array([[0.0, 60.0, 0.0]]), obs, None, 50.0, 25.0)
+    deeper = violations([1], np.array([[0.0, 55.0, 0.0]]), obs, None, 50.0, 25.0)
+    clear = violations([1], np.array([[0.0, 500.0, 0.0]]), obs, None, 50.0, 25.0)
+    assert len(mon.update(inside)) == 1
+    assert mon.update(deeper) == []  # the same one, going on
+    assert mon.update(clear) == []
+    assert len(mon.update(inside)) == 1  # a new one
+    assert mon.count == 2
+    assert mon.deepest_m["obstacle"] == pytest.approx(20.0)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    xs=hs.lists(hs.tuples(hs.floats(-2000, 2000), hs.floats(-2000, 2000), hs.floats(0, 800)),
+                min_size=1, max_size=6),
+    cx=hs.floats(-1000, 1000), r=hs.floats(1, 500),
+)  # fmt: skip
+def test_a_violation_is_reported_exactly_when_a_distance_is_short(
+    xs: list[tuple[float, float, float]], cx: float, r: float
+) -> None:
+    """Against a brute-force check of every distance."""
+    pos = np.array(xs, dtype=float)
+    ids = list(range(1, len(xs) + 1))
+    obs = spheres((cx, 0.0, 300.0, r))
+    found = {(v.kind, v.vehicle_id, v.other) for v in violations(ids, pos, obs, 0.0, 50.0, 25.0)}
+    expect: set[tuple[str, int, int | None]] = set()
+    for i, p in enumerate(pos):
+        if np.linalg.norm(p - (cx, 0.0, 300.0)) - r < 25.0:
+            expect.add(("obstacle", ids[i], 0))
+        if p[2] < 25.0:
+            expect.add(("ground", ids[i], None))
+        for j in range(i + 1, len(pos)):
+            if np.linalg.norm(p - pos[j]) < 50.0:
+                expect.add(("teammate", ids[i], ids[j]))
+    assert found == expect
+
+
+def test_watching_counts_the_ground_once_a_vehicle_has_been_clear_of_it() -> None:
+    mon = Monitor()
+    low = np.array([[0.0, 0.0, 5.0]])
+    assert mon.watch([1], low, spheres(), 0.0, 50.0, 25.0) == []  # taking off
+    assert mon.watch([1], np.array([[0.0, 0.0, 80.0]]), spheres(), 0.0, 50.0, 25.0) == []
+    began = mon.watch([1], low, spheres(), 0.0, 50.0, 25.0)
+    assert [(v.kind, v.vehicle_id) for v in began] == [("ground", 1)]

@@ -1,0 +1,173 @@
+"""Slew commands for ArduPlane: the course led for its P-only heading controller, the
+lateral-acceleration limit, and the altitude demand shaped within TECS's limits."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from gcs_ppf.guidance.airframe import G_M_S2, TURN_EFFICIENCY, Airframe
+from gcs_ppf.guidance.online import Guidance
+from gcs_ppf.guidance.slew import (
+    airspeed_command,
+    altitude_demand,
+    course_command_rad,
+    course_lead_rad,
+    lateral_accel_limit,
+    needed_bank_rad,
+    sendable_altitude,
+    slew_command,
+)
+
+GUIDED_P = 5000.0  # ArduPlane's default
+ROLL_LIMIT_DEG = 65.0
+
+
+def p_controller_bank_rad(
+    error_rad: float, guided_p: float, accel: float, roll_deg: float
+) -> float:
+    """ArduPlane's GUIDED heading controller: GUIDED_P centidegrees of bank per radian of
+    error, clipped to ±min(atan(param3/g), ROLL_LIMIT_DEG)."""
+    cap = min(math.atan(accel / G_M_S2), math.radians(roll_deg))
+    return max(-cap, min(cap, math.radians(guided_p * error_rad / 100.0)))
+
+
+def test_the_p_controller_gain_is_087_degrees_of_bank_per_degree_of_error() -> None:
+    bank = p_controller_bank_rad(math.radians(1.0), GUIDED_P, 20.0, ROLL_LIMIT_DEG)
+    assert math.degrees(bank) == pytest.approx(0.8727, abs=1e-4)
+
+
+@pytest.mark.parametrize(("speed", "turn_rate"), [(22.0, 0.3), (22.0, -0.15), (28.0, 0.1)])
+def test_in_a_steady_turn_the_lead_makes_the_p_controller_bank_what_the_turn_needs(
+    speed: float, turn_rate: float
+) -> None:
+    """On the planned course in a steady turn, the commanded course is the planned one plus
+    the lead: the controller sees the lead as its error and banks exactly the turn's bank."""
+    planned = 0.7
+    command = course_command_rad(planned, turn_rate, speed, GUIDED_P, ROLL_LIMIT_DEG)
+    accel = lateral_accel_limit(turn_rate, speed, 8.4, ROLL_LIMIT_DEG)
+    bank = p_controller_bank_rad(command - planned, GUIDED_P, accel, ROLL_LIMIT_DEG)
+    assert bank == pytest.approx(needed_bank_rad(turn_rate, speed), rel=1e-9)
+    assert TURN_EFFICIENCY * G_M_S2 * math.tan(bank) / speed == pytest.approx(turn_rate, rel=1e-9)
+    assert math.copysign(1.0, command - planned) == math.copysign(1.0, turn_rate)  # ahead
+
+
+def test_a_course_ramp_is_followed_behind_without_the_lead_and_on_it_with() -> None:
+    """Closed loop (kinematics at 50 Hz, roll following its demand in 0.25 s): the course
+    turning at 0.2 rad/s at 22 m/s is flown about v·ψ̇/(g·K) behind without the lead (the
+    7–8° of the issue), within a fraction of a degree with it."""
+    speed, turn_rate, dt = 22.0, 0.2, 0.02
+
+    def steady_lag_deg(feed_forward: bool) -> float:
+        course, bank, t = 0.0, 0.0, 0.0
+        lags = []
+        for _ in range(int(60.0 / dt)):
+            planned = turn_rate * t
+            gp = GUIDED_P if feed_forward else None
+            command = course_command_rad(planned, turn_rate, speed, gp, ROLL_LIMIT_DEG)
+            error = math.remainder(command - course, math.tau)
+            demand = p_controller_bank_rad(error, GUIDED_P, 10.0, ROLL_LIMIT_DEG)
+            bank += (demand - bank) * dt / 0.25
+            course += TURN_EFFICIENCY * G_M_S2 * math.tan(bank) / speed * dt
+            t += dt
+            lags.append(math.degrees(math.remainder(planned - course, math.tau)))
+        return float(np.mean(lags[-500:]))
+
+    k = GUIDED_P * math.pi / 18000.0
+    expected = math.degrees(math.atan(speed * turn_rate / (TURN_EFFICIENCY * G_M_S2)) / k)
+    assert steady_lag_deg(False) == pytest.approx(expected, rel=0.05)
+    assert expected > 5.0
+    assert abs(steady_lag_deg(True)) < 0.3
+
+
+def test_no_lead_without_guided_p_and_the_bank_capped_at_the_roll_limit() -> None:
+    assert course_lead_rad(0.3, 22.0, None) == 0.0
+    assert course_lead_rad(math.inf, 22.0, GUIDED_P) == 0.0
+    assert course_command_rad(1.0, 0.3, 22.0, None) == pytest.approx(1.0)
+    capped = course_lead_rad(5.0, 30.0, GUIDED_P, 45.0)  # needs ~86° of bank
+    assert capped == pytest.approx(45.0 * 100.0 / GUIDED_P)
+    assert course_command_rad(math.pi - 0.01, 0.3, 22.0, GUIDED_P) < 0.0  # wrapped
+
+
+def test_the_lateral_accel_limit_allows_the_planned_bank_within_the_roll_limit() -> None:
+    assert lateral_accel_limit(0.0, 22.0, 8.4) == pytest.approx(8.4)  # the plan's own limit
+    assert lateral_accel_limit(0.5, 22.0, 8.4) == pytest.approx(1.5 * 22.0 * 0.5 / TURN_EFFICIENCY)
+    roll_cap = G_M_S2 * math.tan(math.radians(30.0))
+    assert lateral_accel_limit(0.5, 22.0, 8.4, 30.0) == pytest.approx(roll_cap)
+    assert lateral_accel_limit(0.0, 0.0, 0.0) == pytest.approx(0.05)  # ArduPlane's minimum
+
+
+@pytest.mark.parametrize("planned", [-500.0, -12.0, 0.0, 3.0, 40.0, 800.0])
+@pytest.mark.parametrize("current", [-1.0, 0.0, 120.0])
+def test_the_altitude_demand_stays_within_what_tecs_climbs_or_sinks(
+    planned: float, current: float
+) -> None:
+    z = altitude_demand(planned, current, 3.0, climb_max_m_s=5.0, sink_max_m_s=4.0)
+    assert current - 4.0 * 3.0 - 1e-9 <= z <= current + 5.0 * 3.0 + 1e-9
+    if current - 12.0 <= planned <= current + 15.0:
+        assert z == pytest.approx(planned)  # within reach: the plan's own altitude
+    assert sendable_altitude(z) not in (0.0, -1.0)
+
+
+def test_altitudes_arduplane_refuses_are_never_sent() -> None:
+    for refused in (0.0, -1.0, 1e-9, -1.0 + 1e-9, -0.004):
+        sent = sendable_altitude(refused)
+        assert abs(sent) >= 0.01
+        assert abs(sent + 1.0) >= 0.01
+        assert abs(sent - refused) <= 0.02 + 1e-12
+    assert sendable_altitude(300.0) == 300.0
+
+
+def _guidance(z: float, climb: float, resolving: bool = False) -> Guidance:
+    return Guidance(
+        ids=[1],
+        guided_point_m=np.array([[1000.0, 0.0, z]]),
+        speed_m_s=np.array([22.0]),
+        course_rad=np.array([0.0]),
+        turn_rate_rad_s=np.array([0.2]),
+        climb_rate_m_s=np.array([climb]),
+        state=["s1"],
+        avoiding=[False],
+        formed=[False],
+        local_target_distance_m=[None],
+        leader_arrives_within_lookahead=False,
+        resolving=[resolving],
+    )
+
+
+ARDUPLANE = Airframe(climb_max_m_s=5.0, sink_max_m_s=5.0, roll_limit_deg=65.0, guided_p=5000.0)
+
+
+def test_an_arduplane_gets_param3_zero_and_a_shaped_demand() -> None:
+    cmd = slew_command(_guidance(200.0, 3.0), 0, ARDUPLANE, 100.0, 8.4, 3.0)
+    assert cmd.rate_m_s == 0.0
+    assert cmd.z_m == pytest.approx(115.0)  # 3 s at TECS_CLMB_MAX
+    assert cmd.course_rad == pytest.approx(course_lead_rad(0.2, 22.0, 5000.0, 65.0))
+    assert cmd.lateral_accel_m_s2 == pytest.approx(1.5 * 22.0 * 0.2 / TURN_EFFICIENCY)
+
+
+def test_a_vehicle_without_tecs_limits_is_flown_as_before() -> None:
+    cmd = slew_command(_guidance(200.0, 3.0), 0, Airframe(), 100.0, 8.4, 3.0)
+    assert (cmd.z_m, cmd.rate_m_s) == (200.0, 3.0)
+    assert cmd.course_rad == 0.0  # no GUIDED_P: no lead
+    inf = slew_command(_guidance(200.0, math.inf), 0, Airframe(), 100.0, 8.4, 3.0)
+    assert inf.rate_m_s == 0.0
+
+
+def test_a_vertical_resolution_is_flown_as_fast_as_possible_unshaped() -> None:
+    cmd = slew_command(_guidance(163.0, 3.0, resolving=True), 0, ARDUPLANE, 100.0, 8.4, 3.0)
+    assert (cmd.z_m, cmd.rate_m_s) == (163.0, 0.0)
+
+
+def test_the_airspeed_commanded_flies_the_planned_speed_over_the_ground() -> None:
+    """ArduPlane holds an equivalent airspeed; at 700 m its ground speed runs 6.8 % above it
+    without wind: a planned 20 m/s over the ground is 20 / 1.068 of airspeed."""
+    assert airspeed_command(20.0, 22.0, 22.0 * 1.068, ARDUPLANE) == pytest.approx(20.0 / 1.068)
+    assert airspeed_command(20.0, None, 23.0, ARDUPLANE) == pytest.approx(20.0)  # unknown: as is
+    assert airspeed_command(20.0, 22.0, 0.5, ARDUPLANE) == pytest.approx(20.0)  # on the ground
+    assert airspeed_command(20.0, 60.0, 22.0, ARDUPLANE) == pytest.approx(20.0)  # implausible
+    within = Airframe(airspeed_min_m_s=12.0, airspeed_max_m_s=25.0)
+    assert airspeed_command(8.0, 20.0, 20.0, within) == 12.0  # ArduPlane would FAIL 8
+    assert airspeed_command(40.0, 20.0, 20.0, within) == 25.0

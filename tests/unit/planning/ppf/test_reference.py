@@ -1,0 +1,81 @@
+"""The compiled kernel agrees with the plain-numpy reference, step by step."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gcs_ppf.mission import load_mission_file
+from gcs_ppf.offline.plan import PlanRun
+from gcs_ppf.planning.planner import Trajectory, advance
+from gcs_ppf.planning.ppf.reference import reference_step
+from gcs_ppf.planning.scene import Fleet, Scene, scene_from_mission
+
+EXAMPLES = Path(__file__).resolve().parents[4] / "examples"
+
+
+def _state_at(scene: Scene, tr: Trajectory, k: int) -> Scene:
+    """The state of step ``k`` of a plan ``tr`` made from ``scene``."""
+    f = scene.fleet
+    fleet = Fleet(f.ids, tr.pos[k].copy(), tr.pitch[k].copy(), tr.yaw[k].copy(),
+                  tr.speed[k].copy(), f.slot, f.rank, f.active)  # fmt: skip
+    return Scene(fleet, scene.obstacles.at(float(tr.t[k])), scene.target, scene.limits)
+
+
+def _agree_step_by_step(scene: Scene, tr: Trajectory, dt: float, n_records: int) -> set[int]:
+    """Check one kernel step against the reference from ``n_records`` states of the plan
+    ``tr`` made from ``scene``; the PPF states seen."""
+    records = np.linspace(0, len(tr) - 2, n_records).astype(int)
+    states_seen: set[int] = set()
+    for k in records:
+        s = _state_at(scene, tr, int(k))
+        f, o = s.fleet, s.obstacles
+        ours = advance(s, dt, 1)
+        pos, pitch, yaw, speed, state = reference_step(
+            f.pos,
+            f.pitch,
+            f.yaw,
+            f.speed,
+            f.slot,
+            f.rank,
+            f.active,
+            o.center,
+            o.radius,
+            o.velocity,
+            s.target,
+            s.limits,
+            dt,
+        )
+        got = ours.scene.fleet
+        assert np.allclose(got.pos, pos, atol=1e-7), k
+        assert np.allclose(got.speed, speed, atol=1e-7), k
+        assert np.allclose(got.pitch, pitch, atol=1e-9), k
+        assert np.allclose(np.angle(np.exp(1j * (got.yaw - yaw))), 0.0, atol=1e-9), k
+        assert np.array_equal(ours.trajectory.state[0], state), k
+        states_seen.update(state.tolist())
+    return states_seen
+
+
+@pytest.mark.parametrize("scene", ["table2_ppf", "table3_ppf"])
+def test_one_step_from_states_along_the_paper_plans(
+    scene: str, request: pytest.FixtureRequest
+) -> None:
+    run: PlanRun = request.getfixturevalue(scene)
+    assert {1, 3} <= _agree_step_by_step(run.scene, run.trajectory, run.dt, 400)
+
+
+@pytest.mark.parametrize("name", ["paper_table2.json", "paper_table3.json"])
+def test_one_step_agrees_under_an_airframes_flight_path_limits(name: str) -> None:
+    """ArduPlane's default pitch limits (+20°, −25°): the plan keeps to them."""
+    scene = scene_from_mission(load_mission_file(EXAMPLES / name))
+    limits = scene.limits._replace(max_climb_angle=math.radians(20.0),
+                                   max_dive_angle=math.radians(25.0))  # fmt: skip
+    scene = replace(scene, limits=limits)
+    tr = advance(scene, 0.01, 6000).trajectory  # 60 s
+    assert tr.pitch.max() <= math.radians(20.0) + 1e-9
+    assert tr.pitch.min() >= -math.radians(25.0) - 1e-9
+    assert 1 in _agree_step_by_step(scene, tr, 0.01, 150)

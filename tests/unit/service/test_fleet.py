@@ -1,0 +1,69 @@
+"""The fleet's requests to a newly discovered vehicle, and what GET /vehicles shows."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Coroutine
+from pathlib import Path
+from typing import Any
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from gcs_ppf.mavlink import commands
+from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage
+from gcs_ppf.mavlink.telemetry import AIRFRAME_PARAMS
+from gcs_ppf.service.fleet import STREAMED, Fleet
+from gcs_ppf.service.settings import Settings
+
+
+def _wire(msg: MAVLinkMessage, system: int = 7) -> MAVLinkMessage:
+    (decoded,) = Codec().parse(Codec(system, 1).encode(msg))
+    return decoded
+
+
+class Recording(Fleet):
+    def __init__(self, tmp_path: Path) -> None:
+        self.spawned: list[Coroutine[Any, Any, Any]] = []
+        super().__init__(Settings(db=tmp_path / "db", tlog_dir=None), self._spawn_recorded)
+        self.sent: list[tuple[int, Any]] = []
+
+    def _spawn_recorded(self, coro: Coroutine[Any, Any, Any]) -> asyncio.Task[Any]:
+        self.spawned.append(coro)
+        return None  # type: ignore[return-value]  # run by the test itself
+
+    async def send(self, system_id: int, msg: Any) -> None:
+        self.sent.append((system_id, msg))
+
+
+def test_streams_by_message_interval_only_and_every_airframe_parameter(tmp_path: Path) -> None:
+    """A REQUEST_DATA_STREAM after SET_MESSAGE_INTERVAL would override the intervals on
+    ArduPilot (measured: VFR_HUD and SYS_STATUS at 10 Hz), so none is sent."""
+    fleet = Recording(tmp_path)
+    heartbeat = mavlink2.MAVLink_heartbeat_message(1, 3, 0, 0, 3, 3)
+    fleet._on_message(1, _wire(heartbeat))
+    (request,) = fleet.spawned
+    asyncio.run(request)
+    kinds = [m.get_type() for _, m in fleet.sent]
+    assert "REQUEST_DATA_STREAM" not in kinds
+    intervals = [m for _, m in fleet.sent if m.get_type() == "COMMAND_LONG"]
+    assert all(m.command == commands.MAV_CMD_SET_MESSAGE_INTERVAL for m in intervals)
+    assert sorted(int(m.param1) for m in intervals) == sorted(STREAMED)
+    asked = [m.param_id for _, m in fleet.sent if m.get_type() == "PARAM_REQUEST_READ"]
+    assert sorted(asked) == sorted(AIRFRAME_PARAMS)
+    assert {sysid for sysid, _ in fleet.sent} == {7}
+
+
+def test_missing_parameters_are_asked_again_and_the_airframe_is_shown(tmp_path: Path) -> None:
+    fleet = Recording(tmp_path)
+    fleet._on_message(1, _wire(mavlink2.MAVLink_heartbeat_message(1, 3, 0, 0, 3, 3)))
+    fleet.spawned[0].close()
+    for name, value in (("TECS_CLMB_MAX", 5.0), ("GUIDED_P", 5000.0)):
+        fleet._on_message(1, _wire(mavlink2.MAVLink_param_value_message(
+            name.encode(), value, 9, 100, 1)))  # fmt: skip
+    asyncio.run(fleet.request_airframe_params(7, missing_only=True))
+    asked = {m.param_id for _, m in fleet.sent}
+    assert asked == set(AIRFRAME_PARAMS) - {"TECS_CLMB_MAX", "GUIDED_P"}
+    (shown,) = fleet.vehicles()
+    assert shown["airframe"]["climb_max_m_s"] == 5.0
+    assert shown["airframe"]["guided_p"] == 5000.0
+    assert shown["airframe"]["roll_limit_deg"] is None

@@ -1,0 +1,258 @@
+"""The launcher against a scripted fake ArduPlane: confirmations, resends, refusals, takeoff."""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+import time
+from collections.abc import Coroutine
+from typing import Any
+
+import pytest
+
+from gcs_ppf.mavlink import commands
+from gcs_ppf.mavlink.ardupilot import PlaneMode
+from gcs_ppf.mavlink.telemetry import CommandAck, ParamValue, VehicleTelemetry
+from gcs_ppf.service import launch
+from gcs_ppf.service.launch import LaunchFailed, Retry
+
+FAST = Retry(attempts=3, ack_timeout_s=0.1, state_timeout_s=0.1, climb_timeout_s=1.0,
+             poll_s=0.002)  # fmt: skip
+ACCEPTED, DENIED, FAILED = 0, 2, 4
+
+
+class FakePlane:
+    """Answers like ArduPlane, a few ms later: COMMAND_ACK, then a HEARTBEAT with the new
+    state; PARAM_VALUE for PARAM_SET / PARAM_REQUEST_READ.  ``script[command]`` lists, per
+    send, what happens: "ok", "lost" (no ACK), "unshown" (ACCEPTED, state unchanged), or a
+    MAV_RESULT number; past its end, "ok"."""
+
+    def __init__(self, sysid: int, height_m: float, armed: bool = False,
+                 mode: int = PlaneMode.MANUAL, climbs: bool = True) -> None:  # fmt: skip
+        self.t = VehicleTelemetry(sysid, 1, custom_mode=int(mode), armed=armed,
+                                  relative_alt_m=height_m, groundspeed_m_s=0.0)  # fmt: skip
+        self.script: dict[int, list[Any]] = {}
+        self.sent: list[Any] = []
+        self.climbs = climbs
+        self.has_tkoff_alt = True
+        self.tkoff_alt_m = 50.0
+        self.tkoff_dist_m: float | None = None
+        self.heights_at_guided: list[float | None] = []
+
+    def _later(self, **changes: Any) -> None:
+        def apply() -> None:
+            self.t = dataclasses.replace(self.t, **changes)
+
+        asyncio.get_running_loop().call_later(0.003, apply)
+
+    def receive(self, msg: Any) -> None:
+        self.sent.append(msg)
+        kind = msg.get_type()
+        if kind in ("PARAM_SET", "PARAM_REQUEST_READ"):
+            name = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode()
+            name = name.rstrip("\x00")
+            if kind == "PARAM_SET" and name == "TKOFF_ALT":
+                self.tkoff_alt_m = float(msg.param_value)
+            elif kind == "PARAM_SET" and name == "TKOFF_DIST":
+                self.tkoff_dist_m = float(msg.param_value)
+            if self.has_tkoff_alt:
+                now = time.monotonic() + 0.003
+                params: tuple[ParamValue, ...] = (ParamValue("TKOFF_ALT", self.tkoff_alt_m, now),)
+                if self.tkoff_dist_m is not None:
+                    params += (ParamValue("TKOFF_DIST", self.tkoff_dist_m, now),)
+                self._later(params=params)
+            return
+        if kind != "COMMAND_LONG":
+            return
+        steps = self.script.get(msg.command, [])
+        step = steps.pop(0) if steps else "ok"
+        if step == "lost":
+            return
+        if step == "ack_lost":  # done, but its COMMAND_ACK never arrives
+            step = "ok"
+            self._apply(msg)
+            return
+        now = time.monotonic() + 0.003
+        result = ACCEPTED if step in ("ok", "unshown") else int(step)
+        acks = tuple(a for a in self.t.command_acks if a.command != msg.command)
+        self._later(command_acks=(*acks, CommandAck(msg.command, result, now)))
+        if step != "ok":
+            return
+        self._apply(msg)
+
+    def _apply(self, msg: Any) -> None:
+        state: dict[str, Any] = {}
+        if msg.command == commands.MAV_CMD_DO_SET_MODE:
+            state["custom_mode"] = int(msg.param2)
+            if int(msg.param2) == PlaneMode.GUIDED:
+                self.heights_at_guided.append(self.t.relative_alt_m)
+        elif msg.command == commands.MAV_CMD_COMPONENT_ARM_DISARM:
+            state["armed"] = msg.param1 == 1.0
+            if self.t.custom_mode == PlaneMode.TAKEOFF and self.climbs:
+                self._climb()
+        asyncio.get_running_loop().call_later(
+            0.006, lambda: self._later(last_heartbeat_s=time.monotonic() + 0.003, **state)
+        )
+
+    def _climb(self) -> None:
+        """The takeoff roll (fast, still low), then the climb to 95 % of TKOFF_ALT."""
+        loop = asyncio.get_running_loop()
+        top = 0.95 * self.tkoff_alt_m
+        loop.call_later(0.01, lambda: self._later(groundspeed_m_s=8.0, relative_alt_m=0.5))
+        loop.call_later(0.05, lambda: self._later(relative_alt_m=0.5 * top))
+        loop.call_later(0.09, lambda: self._later(relative_alt_m=top))
+
+
+class FakeFleet:
+    def __init__(self, *planes: FakePlane) -> None:
+        self.planes = {p.t.system_id: p for p in planes}
+
+    def telemetry(self, system_id: int) -> VehicleTelemetry | None:
+        plane = self.planes.get(system_id)
+        return None if plane is None else plane.t
+
+    async def send(self, system_id: int, msg: Any) -> None:
+        self.planes[system_id].receive(msg)
+
+
+Events = list[tuple[str, int | None, dict[str, Any]]]
+
+
+def run(coro: Coroutine[Any, Any, Any]) -> Any:
+    async def bounded() -> Any:
+        async with asyncio.timeout(10.0):
+            return await coro
+
+    return asyncio.run(bounded())
+
+
+def recorder() -> tuple[Events, launch.EventSink]:
+    events: Events = []
+
+    def event(kind: str, vehicle_id: int | None = None, **detail: Any) -> None:
+        events.append((kind, vehicle_id, detail))
+
+    return events, event
+
+
+def commands_sent(plane: FakePlane, command: int) -> int:
+    return sum(1 for m in plane.sent if m.get_type() == "COMMAND_LONG" and m.command == command)
+
+
+def test_a_mode_change_is_confirmed_by_the_ack_and_then_the_heartbeat() -> None:
+    plane = FakePlane(1, 100.0, armed=True)
+    events, event = recorder()
+    sends = run(launch.set_mode(FakeFleet(plane), 1, PlaneMode.GUIDED, event, FAST))
+    assert sends == 1
+    assert plane.t.custom_mode == PlaneMode.GUIDED
+    assert events == []
+
+
+def test_a_lost_ack_is_resent() -> None:
+    plane = FakePlane(1, 100.0)
+    plane.script[commands.MAV_CMD_COMPONENT_ARM_DISARM] = ["lost", "lost"]
+    events, event = recorder()
+    assert run(launch.arm(FakeFleet(plane), 1, event, FAST)) == 3
+    assert commands_sent(plane, commands.MAV_CMD_COMPONENT_ARM_DISARM) == 3
+    assert plane.t.armed
+    assert [e[0] for e in events] == ["command_resent", "command_resent"]
+
+
+def test_a_lost_ack_of_a_command_the_heartbeat_shows_done_confirms_it() -> None:
+    plane = FakePlane(1, 100.0)
+    plane.script[commands.MAV_CMD_DO_SET_MODE] = ["ack_lost"]
+    events, event = recorder()
+    assert run(launch.set_mode(FakeFleet(plane), 1, PlaneMode.GUIDED, event, FAST)) == 1
+    assert commands_sent(plane, commands.MAV_CMD_DO_SET_MODE) == 1
+    assert [e[0] for e in events] == ["command_ack_lost"]
+
+
+def test_an_accepted_command_the_heartbeat_does_not_show_is_resent() -> None:
+    plane = FakePlane(1, 100.0)
+    plane.script[commands.MAV_CMD_DO_SET_MODE] = ["unshown"]
+    events, event = recorder()
+    assert run(launch.set_mode(FakeFleet(plane), 1, PlaneMode.GUIDED, event, FAST)) == 2
+    assert "HEARTBEAT" in events[0][2]["after"]
+
+
+def test_no_ack_at_all_fails_after_the_attempts_with_an_event() -> None:
+    plane = FakePlane(1, 100.0)
+    plane.script[commands.MAV_CMD_DO_SET_MODE] = ["lost"] * 3
+    events, event = recorder()
+    with pytest.raises(LaunchFailed, match="mode GUIDED"):
+        run(launch.set_mode(FakeFleet(plane), 1, PlaneMode.GUIDED, event, FAST))
+    assert commands_sent(plane, commands.MAV_CMD_DO_SET_MODE) == 3
+    failed = {"command": "mode GUIDED", "result": "no COMMAND_ACK", "attempts": 3}
+    assert events[-1] == ("command_failed", 1, failed)
+
+
+@pytest.mark.parametrize(("result", "name"), [(DENIED, "DENIED"), (FAILED, "FAILED")])
+def test_a_refusal_is_final_and_raises_an_event(result: int, name: str) -> None:
+    plane = FakePlane(1, 100.0)
+    plane.script[commands.MAV_CMD_COMPONENT_ARM_DISARM] = [result]
+    events, event = recorder()
+    with pytest.raises(LaunchFailed) as failed:
+        run(launch.arm(FakeFleet(plane), 1, event, FAST))
+    assert failed.value.vehicle_id == 1
+    assert failed.value.detail["result"] == name
+    assert commands_sent(plane, commands.MAV_CMD_COMPONENT_ARM_DISARM) == 1  # not resent
+    assert events == [("command_failed", 1, {"command": "arm", "result": name, "attempts": 1})]
+
+
+def test_a_vehicle_on_the_ground_takes_off_and_goes_guided_only_near_its_tkoff_alt() -> None:
+    """Low but already rolling fast (the takeoff roll passes 5 m/s 1.3 s after arming): still
+    on the ground; TKOFF_ALT set and read back, TAKEOFF, arm, GUIDED at ≥ 90 % of it."""
+    ground = FakePlane(2, 0.2, mode=PlaneMode.MANUAL)
+    ground.t = dataclasses.replace(ground.t, groundspeed_m_s=12.0)
+    flying = FakePlane(1, 150.0, armed=True, mode=PlaneMode.LOITER)
+    events, event = recorder()
+    run(launch.launch(FakeFleet(flying, ground), [1, 2], 80.0, event, FAST))
+    assert [m.get_type() for m in ground.sent][:1] == ["PARAM_SET"]
+    modes = [int(m.param2) for m in ground.sent if getattr(m, "command", None) == 176]
+    assert modes == [PlaneMode.TAKEOFF, PlaneMode.GUIDED]
+    assert ground.heights_at_guided[0] is not None
+    assert ground.heights_at_guided[0] >= 0.9 * 80.0
+    assert flying.t.custom_mode == ground.t.custom_mode == PlaneMode.GUIDED
+    assert commands_sent(flying, commands.MAV_CMD_COMPONENT_ARM_DISARM) == 0  # armed already
+    assert ("takeoff", 2, {"takeoff_alt_m": 80.0}) in events
+
+
+def test_a_takeoff_distance_makes_them_climb_out_straight() -> None:
+    """TKOFF_DIST set (and read back) before TAKEOFF: ArduPlane then climbs towards a point
+    that far ahead rather than circling one 200 m ahead."""
+    plane = FakePlane(2, 0.0, mode=PlaneMode.MANUAL)
+    events, event = recorder()
+    run(launch.launch(FakeFleet(plane), [2], 60.0, event, FAST, takeoff_dist_m=1000.0))
+    assert plane.tkoff_dist_m == 1000.0
+    assert plane.tkoff_alt_m == 60.0
+    sets = [m.param_id for m in plane.sent if m.get_type() == "PARAM_SET"]
+    assert [s if isinstance(s, str) else s.decode() for s in sets] == ["TKOFF_ALT", "TKOFF_DIST"]
+    assert not [e for e in events if e[0] == "parameter_unanswered"]
+
+
+def test_the_takeoff_altitude_waited_for_is_the_one_read_back() -> None:
+    plane = FakePlane(3, 0.0)
+    plane.has_tkoff_alt = False  # answers no PARAM_VALUE: the value sent is waited for
+    events, event = recorder()
+    assert run(launch.take_off(FakeFleet(plane), 3, 60.0, event, FAST)) == 60.0
+    assert ("parameter_unanswered", 3, {"name": "TKOFF_ALT", "sent": 60.0}) in events
+    assert sum(1 for m in plane.sent if m.get_type() == "PARAM_REQUEST_READ") == 2
+
+
+def test_a_vehicle_that_does_not_climb_fails_the_launch() -> None:
+    plane = FakePlane(4, 0.0, climbs=False)
+    events, event = recorder()
+    with pytest.raises(LaunchFailed, match="takeoff"):
+        run(launch.launch(FakeFleet(plane), [4], 50.0, event, FAST))
+    assert events[-1][0] == "takeoff_failed"
+    assert plane.heights_at_guided == []  # never switched to GUIDED
+
+
+def test_one_vehicle_failing_fails_the_launch_with_its_own_error() -> None:
+    good = FakePlane(1, 100.0)
+    bad = FakePlane(2, 100.0)
+    bad.script[commands.MAV_CMD_COMPONENT_ARM_DISARM] = [DENIED]
+    _, event = recorder()
+    with pytest.raises(LaunchFailed) as failed:
+        run(launch.launch(FakeFleet(good, bad), [1, 2], 50.0, event, FAST))
+    assert failed.value.vehicle_id == 2

@@ -1,0 +1,457 @@
+"""MavlinkLink against a tiny fake vehicle on 127.0.0.1 (asyncio TCP server, UDP sockets).
+
+The fake vehicle speaks plain pymavlink (not our Codec).  Every test runs its own event loop
+under ``asyncio.timeout``; backoff times are shrunk so the file runs in a few seconds.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import random
+import socket
+import time
+from collections.abc import Callable, Coroutine
+from pathlib import Path
+from typing import Any
+
+import pytest
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import ardupilotmega as mavlink2
+
+from gcs_ppf.mavlink import commands
+from gcs_ppf.mavlink.ardupilot import PlaneMode
+from gcs_ppf.mavlink.codec import MAVLinkMessage
+from gcs_ppf.service.links import LinkKind, LinkUrl, MavlinkLink, parse_link_url
+
+TEST_TIMEOUT_S = 8.0
+HEARTBEAT_PERIOD_S = 0.05
+
+
+def run(coro: Coroutine[Any, Any, None]) -> None:
+    """Run one test body in a fresh event loop, bounded in time."""
+
+    async def bounded() -> None:
+        async with asyncio.timeout(TEST_TIMEOUT_S):
+            await coro
+
+    asyncio.run(bounded())
+
+
+async def wait_until(pred: Callable[[], bool], timeout_s: float = 3.0) -> None:
+    async with asyncio.timeout(timeout_s):
+        while not pred():
+            await asyncio.sleep(0.01)
+
+
+def free_port(kind: int = socket.SOCK_STREAM) -> int:
+    with socket.socket(socket.AF_INET, kind) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def vehicle_heartbeat(mav: Any) -> bytes:
+    msg = mavlink2.MAVLink_heartbeat_message(1, 3, 128 | 1, int(PlaneMode.GUIDED), 4, 3)
+    frame = bytes(msg.pack(mav))
+    mav.seq = (mav.seq + 1) % 256
+    return frame
+
+
+class Inbox:
+    """on_message callback that collects what the link delivers."""
+
+    def __init__(self) -> None:
+        self.messages: list[MAVLinkMessage] = []
+
+    def __call__(self, link: MavlinkLink, msg: MAVLinkMessage) -> None:
+        self.messages.append(msg)
+
+    def count(self, msg_type: str) -> int:
+        return sum(1 for m in self.messages if m.get_type() == msg_type)
+
+
+class FakeTcpVehicle:
+    """ArduPlane-ish TCP server: heartbeats at 20 Hz (plus optional noise), records what it gets."""
+
+    def __init__(self, noise: bool = False) -> None:
+        self.noise = noise
+        self.received: list[MAVLinkMessage] = []
+        self.connections = 0
+        self.port = 0
+        self._server: asyncio.Server | None = None
+        self._writers: set[asyncio.StreamWriter] = set()
+
+    async def start(self, port: int = 0) -> None:
+        self._server = await asyncio.start_server(self._serve, "127.0.0.1", port)
+        self.port = int(self._server.sockets[0].getsockname()[1])
+
+    async def stop(self) -> None:
+        """Stop listening and drop every connection."""
+        assert self._server is not None
+        self._server.close()
+        for w in list(self._writers):
+            w.transport.abort()
+        await self._server.wait_closed()
+
+    async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        self.connections += 1
+        self._writers.add(writer)
+        mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+        mav.robust_parsing = True
+        rng = random.Random(self.connections)
+        try:
+            async with asyncio.TaskGroup() as tg:
+                beat = tg.create_task(self._beat(writer, mav, rng))
+                while data := await reader.read(4096):
+                    for msg in mav.parse_buffer(data) or []:
+                        if msg.get_type() != "BAD_DATA":
+                            self.received.append(msg)
+                beat.cancel()
+        except* (ConnectionError, OSError):
+            pass
+        finally:
+            self._writers.discard(writer)
+            writer.close()
+
+    async def _beat(self, writer: asyncio.StreamWriter, mav: Any, rng: random.Random) -> None:
+        while True:
+            if self.noise:
+                writer.write(bytes(rng.randrange(256) for _ in range(rng.randrange(1, 300))))
+            writer.write(vehicle_heartbeat(mav))
+            await writer.drain()
+            await asyncio.sleep(HEARTBEAT_PERIOD_S)
+
+    def got(self, command: int) -> list[MAVLinkMessage]:
+        return [m for m in self.received if getattr(m, "command", None) == command]
+
+
+@contextlib.asynccontextmanager
+async def running(link: MavlinkLink) -> Any:
+    """Run ``link`` in a task group for the body's duration, then close it and join."""
+    async with asyncio.TaskGroup() as tg:
+        task = tg.create_task(link.run())
+        try:
+            yield task
+        finally:
+            link.close()
+
+
+# -- URLs ---------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("url", "expected"),
+    [
+        ("tcp:127.0.0.1:5760", LinkUrl(LinkKind.TCP, "127.0.0.1", 5760)),
+        ("udpin:0.0.0.0:14550", LinkUrl(LinkKind.UDP_IN, "0.0.0.0", 14550)),
+        ("udp:0.0.0.0:14550", LinkUrl(LinkKind.UDP_IN, "0.0.0.0", 14550)),
+        ("udpout:10.0.0.2:14555", LinkUrl(LinkKind.UDP_OUT, "10.0.0.2", 14555)),
+        ("TCP:sitl.local:5762", LinkUrl(LinkKind.TCP, "sitl.local", 5762)),
+        ("tcp:[::1]:5760", LinkUrl(LinkKind.TCP, "::1", 5760)),
+    ],
+)
+def test_parse_link_url(url: str, expected: LinkUrl) -> None:
+    assert parse_link_url(url) == expected
+    assert parse_link_url(str(expected)) == expected
+
+
+@pytest.mark.parametrize(
+    ("url", "complaint"),
+    [
+        ("", "empty"),
+        ("http://x:80", "unknown scheme 'http'"),
+        ("tcpin:0.0.0.0:5760", "unknown scheme 'tcpin'"),
+        ("127.0.0.1:5760", "unknown scheme '127.0.0.1'"),
+        ("tcp:5760", "missing host or port"),
+        ("tcp::5760", "missing host or port"),
+        ("tcp:localhost:port", "port 'port'"),
+        ("tcp:localhost:70000", "port '70000'"),
+        ("tcp:localhost:0", "port '0'"),
+        ("tcp:::1:5760", "IPv6"),
+        ("/dev/ttyUSB0:fast", "baud 'fast'"),
+    ],
+)
+def test_parse_link_url_errors_name_the_problem(url: str, complaint: str) -> None:
+    with pytest.raises(ValueError, match=complaint):
+        parse_link_url(url)
+
+
+@pytest.mark.parametrize("url", ["/dev/ttyUSB0:57600", "/dev/ttyACM0", "COM3,115200"])
+def test_serial_is_not_supported_without_pyserial(url: str) -> None:
+    with pytest.raises(NotImplementedError, match="pyserial"):
+        parse_link_url(url)
+
+
+def test_link_rejects_bad_url_and_backoff() -> None:
+    with pytest.raises(ValueError, match="scheme"):
+        MavlinkLink("bogus:1:2", Inbox())
+    with pytest.raises(ValueError, match="backoff"):
+        MavlinkLink("tcp:127.0.0.1:5760", Inbox(), backoff_initial_s=2.0, backoff_max_s=1.0)
+
+
+# -- TCP ----------------------------------------------------------------------------------
+def test_tcp_heartbeat_in_command_out() -> None:
+    async def body() -> None:
+        vehicle = FakeTcpVehicle()
+        await vehicle.start()
+        inbox = Inbox()
+        link = MavlinkLink(f"tcp:127.0.0.1:{vehicle.port}", inbox)
+        assert not link.connected
+        assert await link.send(commands.gcs_heartbeat()) is False  # down: dropped, counted
+        async with running(link):
+            await wait_until(lambda: inbox.count("HEARTBEAT") >= 1)
+            assert link.connected
+            hb = next(m for m in inbox.messages if m.get_type() == "HEARTBEAT")
+            assert (hb.get_srcSystem(), hb.custom_mode) == (1, 15)
+            assert await link.send(commands.set_mode(1, PlaneMode.LOITER))
+            await wait_until(lambda: bool(vehicle.got(176)))
+            cmd = vehicle.got(176)[0]
+            assert (cmd.get_srcSystem(), cmd.get_srcComponent()) == (255, 190)
+            assert (cmd.target_system, cmd.param2) == (1, 12.0)
+        stats = link.stats
+        assert not link.connected
+        assert stats.dropped_out == 1
+        assert stats.messages_out == 1
+        assert stats.messages_in == len(inbox.messages) >= 1
+        assert stats.bytes_in > 0
+        assert stats.bytes_out > 0
+        assert stats.connects == 1
+        assert stats.reconnects == 0
+        assert stats.parse_errors == 0
+        await vehicle.stop()
+
+    run(body())
+
+
+def test_tcp_reconnects_with_exponential_backoff() -> None:
+    async def body() -> None:
+        vehicle = FakeTcpVehicle()
+        await vehicle.start()
+        port = vehicle.port
+        inbox = Inbox()
+        link = MavlinkLink(
+            f"tcp:127.0.0.1:{port}", inbox, backoff_initial_s=0.05, backoff_max_s=0.2
+        )
+        async with running(link):
+            await wait_until(lambda: inbox.count("HEARTBEAT") >= 1)
+            await vehicle.stop()
+            await wait_until(lambda: not link.connected)
+            attempts0 = link.stats.connect_attempts
+            started = time.monotonic()
+            await asyncio.sleep(1.0)
+            elapsed = time.monotonic() - started
+            attempts = link.stats.connect_attempts - attempts0
+            # 0.05, 0.1, 0.2, 0.2, ... s: about 6 tries in a second; a fixed 0.05 s would give 20.
+            assert 3 <= attempts <= int(elapsed / 0.2) + 4, attempts
+            assert link.stats.backoff_s == pytest.approx(0.2)
+            assert await link.send(commands.gcs_heartbeat()) is False
+            heard = inbox.count("HEARTBEAT")
+            await vehicle.start(port)
+            await wait_until(lambda: inbox.count("HEARTBEAT") > heard, timeout_s=2.0)
+            assert link.connected
+            assert await link.send(commands.arm(1, True))
+            await wait_until(lambda: bool(vehicle.got(400)))
+        assert link.stats.connects == 2
+        assert link.stats.reconnects == 1
+        await vehicle.stop()
+
+    run(body())
+
+
+def test_tcp_noise_between_frames_does_not_break_the_link() -> None:
+    async def body() -> None:
+        vehicle = FakeTcpVehicle(noise=True)
+        await vehicle.start()
+        inbox = Inbox()
+        link = MavlinkLink(f"tcp:127.0.0.1:{vehicle.port}", inbox)
+        async with running(link):
+            await wait_until(lambda: inbox.count("HEARTBEAT") >= 10)
+        stats = link.stats
+        assert stats.bytes_skipped > 0
+        assert stats.connects == 1  # noise is dropped, not a reason to reconnect
+        assert all(m.get_type() == "HEARTBEAT" for m in inbox.messages)
+        await vehicle.stop()
+
+    run(body())
+
+
+def test_callback_errors_are_counted_not_fatal() -> None:
+    async def body() -> None:
+        vehicle = FakeTcpVehicle()
+        await vehicle.start()
+        calls: list[int] = []
+
+        def explode(link: MavlinkLink, msg: MAVLinkMessage) -> None:
+            calls.append(1)
+            raise RuntimeError("bug in the service")
+
+        link = MavlinkLink(f"tcp:127.0.0.1:{vehicle.port}", explode)
+        async with running(link):
+            await wait_until(lambda: len(calls) >= 3)
+            assert link.connected
+        assert link.stats.callback_errors >= 3
+        await vehicle.stop()
+
+    run(body())
+
+
+def test_cancelling_run_cleans_up_and_close_before_run_returns_at_once() -> None:
+    async def body() -> None:
+        vehicle = FakeTcpVehicle()
+        await vehicle.start()
+        inbox = Inbox()
+        link = MavlinkLink(f"tcp:127.0.0.1:{vehicle.port}", inbox)
+        task = asyncio.create_task(link.run())
+        await wait_until(lambda: inbox.count("HEARTBEAT") >= 1)
+        task.cancel()
+        with pytest.raises(asyncio.CancelledError):
+            await task
+        assert not link.connected
+        idle = MavlinkLink(f"tcp:127.0.0.1:{vehicle.port}", Inbox())
+        idle.close()
+        async with asyncio.timeout(0.5):
+            await idle.run()
+        assert idle.stats.connect_attempts == 0
+        await vehicle.stop()
+
+    run(body())
+
+
+def test_unreachable_tcp_peer_keeps_retrying_without_raising() -> None:
+    async def body() -> None:
+        port = free_port()
+        link = MavlinkLink(f"tcp:127.0.0.1:{port}", Inbox(), backoff_initial_s=0.02)
+        async with running(link):
+            await wait_until(lambda: link.stats.connect_attempts >= 3)
+            assert not link.connected
+        assert link.stats.connects == 0
+
+    run(body())
+
+
+# -- tlog ---------------------------------------------------------------------------------
+def test_tlog_is_readable_by_mavutil(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    path = tmp_path / "logs" / "run.tlog"
+    t_start = time.time()
+
+    async def body() -> None:
+        vehicle = FakeTcpVehicle()
+        await vehicle.start()
+        inbox = Inbox()
+        link = MavlinkLink(f"tcp:127.0.0.1:{vehicle.port}", inbox, tlog_path=path)
+        async with running(link):
+            await wait_until(lambda: inbox.count("HEARTBEAT") >= 2)
+            await link.send(commands.reposition(1, 47.397742, 8.545594, 788.5))
+            await wait_until(lambda: bool(vehicle.got(192)))
+        await vehicle.stop()
+
+    run(body())
+    t_end = time.time()
+    # mavutil picks its dialect from MAVLINK20 and switches globally: keep that to this test.
+    monkeypatch.setenv("MAVLINK20", "1")
+    monkeypatch.setattr(mavutil, "mavlink", mavutil.mavlink)
+    log = mavutil.mavlink_connection(str(path))
+    read: list[MAVLinkMessage] = []
+    while (msg := log.recv_match()) is not None:
+        read.append(msg)
+    log.close()
+    types = [(m.get_type(), m.get_srcSystem()) for m in read]
+    assert types.count(("HEARTBEAT", 1)) >= 2
+    assert ("COMMAND_INT", 255) in types
+    reposition = next(m for m in read if m.get_type() == "COMMAND_INT")
+    assert (reposition.command, reposition.x, reposition.z) == (192, 473977420, 788.5)
+    stamps = [m._timestamp for m in read]
+    assert stamps == sorted(stamps)
+    assert t_start - 1.0 <= stamps[0] <= stamps[-1] <= t_end + 1.0
+
+
+# -- UDP ----------------------------------------------------------------------------------
+class UdpPeer(asyncio.DatagramProtocol):
+    """A UDP vehicle socket that records what it receives (and from where)."""
+
+    def __init__(self) -> None:
+        self.mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+        self.mav.robust_parsing = True
+        self.received: list[tuple[MAVLinkMessage, tuple[str, int]]] = []
+
+    def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
+        for msg in self.mav.parse_buffer(data) or []:
+            self.received.append((msg, addr))
+
+
+async def udp_peer(**kwargs: Any) -> tuple[asyncio.DatagramTransport, UdpPeer]:
+    loop = asyncio.get_running_loop()
+    transport, peer = await loop.create_datagram_endpoint(UdpPeer, **kwargs)
+    return transport, peer
+
+
+def test_udpin_answers_the_last_sender() -> None:
+    async def body() -> None:
+        port = free_port(socket.SOCK_DGRAM)
+        inbox = Inbox()
+        link = MavlinkLink(f"udpin:127.0.0.1:{port}", inbox)
+        transport, vehicle = await udp_peer(remote_addr=("127.0.0.1", port))
+        try:
+            async with running(link):
+                await wait_until(lambda: link.stats.connects == 1)
+                assert not link.connected  # bound, but nobody to answer yet
+                assert await link.send(commands.gcs_heartbeat()) is False
+
+                async def send_beats() -> None:
+                    while inbox.count("HEARTBEAT") < 1:
+                        transport.sendto(vehicle_heartbeat(vehicle.mav))
+                        await asyncio.sleep(HEARTBEAT_PERIOD_S)
+
+                await send_beats()
+                assert link.connected
+                # noise datagrams and a truncated frame are dropped without harm
+                transport.sendto(bytes(range(256)))
+                transport.sendto(vehicle_heartbeat(vehicle.mav)[:7])
+                transport.sendto(vehicle_heartbeat(vehicle.mav))
+                await wait_until(lambda: inbox.count("HEARTBEAT") >= 2)
+                assert await link.send(commands.change_speed(1, 25.0))
+                await wait_until(lambda: bool(vehicle.received))
+                msg, addr = vehicle.received[0]
+                assert (msg.get_type(), msg.command, msg.param2) == ("COMMAND_LONG", 178, 25.0)
+                assert addr == ("127.0.0.1", port)
+            assert link.stats.parse_errors >= 1
+        finally:
+            transport.close()
+
+    run(body())
+
+
+def test_udpout_sends_first_and_reads_answers() -> None:
+    async def body() -> None:
+        transport, vehicle = await udp_peer(local_addr=("127.0.0.1", 0))
+        port = int(transport.get_extra_info("sockname")[1])
+        inbox = Inbox()
+        link = MavlinkLink(f"udpout:127.0.0.1:{port}", inbox)
+        try:
+            async with running(link):
+                await wait_until(lambda: link.connected)
+                assert await link.send(commands.gcs_heartbeat())
+                await wait_until(lambda: bool(vehicle.received))
+                msg, gcs_addr = vehicle.received[0]
+                assert (msg.get_type(), msg.type, msg.get_srcSystem()) == ("HEARTBEAT", 6, 255)
+                transport.sendto(vehicle_heartbeat(vehicle.mav), gcs_addr)
+                await wait_until(lambda: inbox.count("HEARTBEAT") >= 1)
+        finally:
+            transport.close()
+
+    run(body())
+
+
+def test_signing_link_drops_unsigned_vehicle_frames_and_signs_its_own() -> None:
+    async def body() -> None:
+        vehicle = FakeTcpVehicle()
+        await vehicle.start()
+        inbox = Inbox()
+        link = MavlinkLink(f"tcp:127.0.0.1:{vehicle.port}", inbox, signing_key=bytes(range(32)))
+        async with running(link):
+            await wait_until(lambda: link.stats.parse_errors >= 2)
+            assert await link.send(commands.gcs_heartbeat())
+            await wait_until(lambda: bool(vehicle.received))
+        assert inbox.messages == []
+        assert vehicle.received[0].get_msgbuf()[2] & 0x01  # MAVLINK_IFLAG_SIGNED
+        await vehicle.stop()
+
+    run(body())
