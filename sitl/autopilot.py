@@ -11,13 +11,15 @@ import math
 from dataclasses import dataclass, field
 
 from gcs_ppf import geodesy
+from gcs_ppf.mavlink import enums
+from gcs_ppf.mavlink.ardupilot import PlaneMode
+from gcs_ppf.mavlink.enums import MAV_SEVERITY_CRITICAL, MAV_SEVERITY_INFO, MAV_SEVERITY_WARNING
 from gcs_ppf.mission import Origin
 from sitl import messages as mb
 from sitl import mission_protocol as mp
 from sitl import streams as st
 from sitl.faults import FaultState
 from sitl.messages import Message
-from sitl.modes import PlaneMode
 from sitl.navigation import AutoEvents, MissionRunner, NavTarget
 from sitl.params import ParamTable
 from sitl.physics import (
@@ -34,11 +36,6 @@ from sitl.physics import (
 )
 
 Vec3 = tuple[float, float, float]
-
-MAV_SEVERITY_CRITICAL = 2
-MAV_SEVERITY_WARNING = 4
-MAV_SEVERITY_NOTICE = 5
-MAV_SEVERITY_INFO = 6
 
 
 @dataclass(frozen=True, slots=True)
@@ -293,7 +290,7 @@ class Autopilot:
             tgt = None
             if item.command in mp.NAV_WITH_LOCATION:
                 tgt = self.location_to_enu(item.frame, item.x, item.y, item.z)
-                if tgt is not None and item.command == mp.MAV_CMD_NAV_LAND:
+                if tgt is not None and item.command == enums.MAV_CMD_NAV_LAND:
                     tgt = (tgt[0], tgt[1], self.home_enu_m[2] - 50.0)  # glide into the ground
             targets.append(tgt)
         self.runner = MissionRunner(list(items), targets)
@@ -436,10 +433,10 @@ class Autopilot:
 
     def system_status(self) -> int:
         if self.faults.dead:
-            return mb.MAV_STATE_POWEROFF
+            return enums.MAV_STATE_POWEROFF
         if self.gcs_failsafe:
-            return mb.MAV_STATE_CRITICAL
-        return mb.MAV_STATE_ACTIVE if self.armed else mb.MAV_STATE_STANDBY
+            return enums.MAV_STATE_CRITICAL
+        return enums.MAV_STATE_ACTIVE if self.armed else enums.MAV_STATE_STANDBY
 
     def heartbeat(self) -> Message:
         return mb.heartbeat(self.mode, self.armed, self.system_status())

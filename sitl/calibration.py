@@ -24,16 +24,16 @@ from numpy.typing import NDArray
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from gcs_ppf.geodesy import enu_to_geodetic
+from gcs_ppf.mavlink.ardupilot import GCS_COMPONENT_ID, GCS_SYSTEM_ID, PlaneMode
 from gcs_ppf.mission import Limits, Mission, Origin, Vehicle
 from sitl.autopilot import Outbox
 from sitl.engine import Simulation
-from sitl.modes import PlaneMode
 from sitl.physics import DT_S
 
 FloatArray = NDArray[np.float64]
 
 TRACES = Path(__file__).resolve().parent.parent / "tests" / "data" / "arduplane-traces"
-_GCS = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+_GCS = mavlink.MAVLink(None, srcSystem=GCS_SYSTEM_ID, srcComponent=GCS_COMPONENT_ID)
 _PARSER = mavlink.MAVLink(None)
 #: The GUIDED experiments start from 15 s of level flight (the traces' settle procedure).
 SETTLE_S = 15.0

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import pymap3d
 
+from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mission import Mission
 from sitl import handlers
 from sitl import messages as mb
@@ -22,7 +23,7 @@ from sitl.airframe import AirframeName
 from sitl.autopilot import Autopilot, Clock, Kinematics, Outbox
 from sitl.faults import FaultSpec, FaultState
 from sitl.mission_protocol import Transfer
-from sitl.modes import PlaneMode, mode_from_number
+from sitl.modes import mode_from_number
 from sitl.params import ParamTable, vehicle_param_specs
 from sitl.physics import (
     DT_S,

@@ -14,60 +14,57 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from gcs_ppf import geodesy
+from gcs_ppf.mavlink import enums
+from gcs_ppf.mavlink.ardupilot import FORCE_ARM_DISARM_MAGIC, PlaneMode
+from gcs_ppf.mavlink.enums import (
+    HEADING_TYPE_COURSE_OVER_GROUND,
+    HEADING_TYPE_HEADING,
+    MAV_CMD_COMPONENT_ARM_DISARM,
+    MAV_CMD_DO_CHANGE_SPEED,
+    MAV_CMD_DO_REPOSITION,
+    MAV_CMD_DO_SET_MISSION_CURRENT,
+    MAV_CMD_DO_SET_MODE,
+    MAV_CMD_GET_HOME_POSITION,
+    MAV_CMD_GET_MESSAGE_INTERVAL,
+    MAV_CMD_GUIDED_CHANGE_ALTITUDE,
+    MAV_CMD_GUIDED_CHANGE_HEADING,
+    MAV_CMD_GUIDED_CHANGE_SPEED,
+    MAV_CMD_MISSION_START,
+    MAV_CMD_NAV_LOITER_UNLIM,
+    MAV_CMD_NAV_RETURN_TO_LAUNCH,
+    MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN,
+    MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
+    MAV_CMD_REQUEST_MESSAGE,
+    MAV_CMD_SET_MESSAGE_INTERVAL,
+    MAV_DO_REPOSITION_FLAGS_CHANGE_MODE,
+    MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+    MAV_RESULT_ACCEPTED,
+    MAV_RESULT_DENIED,
+    MAV_RESULT_FAILED,
+    MAV_RESULT_UNSUPPORTED,
+    MAV_SEVERITY_INFO,
+    MAV_SEVERITY_WARNING,
+    MAV_TYPE_GCS,
+    MAVLINK_MSG_ID_SET_MODE,
+    SPEED_TYPE_AIRSPEED,
+)
 from sitl import messages as mb
 from sitl import mission_protocol as mp
 from sitl import streams as st
-from sitl.autopilot import (
-    MAV_SEVERITY_INFO,
-    MAV_SEVERITY_WARNING,
-    Autopilot,
-    Clock,
-    GuidedAltitude,
-    GuidedCourse,
-    Kinematics,
-    Outbox,
-)
-from sitl.modes import MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, PlaneMode, mode_from_number
+from sitl.autopilot import Autopilot, Clock, GuidedAltitude, GuidedCourse, Kinematics, Outbox
+from sitl.modes import mode_from_number
 from sitl.params import decode_param_id
 
 Src = tuple[int, int]
 Handler = Callable[[Autopilot, Any, Src, Kinematics, Clock, Outbox], None]
 
-MAV_RESULT_ACCEPTED = 0
-MAV_RESULT_DENIED = 2
-MAV_RESULT_UNSUPPORTED = 3
-MAV_RESULT_FAILED = 4
 
-MAV_CMD_NAV_LOITER_UNLIM = 17
-MAV_CMD_NAV_RETURN_TO_LAUNCH = 20
-MAV_CMD_DO_SET_MODE = 176
-MAV_CMD_DO_CHANGE_SPEED = 178
-MAV_CMD_DO_REPOSITION = 192
-MAV_CMD_DO_SET_MISSION_CURRENT = 224
-MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN = 246
-MAV_CMD_MISSION_START = 300
-MAV_CMD_COMPONENT_ARM_DISARM = 400
-MAV_CMD_GET_HOME_POSITION = 410
-MAV_CMD_GET_MESSAGE_INTERVAL = 510
-MAV_CMD_SET_MESSAGE_INTERVAL = 511
-MAV_CMD_REQUEST_MESSAGE = 512
-MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES = 520
-MAV_CMD_GUIDED_CHANGE_SPEED = 43000
-MAV_CMD_GUIDED_CHANGE_ALTITUDE = 43001
-MAV_CMD_GUIDED_CHANGE_HEADING = 43002
 GUIDED_SLEW_COMMANDS = (
     MAV_CMD_GUIDED_CHANGE_SPEED,
     MAV_CMD_GUIDED_CHANGE_ALTITUDE,
     MAV_CMD_GUIDED_CHANGE_HEADING,
 )
-SPEED_TYPE_AIRSPEED = 0
-HEADING_TYPE_COURSE_OVER_GROUND = 0
-HEADING_TYPE_HEADING = 1
 HEADING_TYPE_DEFAULT = 4
-MAV_DO_REPOSITION_FLAGS_CHANGE_MODE = 1
-FORCE_DISARM_MAGIC = 21196
-MAVLINK_MSG_ID_SET_MODE = 11
-MAV_TYPE_GCS = 6
 
 
 def addressed_elsewhere(ap: Autopilot, msg: Any) -> bool:
@@ -180,11 +177,11 @@ def on_mission_item(
     try:
         item = mp.item_from_message(msg)
     except (ValueError, OverflowError):
-        out.reply.append(mavlink_ack(src, mp.MAV_MISSION_ERROR, msg.mission_type))
+        out.reply.append(mavlink_ack(src, enums.MAV_MISSION_ERROR, msg.mission_type))
         return
     if msg.current in (2, 3):
         ok = guided_item(ap, item, msg.current == 3, kin, clock, out)
-        result = mp.MAV_MISSION_ACCEPTED if ok else mp.MAV_MISSION_ERROR
+        result = enums.MAV_MISSION_ACCEPTED if ok else enums.MAV_MISSION_ERROR
         out.reply.append(mavlink_ack(src, result, msg.mission_type))
         return
     _mission_result(ap, ap.mission.on_item(src, msg.seq, item, msg.mission_type, clock.link_s), out)
@@ -198,7 +195,7 @@ def guided_item(
     ap: Autopilot, item: mp.MissionItem, alt_only: bool, kin: Kinematics, clock: Clock, out: Outbox
 ) -> bool:
     """ArduPlane accepts a guided goto only in GUIDED; an altitude change in any mode."""
-    if mp.validate_item(item) != mp.MAV_MISSION_ACCEPTED and not alt_only:
+    if mp.validate_item(item) != enums.MAV_MISSION_ACCEPTED and not alt_only:
         return False
     target = ap.location_to_enu(item.frame, item.x, item.y, item.z)
     if target is None or not _finite(target[2]):
@@ -403,7 +400,7 @@ def command(
             ap.guidance_dirty = True
             return MAV_RESULT_ACCEPTED
         if p1 == 0:
-            if not kin.landed and p2 != FORCE_DISARM_MAGIC:
+            if not kin.landed and p2 != FORCE_ARM_DISARM_MAGIC:
                 out.text(MAV_SEVERITY_WARNING, "Disarm refused: flying")
                 return MAV_RESULT_FAILED
             ap.armed = False

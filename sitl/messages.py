@@ -13,22 +13,19 @@ from typing import Any, TypeAlias
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sitl.modes import PlaneMode, base_mode
+from gcs_ppf.mavlink.ardupilot import PlaneMode
+from gcs_ppf.mavlink.enums import (
+    GPS_FIX_TYPE_3D_FIX,
+    MAV_AUTOPILOT_ARDUPILOTMEGA,
+    MAV_LANDED_STATE_IN_AIR,
+    MAV_LANDED_STATE_ON_GROUND,
+    MAV_TYPE_FIXED_WING,
+    MAV_VTOL_STATE_UNDEFINED,
+)
+from sitl.modes import base_mode
 
 Message: TypeAlias = Any  # a pymavlink MAVLink_*_message (pymavlink is untyped)
 
-MAV_TYPE_FIXED_WING = 1
-MAV_TYPE_GCS = 6
-MAV_AUTOPILOT_ARDUPILOTMEGA = 3
-MAV_STATE_STANDBY = 3
-MAV_STATE_ACTIVE = 4
-MAV_STATE_CRITICAL = 5
-MAV_STATE_EMERGENCY = 6
-MAV_STATE_POWEROFF = 7
-MAV_LANDED_STATE_ON_GROUND = 1
-MAV_LANDED_STATE_IN_AIR = 2
-MAV_VTOL_STATE_UNDEFINED = 0
-GPS_FIX_TYPE_3D_FIX = 3
 
 #: ArduPlane version we present: 4.5.7 official.
 FLIGHT_SW_VERSION = (4 << 24) | (5 << 16) | (7 << 8) | 255

@@ -1,6 +1,7 @@
-"""ArduPlane flight modes: custom-mode numbers and HEARTBEAT base_mode flags.
+"""The ArduPlane modes this SITL flies and the HEARTBEAT base_mode flags it reports in each.
 
-Numbers are ArduPlane's ``Mode::Number`` (CONVENTIONS §5). The base_mode computation follows
+The mode numbers are ``gcs_ppf.mavlink.ardupilot.PlaneMode`` (ArduPlane's ``Mode::Number``,
+CONVENTIONS §5), the flags ``gcs_ppf.mavlink.enums``. The base_mode computation follows
 ``GCS_MAVLINK_Plane::base_mode()`` in ArduPlane/GCS_Mavlink.cpp: CUSTOM_MODE_ENABLED always;
 MANUAL_INPUT in MANUAL; STABILIZE in every mode but MANUAL; GUIDED in the navigating modes
 (AUTO, RTL, LOITER, GUIDED, CIRCLE, TAKEOFF); ArduPlane never sets MAV_MODE_FLAG_AUTO_ENABLED;
@@ -11,35 +12,29 @@ MANUAL_INPUT in all modes on a real plane; this SITL has no RC, so it does not.
 from __future__ import annotations
 
 import math
-from enum import IntEnum
 
-MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
-MAV_MODE_FLAG_TEST_ENABLED = 2
-MAV_MODE_FLAG_AUTO_ENABLED = 4
-MAV_MODE_FLAG_GUIDED_ENABLED = 8
-MAV_MODE_FLAG_STABILIZE_ENABLED = 16
-MAV_MODE_FLAG_HIL_ENABLED = 32
-MAV_MODE_FLAG_MANUAL_INPUT_ENABLED = 64
-MAV_MODE_FLAG_SAFETY_ARMED = 128
+from gcs_ppf.mavlink.ardupilot import PlaneMode
+from gcs_ppf.mavlink.enums import (
+    MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+    MAV_MODE_FLAG_GUIDED_ENABLED,
+    MAV_MODE_FLAG_MANUAL_INPUT_ENABLED,
+    MAV_MODE_FLAG_SAFETY_ARMED,
+    MAV_MODE_FLAG_STABILIZE_ENABLED,
+)
 
-
-class PlaneMode(IntEnum):
-    """The ArduPlane modes this SITL flies (a subset of ArduPlane's)."""
-
-    MANUAL = 0
-    """Neutral sticks: the aircraft keeps its attitude rates at zero and its throttle."""
-    CIRCLE = 1
-    """Constant gentle turn, altitude held (no position reference)."""
-    AUTO = 10
-    """Flies the stored mission."""
-    RTL = 11
-    """Returns home at RTL_ALTITUDE and loiters there."""
-    LOITER = 12
-    """Circles the point where the mode was entered."""
-    TAKEOFF = 13
-    """Climbs to TKOFF_ALT, then loiters (already airborne here)."""
-    GUIDED = 15
-    """Flies to and circles the guided point (DO_REPOSITION / MISSION_ITEM_INT current=2)."""
+FLOWN = frozenset(
+    {
+        PlaneMode.MANUAL,  # neutral sticks: attitude rates held at zero, throttle kept
+        PlaneMode.CIRCLE,  # constant gentle turn, altitude held (no position reference)
+        PlaneMode.AUTO,  # flies the stored mission
+        PlaneMode.RTL,  # returns home at RTL_ALTITUDE and loiters there
+        PlaneMode.LOITER,  # circles the point where the mode was entered
+        PlaneMode.TAKEOFF,  # climbs to TKOFF_ALT, then loiters (already airborne here)
+        PlaneMode.GUIDED,  # flies to and circles the guided point, or the slewed course
+    }
+)
+"""The ArduPlane modes this SITL flies (``gcs_ppf.mavlink.ardupilot.PlaneMode`` numbers every
+mode; the others are refused)."""
 
 
 #: Modes whose base_mode carries MAV_MODE_FLAG_GUIDED_ENABLED on ArduPlane.
@@ -77,10 +72,7 @@ def mode_from_number(number: float | int) -> PlaneMode | None:
     if isinstance(number, float) and not (math.isfinite(number) and number.is_integer()):
         return None
     try:
-        return PlaneMode(int(number))
+        mode = PlaneMode(int(number))
     except ValueError:
         return None
-
-
-def mode_name(mode: PlaneMode) -> str:
-    return mode.name
+    return mode if mode in FLOWN else None

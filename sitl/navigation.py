@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from gcs_ppf.mavlink import enums
 from sitl import mission_protocol as mp
 from sitl.physics import GuidanceKind
 
@@ -82,10 +83,10 @@ class MissionRunner:
             item = self.items[self.current]
             if item.command in mp.NAV_COMMANDS:
                 break
-            if item.command == mp.MAV_CMD_DO_CHANGE_SPEED:
+            if item.command == enums.MAV_CMD_DO_CHANGE_SPEED:
                 events.speed_changes.append((int(item.param1), item.param2))
                 self.current += 1
-            elif item.command == mp.MAV_CMD_DO_JUMP:
+            elif item.command == enums.MAV_CMD_DO_JUMP:
                 self._jump(item, events)
             else:
                 self.current += 1
@@ -99,7 +100,7 @@ class MissionRunner:
             goal = pos
         elif math.isnan(goal[0]):  # lat = lon = 0: here, at the item's altitude
             goal = (pos[0], pos[1], goal[2])
-        if self.items[self.current].command == mp.MAV_CMD_NAV_TAKEOFF:
+        if self.items[self.current].command == enums.MAV_CMD_NAV_TAKEOFF:
             goal = (pos[0] + 1e4 * math.cos(yaw), pos[1] + 1e4 * math.sin(yaw), goal[2])
         self._goal = goal
         self._leg_start = pos
@@ -125,12 +126,12 @@ class MissionRunner:
         item = self.items[self.current]
         tgt = self._goal
         cmd = item.command
-        if cmd == mp.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+        if cmd == enums.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             return NavTarget(GuidanceKind.ORBIT, home, abs(wp_loiter_rad), _dir(wp_loiter_rad))
-        if cmd in (mp.MAV_CMD_NAV_LOITER_UNLIM, mp.MAV_CMD_NAV_LOITER_TIME):
+        if cmd in (enums.MAV_CMD_NAV_LOITER_UNLIM, enums.MAV_CMD_NAV_LOITER_TIME):
             radius = item.param3 if item.param3 != 0 else wp_loiter_rad
             return NavTarget(GuidanceKind.ORBIT, tgt, abs(radius), _dir(radius))
-        if cmd == mp.MAV_CMD_NAV_LOITER_TURNS:
+        if cmd == enums.MAV_CMD_NAV_LOITER_TURNS:
             radius = item.param3 if item.param3 != 0 else wp_loiter_rad
             return NavTarget(GuidanceKind.ORBIT, tgt, abs(radius), _dir(radius))
         return NavTarget(GuidanceKind.GOTO, tgt)
@@ -151,25 +152,25 @@ class MissionRunner:
             return events
         item = self.items[self.current]
         tgt = self._goal
-        if item.command == mp.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+        if item.command == enums.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             tgt = home
         dx, dy = tgt[0] - pos[0], tgt[1] - pos[1]
         dist = math.hypot(dx, dy)
         done = False
         cmd = item.command
-        if cmd == mp.MAV_CMD_NAV_WAYPOINT:
+        if cmd == enums.MAV_CMD_NAV_WAYPOINT:
             accept = item.param2 if item.param2 > 0 else wp_radius_m
             lx, ly = tgt[0] - self._leg_start[0], tgt[1] - self._leg_start[1]
             passed = (lx * lx + ly * ly) > 1.0 and (-dx * lx - dy * ly) > 0.0
             done = dist <= accept or passed
-        elif cmd == mp.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+        elif cmd == enums.MAV_CMD_NAV_RETURN_TO_LAUNCH:
             done = dist <= max(wp_radius_m, loiter_radius_eff_m * 1.2)
-        elif cmd == mp.MAV_CMD_NAV_TAKEOFF:
+        elif cmd == enums.MAV_CMD_NAV_TAKEOFF:
             done = pos[2] >= tgt[2] - 5.0
-        elif cmd == mp.MAV_CMD_NAV_LAND:
+        elif cmd == enums.MAV_CMD_NAV_LAND:
             done = landed
             events.landed = landed
-        elif cmd in (mp.MAV_CMD_NAV_LOITER_TIME, mp.MAV_CMD_NAV_LOITER_TURNS):
+        elif cmd in (enums.MAV_CMD_NAV_LOITER_TIME, enums.MAV_CMD_NAV_LOITER_TURNS):
             on_circle = abs(dist - loiter_radius_eff_m) < max(0.25 * loiter_radius_eff_m, 20.0)
             if self._on_circle_s is None and on_circle:
                 self._on_circle_s = now_s
@@ -177,7 +178,7 @@ class MissionRunner:
             if self._on_circle_s is not None:
                 step = math.remainder(yaw - self._last_yaw, math.tau)
                 self._turned_rad += abs(step)
-                if cmd == mp.MAV_CMD_NAV_LOITER_TIME:
+                if cmd == enums.MAV_CMD_NAV_LOITER_TIME:
                     done = now_s - self._on_circle_s >= max(item.param1, 0.0)
                 else:
                     done = self._turned_rad >= math.tau * max(item.param1, 0.0)

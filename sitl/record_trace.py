@@ -22,6 +22,8 @@ from typing import Any
 
 from pymavlink import mavutil
 
+from gcs_ppf.mavlink.ardupilot import GCS_COMPONENT_ID, GCS_SYSTEM_ID
+
 COLUMNS = [
     "t_s", "msg", "lat_deg", "lon_deg", "alt_amsl_m", "rel_alt_m", "vn_m_s", "ve_m_s",
     "vd_m_s", "hdg_deg", "roll_deg", "pitch_deg", "yaw_deg", "airspeed_m_s",
@@ -35,7 +37,9 @@ class Recorder:
     """A pymavlink connection that keeps the vehicle's clock and writes trace rows."""
 
     def __init__(self, url: str) -> None:
-        self.conn: Any = mavutil.mavlink_connection(url, source_system=255, source_component=190)
+        self.conn: Any = mavutil.mavlink_connection(
+            url, source_system=GCS_SYSTEM_ID, source_component=GCS_COMPONENT_ID
+        )
         self.conn.wait_heartbeat(timeout=60)
         self.target = self.conn.target_system
         self.boot_ms = 0

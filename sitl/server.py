@@ -26,7 +26,8 @@ from typing import Any, BinaryIO
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sitl.autopilot import MAV_SEVERITY_WARNING, Outbox
+from gcs_ppf.mavlink.enums import MAV_SEVERITY_WARNING
+from sitl.autopilot import Outbox
 from sitl.engine import Simulation
 from sitl.messages import Message, statustext
 from sitl.physics import DT_S

@@ -16,10 +16,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gcs_ppf.guidance.online import VehicleState
+from gcs_ppf.mavlink.enums import MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS
 from gcs_ppf.planning.scene import Obstacles
 
-MAV_RESULT_ACCEPTED = 0
-MAV_RESULT_IN_PROGRESS = 5
 OBEYED = (MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS)
 
 

@@ -10,11 +10,7 @@ from __future__ import annotations
 
 from enum import IntEnum
 
-MAV_MODE_FLAG_SAFETY_ARMED = 128
-"""``HEARTBEAT.base_mode`` bit set while the vehicle is armed (MAVLink common.xml)."""
-
-MAV_MODE_FLAG_CUSTOM_MODE_ENABLED = 1
-"""``base_mode`` bit: ``custom_mode`` carries the autopilot's own mode number."""
+from gcs_ppf.mavlink.enums import MAV_MODE_FLAG_SAFETY_ARMED
 
 AUTOPILOT_COMPONENT_ID = 1
 """``MAV_COMP_ID_AUTOPILOT1``: the component id ArduPilot's flight controller sends from."""

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gcs_ppf.mission import Limits, load_mission_file
+from gcs_ppf.mission import Limits, PlannerSettings, load_mission_file
 from gcs_ppf.offline.plan import plan_mission, warm_up
 from gcs_ppf.planning.planner import advance
 from gcs_ppf.planning.ppf.reference import reference_step
@@ -97,7 +97,7 @@ def time_reference(scene: Scene, dt: float, steps: int) -> tuple[float, float]:
 
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--dt", type=float, default=0.01)
+    parser.add_argument("--dt", type=float, default=PlannerSettings().dt)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--quick", action="store_true", help="skip the 500 × 200 scene")
     args = parser.parse_args(argv)

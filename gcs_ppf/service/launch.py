@@ -25,8 +25,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from gcs_ppf.mavlink import commands
+from gcs_ppf.mavlink import commands, enums
 from gcs_ppf.mavlink.ardupilot import PlaneMode
+from gcs_ppf.mavlink.enums import MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.service.errors import ServiceError
 
@@ -37,8 +38,6 @@ ON_GROUND_ALT_M = 5.0
 TAKEOFF_DONE_FRACTION = 0.9
 """A vehicle taking off is switched to GUIDED once at this fraction of its TKOFF_ALT."""
 
-MAV_RESULT_ACCEPTED = 0
-MAV_RESULT_IN_PROGRESS = 5
 MAV_RESULT_NAMES = {
     0: "ACCEPTED",
     1: "TEMPORARILY_REJECTED",
@@ -179,7 +178,7 @@ async def set_mode(
     """``mode``, confirmed (ACK, then HEARTBEAT.custom_mode)."""
     return await confirmed_command(
         fleet, vehicle_id, lambda: commands.set_mode(vehicle_id, mode),
-        commands.MAV_CMD_DO_SET_MODE, lambda t: t.custom_mode == int(mode),
+        enums.MAV_CMD_DO_SET_MODE, lambda t: t.custom_mode == int(mode),
         f"mode {mode.name}", event, retry,
     )  # fmt: skip
 
@@ -188,7 +187,7 @@ async def arm(fleet: Vehicles, vehicle_id: int, event: EventSink, retry: Retry =
     """Armed, confirmed (ACK, then the HEARTBEAT's armed flag)."""
     return await confirmed_command(
         fleet, vehicle_id, lambda: commands.arm(vehicle_id, True),
-        commands.MAV_CMD_COMPONENT_ARM_DISARM, lambda t: t.armed, "arm", event, retry,
+        enums.MAV_CMD_COMPONENT_ARM_DISARM, lambda t: t.armed, "arm", event, retry,
     )  # fmt: skip
 
 

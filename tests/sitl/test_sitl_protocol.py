@@ -9,11 +9,13 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from gcs_ppf.mavlink import enums
+from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mission import Limits
 from sitl import messages as mb
 from sitl import mission_protocol as mp
 from sitl.faults import FaultState, parse_fault
-from sitl.modes import PlaneMode, base_mode, mode_from_number
+from sitl.modes import base_mode, mode_from_number
 from sitl.params import ParamTable, ParamType, vehicle_param_specs
 from sitl.streams import GLOBAL_POSITION_INT, HEARTBEAT, StreamSchedule
 
@@ -41,7 +43,7 @@ def test_upload_then_download_round_trip() -> None:
     items = [HOME, wp(), wp(474100000, 85600000, 250.0), wp(cmd=20)]
     replies = upload(server, items)
     assert replies[-1].get_type() == "MISSION_ACK"
-    assert replies[-1].type == mp.MAV_MISSION_ACCEPTED
+    assert replies[-1].type == enums.MAV_MISSION_ACCEPTED
     assert server.on_request_list(GCS, 0).replies[0].count == 4
     for seq in range(1, 4):
         got = server.on_request(GCS, seq, 0, HOME, as_int=True).replies[0]
@@ -59,24 +61,24 @@ def test_requests_each_item_in_order_and_rejects_out_of_sequence() -> None:
     res = server.on_item(GCS, 0, HOME, 0, 0.0)
     assert res.replies[0].seq == 1
     res = server.on_item(GCS, 999, wp(), 0, 0.0)  # sequence 999: error, upload goes on
-    assert res.replies[0].type == mp.MAV_MISSION_INVALID_SEQUENCE
+    assert res.replies[0].type == enums.MAV_MISSION_INVALID_SEQUENCE
     assert server.state == mp.Transfer.RECEIVING
     res = server.on_item((7, 1), 1, wp(), 0, 0.0)  # another GCS
-    assert res.replies[0].type == mp.MAV_MISSION_DENIED
+    assert res.replies[0].type == enums.MAV_MISSION_DENIED
 
 
 @pytest.mark.parametrize(
     ("item", "result"),
     [
-        (wp(lat_e7=10_000_000_000 // 10), mp.MAV_MISSION_INVALID_PARAM5_X),  # latitude 100°
-        (wp(lon_e7=1_900_000_000), mp.MAV_MISSION_INVALID_PARAM6_Y),
-        (wp(cmd=31000), mp.MAV_MISSION_UNSUPPORTED),
-        (mp.MissionItem(1, 16, 0, 1, 0, 0, 0, 0, 0, 0, 100.0), mp.MAV_MISSION_UNSUPPORTED_FRAME),
+        (wp(lat_e7=10_000_000_000 // 10), enums.MAV_MISSION_INVALID_PARAM5_X),  # latitude 100°
+        (wp(lon_e7=1_900_000_000), enums.MAV_MISSION_INVALID_PARAM6_Y),
+        (wp(cmd=31000), enums.MAV_MISSION_UNSUPPORTED),
+        (mp.MissionItem(1, 16, 0, 1, 0, 0, 0, 0, 0, 0, 100.0), enums.MAV_MISSION_UNSUPPORTED_FRAME),
         (
             mp.MissionItem(3, 17, 0, 1, math.nan, 0, 0, 0, 0, 0, 100.0),
-            mp.MAV_MISSION_INVALID_PARAM1,
+            enums.MAV_MISSION_INVALID_PARAM1,
         ),
-        (wp(z=math.inf), mp.MAV_MISSION_INVALID_PARAM7),
+        (wp(z=math.inf), enums.MAV_MISSION_INVALID_PARAM7),
     ],
 )
 def test_bad_item_ends_upload_with_its_error(item: mp.MissionItem, result: int) -> None:
@@ -92,28 +94,30 @@ def test_bad_item_ends_upload_with_its_error(item: mp.MissionItem, result: int) 
 
 def test_waypoint_yaw_may_be_nan() -> None:
     item = mp.MissionItem(3, 16, 0, 1, 0, 0, 0, math.nan, 474000000, 85500000, 100.0)
-    assert mp.validate_item(item) == mp.MAV_MISSION_ACCEPTED
+    assert mp.validate_item(item) == enums.MAV_MISSION_ACCEPTED
 
 
 def test_too_many_items_no_space_and_clear_and_empty_count() -> None:
     server = mp.MissionServer()
-    assert server.on_count(GCS, mp.MAX_ITEMS + 1, 0, 0.0).replies[0].type == mp.MAV_MISSION_NO_SPACE
+    assert (
+        server.on_count(GCS, mp.MAX_ITEMS + 1, 0, 0.0).replies[0].type == enums.MAV_MISSION_NO_SPACE
+    )
     upload(server, [HOME, wp()])
     res = server.on_clear_all(GCS, 0)
     assert res.mission_changed
     assert server.items == []
     assert server.on_request_list(GCS, 0).replies[0].count == 1  # home only
     res = server.on_count(GCS, 0, 0, 0.0)
-    assert res.replies[0].type == mp.MAV_MISSION_ACCEPTED
+    assert res.replies[0].type == enums.MAV_MISSION_ACCEPTED
 
 
 def test_download_out_of_range_and_fence_rally() -> None:
     server = mp.MissionServer()
     res = server.on_request(GCS, 5, 0, HOME, as_int=True)
     assert [m.get_type() for m in res.replies] == ["MISSION_COUNT", "MISSION_ACK"]
-    assert res.replies[1].type == mp.MAV_MISSION_INVALID_SEQUENCE
+    assert res.replies[1].type == enums.MAV_MISSION_INVALID_SEQUENCE
     assert server.on_request_list(GCS, 1).replies[0].count == 0
-    assert server.on_count(GCS, 3, 2, 0.0).replies[0].type == mp.MAV_MISSION_UNSUPPORTED
+    assert server.on_count(GCS, 3, 2, 0.0).replies[0].type == enums.MAV_MISSION_UNSUPPORTED
 
 
 def test_resend_then_timeout() -> None:
@@ -124,14 +128,14 @@ def test_resend_then_timeout() -> None:
     assert again[0].get_type() == "MISSION_REQUEST_INT"
     assert again[0].seq == 0
     cancelled = server.tick(9.0).replies
-    assert cancelled[0].type == mp.MAV_MISSION_OPERATION_CANCELLED
+    assert cancelled[0].type == enums.MAV_MISSION_OPERATION_CANCELLED
     assert server.state == mp.Transfer.IDLE
 
 
 def test_download_denied_during_upload() -> None:
     server = mp.MissionServer()
     server.on_count(GCS, 3, 0, 0.0)
-    assert server.on_request_list(GCS, 0).replies[0].type == mp.MAV_MISSION_DENIED
+    assert server.on_request_list(GCS, 0).replies[0].type == enums.MAV_MISSION_DENIED
 
 
 # ---- parameters -----------------------------------------------------------------------------
@@ -182,6 +186,7 @@ def test_base_mode_like_arduplane() -> None:
     assert base_mode(PlaneMode.AUTO, True) & 4 == 0  # ArduPlane never sets AUTO_ENABLED
     assert mode_from_number(15.0) == PlaneMode.GUIDED
     assert mode_from_number(99) is None
+    assert mode_from_number(PlaneMode.STABILIZE) is None  # ArduPlane's, not flown here
     assert mode_from_number(math.nan) is None
     assert mode_from_number(15.5) is None
 

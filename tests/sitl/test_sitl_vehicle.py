@@ -10,11 +10,11 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from gcs_ppf.geodesy import enu_to_geodetic
+from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mission import load_mission_file
 from sitl.autopilot import Outbox
 from sitl.engine import ParamOverride, Simulation
 from sitl.faults import parse_fault
-from sitl.modes import PlaneMode
 from tests.sitl.sitl_helpers import PAPER, SLOW, TWO
 
 GCS = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)

@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_ppf.mavlink import commands
+from gcs_ppf.mavlink import commands, enums
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage
 
@@ -152,7 +152,7 @@ def test_guided_change_heading_wraps_the_course_into_0_360() -> None:
 
 
 def test_request_data_streams_zero_rate_stops_the_stream() -> None:
-    msg = commands.request_data_streams(2, 0, commands.MAV_DATA_STREAM_POSITION)
+    msg = commands.request_data_streams(2, 0, enums.MAV_DATA_STREAM_POSITION)
     assert (msg.req_stream_id, msg.req_message_rate, msg.start_stop) == (6, 0, 0)
 
 

@@ -9,7 +9,7 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_ppf.mavlink import commands
+from gcs_ppf.mavlink import enums
 from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage
 from gcs_ppf.mavlink.telemetry import AIRFRAME_PARAMS
 from gcs_ppf.service.fleet import STREAMED, Fleet
@@ -46,7 +46,7 @@ def test_streams_by_message_interval_only_and_every_airframe_parameter(tmp_path:
     kinds = [m.get_type() for _, m in fleet.sent]
     assert "REQUEST_DATA_STREAM" not in kinds
     intervals = [m for _, m in fleet.sent if m.get_type() == "COMMAND_LONG"]
-    assert all(m.command == commands.MAV_CMD_SET_MESSAGE_INTERVAL for m in intervals)
+    assert all(m.command == enums.MAV_CMD_SET_MESSAGE_INTERVAL for m in intervals)
     assert sorted(int(m.param1) for m in intervals) == sorted(STREAMED)
     asked = [m.param_id for _, m in fleet.sent if m.get_type() == "PARAM_REQUEST_READ"]
     assert sorted(asked) == sorted(AIRFRAME_PARAMS)
