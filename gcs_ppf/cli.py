@@ -1,4 +1,4 @@
-"""Command line: ``gcs-ppf plan MISSION.json --out DIR`` plans offline and plots."""
+"""The `gcs-ppf` command line: plan (``gcs_ppf.offline.command``), serve, demo, arduplane-sitl."""
 
 from __future__ import annotations
 
@@ -7,17 +7,10 @@ import logging
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
-from tqdm import tqdm
+from gcs_ppf.mission import MissionError, load_mission_file
+from gcs_ppf.offline.command import EXIT_BAD_INPUT, plan_command
 
-from gcs_ppf.mission import Mission, MissionError, load_mission_file
-from gcs_ppf.offline import output
-from gcs_ppf.offline.plan import PlanRun, plan_mission
-from gcs_ppf.planning.planner import Method
-
-SWEEP_DTS = (0.1, 0.05, 0.02, 0.01, 0.005)  # Fig. 9 of the paper
-EXIT_BAD_INPUT = 2
 log = logging.getLogger("gcs_ppf")
 
 
@@ -69,176 +62,6 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--base-port", type=int, default=5760, help="serial0 TCP port of vehicle 0")
     ap.add_argument("--workdir", type=Path, help="instances' directories (default: a temp dir)")
     return parser
-
-
-def _progress_plan(mission: Mission, method: Method, dt: float | None, what: str) -> PlanRun:
-    total = mission.planner.max_time
-    with tqdm(
-        total=total,
-        desc=what,
-        unit="s",
-        leave=False,
-        bar_format="{desc}: {bar} {n:.1f}/{total:.0f} s flight",
-    ) as bar:
-
-        def progress(t: float) -> None:
-            bar.update(t - bar.n)
-
-        return plan_mission(mission, method=method, dt=dt, progress=progress)
-
-
-def _comparison(run: PlanRun, baseline: PlanRun) -> dict[str, Any]:
-    """The smoothness figures of both methods side by side."""
-
-    def figures(r: PlanRun) -> dict[str, Any]:
-        m = r.metrics
-        return {
-            **m["smoothness"],
-            "heading_change_deg_per_km_per_vehicle": {
-                vid: row["heading_change_deg_per_km"] for vid, row in m["per_vehicle"].items()
-            },
-            "max_yaw_rate_rad_s": m["max_yaw_rate_rad_s"],
-            "max_pitch_rate_rad_s": m["max_pitch_rate_rad_s"],
-            "collisions": m["collisions"],
-            "reached": m["reached"],
-            "flight_time_s": m["flight_time_s"],
-        }
-
-    ours, theirs = figures(run), figures(baseline)
-    return {
-        run.method: ours,
-        baseline.method: theirs,
-        "smoother": run.method
-        if ours["heading_change_deg_per_km"] < theirs["heading_change_deg_per_km"]
-        else baseline.method,
-    }
-
-
-def _sweep(mission: Mission, method: Method) -> list[dict[str, float]]:
-    rows = []
-    for dt in tqdm(SWEEP_DTS, desc="Δt sweep", leave=False):
-        run = plan_mission(mission, method=method, dt=dt)
-        m = run.metrics
-        rows.append(
-            {
-                "dt_s": dt,
-                "flight_time_s": m["simulated_time_s"],
-                "planning_wall_time_s": run.wall_time_s,
-                "real_time_factor": m["real_time_factor"],
-                "reached": m["reached"],
-            }
-        )
-    return rows
-
-
-def _write_outputs(
-    out_dir: Path,
-    mission: Mission,
-    run: PlanRun,
-    baseline: PlanRun,
-    sweep: list[dict[str, float]] | None,
-    plots: bool,
-) -> None:
-    from gcs_ppf.offline import plots as fig  # matplotlib only when plotting
-
-    lim = mission.limits
-    runs = [run, baseline] if run.method == "ppf" else [baseline, run]
-    apf_first = sorted(runs, key=lambda r: r.method)  # Fig. 6: (a) APF, (b) PPF
-
-    def fill(d: Path) -> None:
-        metrics = dict(run.metrics)
-        metrics["comparison"] = _comparison(run, baseline)
-        if sweep is not None:
-            metrics["dt_sweep"] = sweep
-        output.write_json(metrics, d / "metrics.json")
-        output.write_trajectory_csv(run.trajectory, d / "trajectory.csv")
-        if not plots:
-            return
-        jobs = [
-            ("fig05_10_paths.png", lambda p: fig.paths_3d(run, p)),
-            ("fig05b_leader_start.png", lambda p: fig.leader_start(runs, p)),
-            (
-                "fig06_11_local_target_distance.png",
-                lambda p: fig.local_target_distance(apf_first, p, lim.target_accuracy),
-            ),
-            (
-                "fig07_turn_per_step.png",
-                lambda p: fig.turn_per_step(run, p, lim.max_pitch_rate, lim.max_yaw_rate),
-            ),
-            ("fig08_speed.png", lambda p: fig.speeds(run, p, lim.v_min, lim.v_max)),
-            (
-                "fig12_min_vehicle_distance.png",
-                lambda p: fig.min_vehicle_distance(run, p, lim.safe_distance_uav),
-            ),
-        ]
-        if mission.obstacles:
-            jobs.append(
-                (
-                    "fig13_min_obstacle_distance.png",
-                    lambda p: fig.min_obstacle_distance(run, p, lim.safe_distance_obstacle),
-                )
-            )
-        if sweep is not None:
-            jobs.append(("fig09_dt_sweep.png", lambda p: fig.dt_sweep(sweep, p)))
-        for name, draw in tqdm(jobs, desc="plots", leave=False):
-            draw(d / name)
-
-    output.write_atomically(out_dir, fill)
-
-
-def plan_command(args: argparse.Namespace) -> int:
-    try:
-        mission = load_mission_file(args.mission)
-    except MissionError as exc:
-        print(f"gcs-ppf: error: invalid mission {args.mission}: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    method: Method = args.method or mission.planner.method
-    other: Method = "apf" if method == "ppf" else "ppf"
-    log.info(
-        "planning %r with %s (Δt = %g s); the first run compiles the kernel",
-        mission.name,
-        method.upper(),
-        args.dt or mission.planner.dt,
-    )
-    run = _progress_plan(mission, method, args.dt, method.upper())
-    baseline = _progress_plan(mission, other, args.dt, f"{other.upper()} baseline")
-    sweep = _sweep(mission, method) if args.sweep_dt else None
-    _write_outputs(args.out, mission, run, baseline, sweep, plots=not args.no_plots)
-
-    m = run.metrics
-
-    def fmt(x: float | None, unit: str, none: str = "never") -> str:
-        return none if x is None else f"{x:.2f} {unit}"
-
-    log.info(
-        "leader reached target: %s, flight time %s", m["reached"], fmt(m["flight_time_s"], "s")
-    )
-    log.info("all wingmen in formation at once: %s", fmt(m["formation_time_s"], "s"))
-    log.info(
-        "min vehicle separation %s (safe %g m), min obstacle clearance %s (safe %g m), "
-        "collisions %d",
-        fmt(m["min_separation_m"], "m", "n/a"),
-        mission.limits.safe_distance_uav,
-        fmt(m["min_obstacle_clearance_m"], "m", "n/a"),
-        mission.limits.safe_distance_obstacle,
-        m["collisions"],
-    )
-    log.info(
-        "planning took %.2f ms for %.1f s of flight: %.0f× real time",
-        run.wall_time_s * 1e3,
-        m["simulated_time_s"],
-        m["real_time_factor"] or 0.0,
-    )
-    cmp = _comparison(run, baseline)
-    log.info(
-        "heading change per km: %s %.1f°/km, %s %.1f°/km",
-        method.upper(),
-        cmp[method]["heading_change_deg_per_km"],
-        other.upper(),
-        cmp[other]["heading_change_deg_per_km"],
-    )
-    log.info("metrics, trajectory and plots are in %s/", args.out)
-    return 0
 
 
 def serve_command(args: argparse.Namespace) -> int:
