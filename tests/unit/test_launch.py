@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from gcs_ppf import launch
-from gcs_ppf.launch import LaunchFailed, Retry
+from gcs_ppf.launch import CommandFailed, Retry
 from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.telemetry import CommandAck, ParamValue, VehicleTelemetry
@@ -62,7 +62,7 @@ class FakePlane:
                     params += (ParamValue("TKOFF_DIST", self.tkoff_dist_m, now),)
                 self._later(params=params)
             return
-        if kind != "COMMAND_LONG":
+        if kind not in ("COMMAND_LONG", "COMMAND_INT"):
             return
         steps = self.script.get(msg.command, [])
         step = steps.pop(0) if steps else "ok"
@@ -179,7 +179,7 @@ def test_no_ack_at_all_fails_after_the_attempts_with_an_event() -> None:
     plane = FakePlane(1, 100.0)
     plane.script[commands.MAV_CMD_DO_SET_MODE] = ["lost"] * 3
     events, event = recorder()
-    with pytest.raises(LaunchFailed, match="mode GUIDED"):
+    with pytest.raises(CommandFailed, match="mode GUIDED"):
         run(launch.set_mode(FakeFleet(plane), 1, PlaneMode.GUIDED, event, FAST))
     assert commands_sent(plane, commands.MAV_CMD_DO_SET_MODE) == 3
     failed = {"command": "mode GUIDED", "result": "no COMMAND_ACK", "attempts": 3}
@@ -191,7 +191,7 @@ def test_a_refusal_is_final_and_raises_an_event(result: int, name: str) -> None:
     plane = FakePlane(1, 100.0)
     plane.script[commands.MAV_CMD_COMPONENT_ARM_DISARM] = [result]
     events, event = recorder()
-    with pytest.raises(LaunchFailed) as failed:
+    with pytest.raises(CommandFailed) as failed:
         run(launch.arm(FakeFleet(plane), 1, event, FAST))
     assert failed.value.vehicle_id == 1
     assert failed.value.detail["result"] == name
@@ -242,7 +242,7 @@ def test_the_takeoff_altitude_waited_for_is_the_one_read_back() -> None:
 def test_a_vehicle_that_does_not_climb_fails_the_launch() -> None:
     plane = FakePlane(4, 0.0, climbs=False)
     events, event = recorder()
-    with pytest.raises(LaunchFailed, match="takeoff"):
+    with pytest.raises(CommandFailed, match="takeoff"):
         run(launch.launch(FakeFleet(plane), [4], 50.0, event, FAST))
     assert events[-1][0] == "takeoff_failed"
     assert plane.heights_at_guided == []  # never switched to GUIDED
@@ -253,6 +253,6 @@ def test_one_vehicle_failing_fails_the_launch_with_its_own_error() -> None:
     bad = FakePlane(2, 100.0)
     bad.script[commands.MAV_CMD_COMPONENT_ARM_DISARM] = [DENIED]
     _, event = recorder()
-    with pytest.raises(LaunchFailed) as failed:
+    with pytest.raises(CommandFailed) as failed:
         run(launch.launch(FakeFleet(good, bad), [1, 2], 50.0, event, FAST))
     assert failed.value.vehicle_id == 2
