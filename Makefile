@@ -5,15 +5,35 @@ STAMP  := $(VENV)/.installed-stamp
 OUT    := out/paper_table3
 SPEEDUP ?= 1
 
-.PHONY: install run plan sitl test lint bench sitl-bench clean
+# The lock: every version (runtime, the dev extra, pip and setuptools) with its hashes,
+# resolved for every platform and Python >= 3.11. `make lock` refreshes it to the newest
+# releases within pyproject.toml's ranges; `make lock LOCK_UPGRADE=` only adds what
+# pyproject.toml asks for and the lock lacks, keeping every other pin.
+LOCK   := requirements-lock.txt
+UV_VERSION   := 0.13.9
+LOCK_UPGRADE ?= --upgrade
 
-$(STAMP): pyproject.toml
+.PHONY: install run plan sitl test lint bench sitl-bench clean lock
+
+# Exactly the locked set (pip refuses anything unpinned or with another hash), then gcs-ppf
+# itself on top, editable, without dependencies, built by the locked setuptools; pip check
+# fails if a runtime dependency in pyproject.toml is one the lock does not satisfy.
+$(STAMP): pyproject.toml $(LOCK)
 	python3 -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[dev]'
+	$(PY) -m pip install --quiet --require-hashes -r $(LOCK)
+	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
+	$(PY) -m pip check
 	touch $(STAMP)
 
 install: $(STAMP)
+
+# uv resolves (into the venv with pip, pinned); installing from the lock needs only pip.
+lock:
+	test -x $(PY) || python3 -m venv $(VENV)
+	$(PY) -m pip install --quiet uv==$(UV_VERSION)
+	$(VENV)/bin/uv pip compile pyproject.toml requirements-build.in --extra dev \
+		--universal --python-version 3.11 --generate-hashes $(LOCK_UPGRADE) \
+		--custom-compile-command 'make lock' --output-file $(LOCK) --quiet
 
 run: install
 	$(VENV)/bin/gcs-ppf plan examples/paper_table3.json --out $(OUT)

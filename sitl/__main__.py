@@ -49,7 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     p.add_argument(
         "--fault", action="append", default=[], metavar="[ID:]KEY=VAL,...",
-        help="loss=%%, latency=ms, noise=m, cut=START+DUR, die=T (sim s; repeatable)",
+        help="loss=%%, latency=ms, noise=m, cut=START+DUR, die=T, ignore=T (sim s; repeatable)",
     )  # fmt: skip
     p.add_argument(
         "--airframe", choices=AIRFRAMES, default="auto",

@@ -66,6 +66,15 @@ GUIDED_SLEW_COMMANDS = (
 )
 HEADING_TYPE_DEFAULT = 4
 
+#: What a vehicle stuck on its last command (``--fault ignore=T``, SIM_CMD_IGNORE; see
+#: ``sitl.faults``) acknowledges as ACCEPTED and does not act on: every command that changes
+#: how it flies.
+IGNORED_COMMANDS = frozenset({
+    MAV_CMD_DO_SET_MODE, MAV_CMD_MISSION_START, MAV_CMD_NAV_RETURN_TO_LAUNCH,
+    MAV_CMD_NAV_LOITER_UNLIM, MAV_CMD_DO_REPOSITION, *GUIDED_SLEW_COMMANDS,
+    MAV_CMD_DO_CHANGE_SPEED, MAV_CMD_DO_SET_MISSION_CURRENT, MAV_CMD_COMPONENT_ARM_DISARM,
+})  # fmt: skip
+
 
 def addressed_elsewhere(ap: Autopilot, msg: Any) -> bool:
     """True if ``msg`` targets another system, or another component of this one."""
@@ -147,6 +156,8 @@ def apply_param(ap: Autopilot, name: str, clock: Clock) -> None:
     elif name == "SIM_KILL" and value >= 1:
         ap.faults.dead = True
         ap.guidance_dirty = True
+    elif name == "SIM_CMD_IGNORE":
+        ap.faults.ignore_from_s = clock.sim_s if value >= 1 else None
 
 
 # ---- mission protocol --------------------------------------------------------------------
@@ -502,11 +513,36 @@ HANDLERS: dict[str, Handler] = {
 }
 
 
+def ignored(msg: Any, src: Src) -> Outbox | None:
+    """What a vehicle stuck on its last command answers to ``msg`` instead of obeying it:
+    ACCEPTED for a flight command (``IGNORED_COMMANDS``, SET_MODE, a guided
+    MISSION_ITEM_INT), nothing for SET_POSITION_TARGET_GLOBAL_INT; None for any other
+    message, which is handled as usual."""
+    kind = msg.get_type()
+    out = Outbox()
+    if kind in ("COMMAND_LONG", "COMMAND_INT") and msg.command in IGNORED_COMMANDS:
+        out.reply.append(mb.command_ack(msg.command, MAV_RESULT_ACCEPTED, src[0], src[1]))
+    elif kind == "SET_MODE":
+        out.reply.append(
+            mb.command_ack(MAVLINK_MSG_ID_SET_MODE, MAV_RESULT_ACCEPTED, src[0], src[1])
+        )
+    elif kind in ("MISSION_ITEM_INT", "MISSION_ITEM") and msg.current in (2, 3):
+        out.reply.append(mavlink_ack(src, enums.MAV_MISSION_ACCEPTED, msg.mission_type))
+    elif kind not in ("SET_POSITION_TARGET_GLOBAL_INT", "MISSION_SET_CURRENT"):
+        return None
+    return out
+
+
 def handle(ap: Autopilot, msg: Any, kin: Kinematics, clock: Clock) -> Outbox | None:
     """Dispatch one decoded message; None when it is not for this vehicle or not handled."""
     handler = HANDLERS.get(msg.get_type())
     if handler is None or ap.faults.dead or addressed_elsewhere(ap, msg):
         return None
+    src = (msg.get_srcSystem(), msg.get_srcComponent())
+    if ap.faults.ignoring_commands(clock.sim_s):
+        stuck = ignored(msg, src)
+        if stuck is not None:
+            return stuck
     out = Outbox()
-    handler(ap, msg, (msg.get_srcSystem(), msg.get_srcComponent()), kin, clock, out)
+    handler(ap, msg, src, kin, clock, out)
     return out

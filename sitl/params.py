@@ -88,6 +88,7 @@ def vehicle_param_specs(
         ParamSpec("SIM_LINK_DELAY", 0, i32, 0, 60000, "added link latency each way, ms"),
         ParamSpec("SIM_LINK_CUT", 0, f, 0, 86400, "cut the link for this many s from now"),
         ParamSpec("SIM_KILL", 0, i8, 0, 1, "1 kills the vehicle: silent, unpowered"),
+        ParamSpec("SIM_CMD_IGNORE", 0, i8, 0, 1, "1: ACK flight commands, act on none"),
     ]
 
 

@@ -18,13 +18,6 @@ from gcs_ppf.mavlink.ardupilot import AUTOPILOT_COMPONENT_ID, FORCE_ARM_DISARM_M
 from gcs_ppf.mavlink.codec import MAVLinkMessage
 from gcs_ppf.mavlink.enums import (
     HEADING_TYPE_COURSE_OVER_GROUND,
-    MAV_CMD_COMPONENT_ARM_DISARM,
-    MAV_CMD_DO_CHANGE_SPEED,
-    MAV_CMD_DO_REPOSITION,
-    MAV_CMD_DO_SET_MODE,
-    MAV_CMD_GUIDED_CHANGE_ALTITUDE,
-    MAV_CMD_GUIDED_CHANGE_HEADING,
-    MAV_CMD_SET_MESSAGE_INTERVAL,
     MAV_DATA_STREAM_ALL,
     MAV_DATA_STREAM_EXTENDED_STATUS,
     MAV_DATA_STREAM_EXTRA1,
@@ -36,6 +29,28 @@ from gcs_ppf.mavlink.enums import (
     MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
     MAV_PARAM_TYPE_REAL32,
     SPEED_TYPE_AIRSPEED,
+)
+from gcs_ppf.mavlink.enums import (  # the command numbers are re-exported: callers name a
+    # command by the module that builds it (``commands.MAV_CMD_DO_SET_MODE``)
+    MAV_CMD_COMPONENT_ARM_DISARM as MAV_CMD_COMPONENT_ARM_DISARM,
+)
+from gcs_ppf.mavlink.enums import (
+    MAV_CMD_DO_CHANGE_SPEED as MAV_CMD_DO_CHANGE_SPEED,
+)
+from gcs_ppf.mavlink.enums import (
+    MAV_CMD_DO_REPOSITION as MAV_CMD_DO_REPOSITION,
+)
+from gcs_ppf.mavlink.enums import (
+    MAV_CMD_DO_SET_MODE as MAV_CMD_DO_SET_MODE,
+)
+from gcs_ppf.mavlink.enums import (
+    MAV_CMD_GUIDED_CHANGE_ALTITUDE as MAV_CMD_GUIDED_CHANGE_ALTITUDE,
+)
+from gcs_ppf.mavlink.enums import (
+    MAV_CMD_GUIDED_CHANGE_HEADING as MAV_CMD_GUIDED_CHANGE_HEADING,
+)
+from gcs_ppf.mavlink.enums import (
+    MAV_CMD_SET_MESSAGE_INTERVAL as MAV_CMD_SET_MESSAGE_INTERVAL,
 )
 
 TELEMETRY_STREAMS: tuple[int, ...] = (

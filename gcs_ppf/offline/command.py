@@ -21,6 +21,7 @@ from gcs_ppf.planning.planner import Method
 
 SWEEP_DTS = (0.1, 0.05, 0.02, 0.01, 0.005)  # Fig. 9 of the paper
 EXIT_BAD_INPUT = 2
+EXIT_PLOT_FAILED = 3  # metrics.json and trajectory.csv written, some figures not
 log = logging.getLogger("gcs_ppf")
 
 
@@ -91,52 +92,19 @@ def _write_outputs(
     baseline: PlanRun,
     sweep: list[dict[str, float]] | None,
     plots: bool,
-) -> None:
+) -> dict[str, str]:
+    """Metrics and trajectory first, then the figures; returns the figures that failed."""
+    metrics = dict(run.metrics)
+    metrics["comparison"] = _comparison(run, baseline)
+    if sweep is not None:
+        metrics["dt_sweep"] = sweep
+    if not plots:
+        return output.write_plan(out_dir, metrics, run.trajectory)
     from gcs_ppf.offline import plots as fig  # matplotlib only when plotting
 
-    lim = mission.limits
-    runs = [run, baseline] if run.method == "ppf" else [baseline, run]
-    apf_first = sorted(runs, key=lambda r: r.method)  # Fig. 6: (a) APF, (b) PPF
-
-    def fill(d: Path) -> None:
-        metrics = dict(run.metrics)
-        metrics["comparison"] = _comparison(run, baseline)
-        if sweep is not None:
-            metrics["dt_sweep"] = sweep
-        output.write_json(metrics, d / "metrics.json")
-        output.write_trajectory_csv(run.trajectory, d / "trajectory.csv")
-        if not plots:
-            return
-        jobs = [
-            ("fig05_10_paths.png", lambda p: fig.paths_3d(run, p)),
-            ("fig05b_leader_start.png", lambda p: fig.leader_start(runs, p)),
-            (
-                "fig06_11_local_target_distance.png",
-                lambda p: fig.local_target_distance(apf_first, p, lim.target_accuracy),
-            ),
-            (
-                "fig07_turn_per_step.png",
-                lambda p: fig.turn_per_step(run, p, lim.max_pitch_rate, lim.max_yaw_rate),
-            ),
-            ("fig08_speed.png", lambda p: fig.speeds(run, p, lim.v_min, lim.v_max)),
-            (
-                "fig12_min_vehicle_distance.png",
-                lambda p: fig.min_vehicle_distance(run, p, lim.safe_distance_uav),
-            ),
-        ]
-        if mission.obstacles:
-            jobs.append(
-                (
-                    "fig13_min_obstacle_distance.png",
-                    lambda p: fig.min_obstacle_distance(run, p, lim.safe_distance_obstacle),
-                )
-            )
-        if sweep is not None:
-            jobs.append(("fig09_dt_sweep.png", lambda p: fig.dt_sweep(sweep, p)))
-        for name, draw in tqdm(jobs, desc="plots", leave=False):
-            draw(d / name)
-
-    output.write_atomically(out_dir, fill)
+    figures = fig.plan_figures(mission, run, baseline, sweep)
+    jobs = tqdm(figures, desc="plots", leave=False)
+    return output.write_plan(out_dir, metrics, run.trajectory, jobs)
 
 
 def plan_command(args: argparse.Namespace) -> int:
@@ -156,7 +124,7 @@ def plan_command(args: argparse.Namespace) -> int:
     run = _progress_plan(mission, method, args.dt, method.upper())
     baseline = _progress_plan(mission, other, args.dt, f"{other.upper()} baseline")
     sweep = _sweep(mission, method) if args.sweep_dt else None
-    _write_outputs(args.out, mission, run, baseline, sweep, plots=not args.no_plots)
+    plot_errors = _write_outputs(args.out, mission, run, baseline, sweep, plots=not args.no_plots)
 
     m = run.metrics
 
@@ -190,5 +158,10 @@ def plan_command(args: argparse.Namespace) -> int:
         other.upper(),
         cmp[other]["heading_change_deg_per_km"],
     )
+    if plot_errors:  # the data is written; say which figures are missing, exit 3
+        for name, error in plot_errors.items():
+            print(f"gcs-ppf: error: figure {name} not drawn: {error}", file=sys.stderr)
+        log.info("metrics and trajectory are in %s/, without those figures", args.out)
+        return EXIT_PLOT_FAILED
     log.info("metrics, trajectory and plots are in %s/", args.out)
     return 0

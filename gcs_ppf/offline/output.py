@@ -1,12 +1,20 @@
-"""Writing a plan's outputs (CONVENTIONS §4) into a directory, all or nothing."""
+"""Writing a plan's outputs (CONVENTIONS §4) into a directory.
+
+The data (``metrics.json``, ``trajectory.csv``) goes in first, all or nothing; the
+figures follow one by one, each written whole or not at all.  A figure that fails is
+reported (``plot_errors`` in ``metrics.json``, returned to the caller) and never costs
+the data or the other figures.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
+import os
 import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -43,6 +51,13 @@ def write_json(data: Any, path: Path) -> None:
     path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
 
 
+def _replace_json(data: Any, path: Path) -> None:
+    """Write ``path`` through a scratch file and a rename: readers see old or new, whole."""
+    scratch = path.with_name(f".{path.name}.partial")
+    write_json(data, scratch)
+    os.replace(scratch, path)
+
+
 def write_atomically(out_dir: Path, fill: Callable[[Path], None]) -> None:
     """Call ``fill`` on a fresh scratch directory next to ``out_dir`` and, only if it
     returns, put the scratch directory in place of ``out_dir``: nothing partial is left."""
@@ -62,3 +77,51 @@ def write_atomically(out_dir: Path, fill: Callable[[Path], None]) -> None:
     except BaseException:
         shutil.rmtree(scratch, ignore_errors=True)
         raise
+
+
+Draw = Callable[[Path], None]
+MAX_ERROR_CHARS = 300
+
+
+def describe_error(exc: BaseException) -> str:
+    """``ValueError: first line of the message`` (shortened): one line for a log."""
+    lines = str(exc).strip().splitlines()
+    text = f"{type(exc).__name__}: {lines[0]}" if lines else type(exc).__name__
+    return text if len(text) <= MAX_ERROR_CHARS else text[: MAX_ERROR_CHARS - 1] + "…"
+
+
+def write_plan(
+    out_dir: Path,
+    metrics: dict[str, Any],
+    trajectory: Trajectory,
+    figures: Iterable[tuple[str, Draw]] = (),
+) -> dict[str, str]:
+    """Put ``metrics.json`` and ``trajectory.csv`` in place of ``out_dir`` (all or
+    nothing), then draw each figure into it.
+
+    A figure is drawn to a scratch name and renamed, so a failed one leaves no file;
+    its error goes into ``metrics.json`` under ``plot_errors`` (file name → error) and
+    the others are still drawn.  Returns those errors (empty when every figure was
+    drawn).  Interrupts (``KeyboardInterrupt``) stop the drawing but the data stays.
+    """
+    out_dir = out_dir.resolve()
+
+    def fill(d: Path) -> None:
+        write_json(metrics, d / "metrics.json")
+        write_trajectory_csv(trajectory, d / "trajectory.csv")
+
+    write_atomically(out_dir, fill)
+    errors: dict[str, str] = {}
+    for name, draw in figures:
+        scratch = out_dir / f".partial-{name}"  # keeps the extension that picks the format
+        try:
+            draw(scratch)
+            os.replace(scratch, out_dir / name)
+        except Exception as exc:
+            errors[name] = describe_error(exc)
+        finally:
+            with contextlib.suppress(FileNotFoundError):
+                scratch.unlink()
+    if errors:
+        _replace_json({**metrics, "plot_errors": errors}, out_dir / "metrics.json")
+    return errors

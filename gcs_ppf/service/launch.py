@@ -21,15 +21,21 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import Any, Protocol
 
-from gcs_ppf.mavlink import commands, enums
+from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import PlaneMode
-from gcs_ppf.mavlink.enums import MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
-from gcs_ppf.service.errors import ServiceError
+from gcs_ppf.service.confirmation import (
+    DEFAULT_RETRY,
+    CommandFailed,
+    EventSink,
+    Retry,
+    Vehicles,
+    confirmed_command,
+    wait_until,
+)
+
+__all__ = ["CommandFailed", "EventSink", "Retry", "launch", "take_off"]
 
 log = logging.getLogger("gcs_ppf.service.launch")
 
@@ -38,53 +44,6 @@ ON_GROUND_ALT_M = 5.0
 TAKEOFF_DONE_FRACTION = 0.9
 """A vehicle taking off is switched to GUIDED once at this fraction of its TKOFF_ALT."""
 
-MAV_RESULT_NAMES = {
-    0: "ACCEPTED",
-    1: "TEMPORARILY_REJECTED",
-    2: "DENIED",
-    3: "UNSUPPORTED",
-    4: "FAILED",
-    5: "IN_PROGRESS",
-    6: "CANCELLED",
-}
-
-
-@dataclass(frozen=True)
-class Retry:
-    """How commands are confirmed (our seconds)."""
-
-    attempts: int = 3
-    """Sends of one command before giving up (MAVSDK: 3)."""
-    ack_timeout_s: float = 1.5
-    """Wait for the COMMAND_ACK (or PARAM_VALUE) of one send."""
-    state_timeout_s: float = 3.0
-    """After an ACCEPTED, wait for a HEARTBEAT showing the result (heartbeats come at 1 Hz)."""
-    climb_timeout_s: float = 120.0
-    """Wait for a vehicle taking off to reach its takeoff altitude."""
-    poll_s: float = 0.02
-
-
-class LaunchFailed(ServiceError):
-    """A vehicle did not do what it was asked; ``detail`` says what and how."""
-
-    def __init__(self, vehicle_id: int, what: str, **detail: Any) -> None:
-        reason = ", ".join(f"{k} {v}" for k, v in detail.items())
-        super().__init__(f"vehicle {vehicle_id}: {what} failed ({reason})", detail)
-        self.vehicle_id = vehicle_id
-        self.what = what
-
-
-class Vehicles(Protocol):
-    """What the launcher needs of the fleet."""
-
-    def telemetry(self, system_id: int) -> VehicleTelemetry | None: ...
-
-    async def send(self, system_id: int, msg: Any) -> None: ...
-
-
-EventSink = Callable[..., None]
-"""``event(kind, vehicle_id, **detail)``: records a run event."""
-
 
 def on_ground(t: VehicleTelemetry) -> bool:
     """Lower than ``ON_GROUND_ALT_M`` above home (not also slow: ArduPlane's takeoff roll
@@ -92,102 +51,28 @@ def on_ground(t: VehicleTelemetry) -> bool:
     return t.relative_alt_m is not None and t.relative_alt_m < ON_GROUND_ALT_M
 
 
-async def _wait(condition: Callable[[], bool], timeout_s: float, poll_s: float) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while True:
-        if condition():
-            return True
-        if time.monotonic() >= deadline:
-            return False
-        await asyncio.sleep(poll_s)
-
-
-def _shown_since(
-    fleet: Vehicles, vehicle_id: int, since: float, reached: Callable[[VehicleTelemetry], bool]
-) -> bool:
-    """A HEARTBEAT received after ``since`` shows the command done."""
-    t = fleet.telemetry(vehicle_id)
-    return (
-        t is not None
-        and t.last_heartbeat_s is not None
-        and t.last_heartbeat_s >= since
-        and (reached(t))
-    )
-
-
-async def confirmed_command(
+async def set_mode(
     fleet: Vehicles,
     vehicle_id: int,
-    make: Callable[[], Any],
-    command: int,
-    reached: Callable[[VehicleTelemetry], bool],
-    what: str,
+    mode: PlaneMode,
     event: EventSink,
-    retry: Retry = Retry(),
-) -> int:
-    """Send ``make()`` until its COMMAND_ACK (for ``command``) and then a HEARTBEAT show it
-    done (``reached``); returns the number of sends.  A lost ACK, or an ACCEPTED the
-    heartbeat does not show, is sent again, up to ``retry.attempts`` sends; a refusal is
-    final.  An ACK lost while a later HEARTBEAT shows the command done confirms it (flown
-    with 20 % loss each way, a mode change that got no ACK in three sends failed the run;
-    a lost ACK is as likely as a lost command).  Raises ``LaunchFailed`` (after a
-    ``command_failed`` event)."""
-    first_sent: float | None = None
-    last_result: str = "no COMMAND_ACK"
-    for attempt in range(1, retry.attempts + 1):
-        sent = time.monotonic()
-        first_sent = sent if first_sent is None else first_sent
-        if attempt > 1:
-            event("command_resent", vehicle_id, command=what, attempt=attempt, after=last_result)
-        await fleet.send(vehicle_id, make())
-        since = first_sent
-
-        def acked(since: float = since) -> bool:
-            t = fleet.telemetry(vehicle_id)
-            a = None if t is None else t.ack(command)
-            return a is not None and a.received_s >= since and a.result != MAV_RESULT_IN_PROGRESS
-
-        if not await _wait(acked, retry.ack_timeout_s, retry.poll_s):
-            if _shown_since(fleet, vehicle_id, first_sent, reached):  # the ACK alone was lost
-                event("command_ack_lost", vehicle_id, command=what, confirmed_by="HEARTBEAT")
-                return attempt
-            last_result = "no COMMAND_ACK"
-            continue
-        t = fleet.telemetry(vehicle_id)
-        ack = None if t is None else t.ack(command)
-        assert ack is not None
-        if ack.result != MAV_RESULT_ACCEPTED:
-            name = MAV_RESULT_NAMES.get(ack.result, str(ack.result))
-            event("command_failed", vehicle_id, command=what, result=name, attempts=attempt)
-            raise LaunchFailed(vehicle_id, what, result=name, attempts=attempt)
-        acked_at = ack.received_s
-
-        def shown(acked_at: float = acked_at) -> bool:
-            return _shown_since(fleet, vehicle_id, acked_at, reached)
-
-        if await _wait(shown, retry.state_timeout_s, retry.poll_s):
-            return attempt
-        last_result = "ACCEPTED but not shown by the HEARTBEAT"
-    event("command_failed", vehicle_id, command=what, result=last_result, attempts=retry.attempts)
-    raise LaunchFailed(vehicle_id, what, result=last_result, attempts=retry.attempts)
-
-
-async def set_mode(
-    fleet: Vehicles, vehicle_id: int, mode: PlaneMode, event: EventSink, retry: Retry = Retry()
+    retry: Retry = DEFAULT_RETRY,
 ) -> int:
     """``mode``, confirmed (ACK, then HEARTBEAT.custom_mode)."""
     return await confirmed_command(
         fleet, vehicle_id, lambda: commands.set_mode(vehicle_id, mode),
-        enums.MAV_CMD_DO_SET_MODE, lambda t: t.custom_mode == int(mode),
+        commands.MAV_CMD_DO_SET_MODE, lambda t: t.custom_mode == int(mode),
         f"mode {mode.name}", event, retry,
     )  # fmt: skip
 
 
-async def arm(fleet: Vehicles, vehicle_id: int, event: EventSink, retry: Retry = Retry()) -> int:
+async def arm(
+    fleet: Vehicles, vehicle_id: int, event: EventSink, retry: Retry = DEFAULT_RETRY
+) -> int:
     """Armed, confirmed (ACK, then the HEARTBEAT's armed flag)."""
     return await confirmed_command(
         fleet, vehicle_id, lambda: commands.arm(vehicle_id, True),
-        enums.MAV_CMD_COMPONENT_ARM_DISARM, lambda t: t.armed, "arm", event, retry,
+        commands.MAV_CMD_COMPONENT_ARM_DISARM, lambda t: t.armed, "arm", event, retry,
     )  # fmt: skip
 
 
@@ -197,7 +82,7 @@ async def set_param(
     name: str,
     value: float,
     event: EventSink,
-    retry: Retry = Retry(),
+    retry: Retry = DEFAULT_RETRY,
 ) -> float | None:
     """PARAM_SET ``name``, read back from the PARAM_VALUE it answers (asked for again by
     PARAM_REQUEST_READ when it does not come); the value the vehicle reports, or None if it
@@ -213,7 +98,7 @@ async def set_param(
             p = None if t is None else t.param(name)
             return p is not None and p.received_s >= first_sent
 
-        if await _wait(answered, retry.ack_timeout_s, retry.poll_s):
+        if await wait_until(answered, retry.ack_timeout_s, retry.poll_s):
             t = fleet.telemetry(vehicle_id)
             p = None if t is None else t.param(name)
             assert p is not None
@@ -229,7 +114,7 @@ async def take_off(
     vehicle_id: int,
     takeoff_alt_m: float,
     event: EventSink,
-    retry: Retry = Retry(),
+    retry: Retry = DEFAULT_RETRY,
     takeoff_dist_m: float | None = None,
 ) -> float:
     """A vehicle on the ground up to its takeoff altitude: TKOFF_ALT set and read back,
@@ -249,11 +134,11 @@ async def take_off(
         h = None if t is None else t.relative_alt_m
         return h is not None and h >= TAKEOFF_DONE_FRACTION * alt
 
-    if not await _wait(high_enough, retry.climb_timeout_s, 0.1):
+    if not await wait_until(high_enough, retry.climb_timeout_s, 0.1):
         t = fleet.telemetry(vehicle_id)
         h = None if t is None else t.relative_alt_m
         event("takeoff_failed", vehicle_id, takeoff_alt_m=alt, height_m=h)
-        raise LaunchFailed(vehicle_id, "takeoff", takeoff_alt_m=alt, height_m=h)
+        raise CommandFailed(vehicle_id, "takeoff", takeoff_alt_m=alt, height_m=h)
     return alt
 
 
@@ -262,17 +147,17 @@ async def launch(
     vehicle_ids: list[int],
     takeoff_alt_m: float,
     event: EventSink,
-    retry: Retry = Retry(),
+    retry: Retry = DEFAULT_RETRY,
     takeoff_dist_m: float | None = None,
 ) -> None:
     """Every vehicle flying in GUIDED: those on the ground taken off (``take_off``), the
     others armed if they are not; all at once, then each switched to GUIDED (confirmed).
-    The first failure cancels the rest and is raised (``LaunchFailed``)."""
+    The first failure cancels the rest and is raised (``CommandFailed``)."""
 
     async def airborne(vid: int) -> None:
         t = fleet.telemetry(vid)
         if t is None:
-            raise LaunchFailed(vid, "launch", reason="no telemetry")
+            raise CommandFailed(vid, "launch", reason="no telemetry")
         if on_ground(t):
             await take_off(fleet, vid, takeoff_alt_m, event, retry, takeoff_dist_m)
         elif not t.armed:
@@ -286,5 +171,5 @@ async def launch(
             async with asyncio.TaskGroup() as tg:
                 for vid in vehicle_ids:
                     tg.create_task(step(vid))
-        except* LaunchFailed as group:
+        except* CommandFailed as group:
             raise group.exceptions[0] from None

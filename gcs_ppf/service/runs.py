@@ -20,6 +20,7 @@ from collections import deque
 from collections.abc import AsyncIterator, Iterator
 from dataclasses import dataclass, field, replace
 from enum import StrEnum
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -42,7 +43,7 @@ from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mission import Mission, Obstacle
 from gcs_ppf.planning.scene import obstacles_from_mission
-from gcs_ppf.service import launch
+from gcs_ppf.service import confirmation, launch
 from gcs_ppf.service.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.service.fleet import Fleet, Vehicle
 from gcs_ppf.service.settings import Settings
@@ -56,6 +57,8 @@ NOT_RESPONDING_S = 3.0  # vehicle seconds out of GUIDED or refusing the course: 
 COURSE_COMMAND = {"course": 43002, "point": 192}  # the command each guidance mode flies by
 HOLD_TURN_RADII = 1.5  # a holding circle is this many of the vehicle's tightest turns wide …
 HOLD_MIN_RADIUS_M = 80.0  # … and at least ArduPlane's WP_LOITER_RAD
+HOLD_RETRY = confirmation.Retry(attempts=10)  # a hold is sent until it is ACCEPTED …
+HOLD_ACK_VEHICLE_S = 2.0  # … again when unanswered for this long (vehicle seconds)
 
 
 class RunState(StrEnum):
@@ -412,15 +415,22 @@ class FormationService:
 
     async def _hold(self, run: Run, states: dict[int, VehicleState], stacked: bool) -> None:
         """Each vehicle to a holding circle that cuts no obstacle's keep-out (twice the safe
-        distance) at the radius it flies (``HOLD_TURN_RADII`` turn radii at its speed)."""
+        distance) at the radius it flies (``HOLD_TURN_RADII`` turn radii at its speed), every
+        command confirmed by its ACK and sent again while unanswered (``HOLD_RETRY``): a hold
+        lost on a lossy link left a vehicle flying its last course into an obstacle."""
         mission = run.mission
         obstacles = obstacles_from_mission(mission).at(run.mission_time_s)
         keep_out = 2.0 * mission.limits.safe_distance_obstacle
+        orders: list[confirmation.Order] = []
         for k, v in enumerate(mission.vehicles):
             s = states.get(v.id)
             vehicle = self.fleet.by_id.get(v.id)
             if s is None or vehicle is None:
-                await self.fleet.send(v.id, commands.set_mode(v.id, PlaneMode.LOITER))
+                orders.append(confirmation.Order(
+                    v.id, partial(commands.set_mode, v.id, PlaneMode.LOITER),
+                    commands.MAV_CMD_DO_SET_MODE, "hold: mode LOITER",
+                    lambda t: t.custom_mode == PlaneMode.LOITER,
+                ))  # fmt: skip
                 continue
             airframe_omega = Airframe.from_telemetry(vehicle.telemetry).max_turn_rate(s.speed_m_s)
             omega = min(airframe_omega or math.inf, mission.limits.max_yaw_rate)
@@ -432,10 +442,24 @@ class FormationService:
             if hold.clearance_m < keep_out:
                 self._event(run, "hold_not_clear", v.id, clearance_m=round(hold.clearance_m, 1))
             lat, lon, alt = enu_to_geodetic(hold.x_m, hold.y_m, hold.z_m, mission.origin)
-            await self.fleet.send(v.id, commands.reposition(v.id, lat, lon, alt, radius))
+            orders.append(confirmation.Order(
+                v.id, partial(commands.reposition, v.id, lat, lon, alt, radius),
+                commands.MAV_CMD_DO_REPOSITION, "hold: guided loiter",
+            ))  # fmt: skip
             if self.settings.guidance == "course":  # the guided altitude outlives the course
                 altitude = slew.sendable_altitude(alt)
-                await self.fleet.send(v.id, commands.guided_change_altitude(v.id, altitude, 0.0))
+                orders.append(confirmation.Order(
+                    v.id, partial(commands.guided_change_altitude, v.id, altitude, 0.0),
+                    commands.MAV_CMD_GUIDED_CHANGE_ALTITUDE, "hold: altitude",
+                ))  # fmt: skip
+
+        def event(kind: str, vehicle_id: int | None = None, **detail: Any) -> None:
+            self._event(run, kind, vehicle_id, **detail)
+
+        rate = max([self.fleet.by_id[o.vehicle_id].clock.rate for o in orders
+                    if o.vehicle_id in self.fleet.by_id] or [1.0])  # fmt: skip
+        retry = replace(HOLD_RETRY, ack_timeout_s=min(1.5, max(0.2, HOLD_ACK_VEHICLE_S / rate)))
+        await confirmation.confirm_all(self.fleet, orders, event, retry)
 
     def _vehicle_time_s(self, run: Run) -> float | None:
         leader = self.fleet.by_id.get(run.mission.leader.id)

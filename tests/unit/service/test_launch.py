@@ -10,11 +10,11 @@ from typing import Any
 
 import pytest
 
-from gcs_ppf.mavlink import enums
+from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.telemetry import CommandAck, ParamValue, VehicleTelemetry
 from gcs_ppf.service import launch
-from gcs_ppf.service.launch import LaunchFailed, Retry
+from gcs_ppf.service.launch import CommandFailed, Retry
 
 FAST = Retry(attempts=3, ack_timeout_s=0.1, state_timeout_s=0.1, climb_timeout_s=1.0,
              poll_s=0.002)  # fmt: skip
@@ -62,7 +62,7 @@ class FakePlane:
                     params += (ParamValue("TKOFF_DIST", self.tkoff_dist_m, now),)
                 self._later(params=params)
             return
-        if kind != "COMMAND_LONG":
+        if kind not in ("COMMAND_LONG", "COMMAND_INT"):
             return
         steps = self.script.get(msg.command, [])
         step = steps.pop(0) if steps else "ok"
@@ -82,11 +82,11 @@ class FakePlane:
 
     def _apply(self, msg: Any) -> None:
         state: dict[str, Any] = {}
-        if msg.command == enums.MAV_CMD_DO_SET_MODE:
+        if msg.command == commands.MAV_CMD_DO_SET_MODE:
             state["custom_mode"] = int(msg.param2)
             if int(msg.param2) == PlaneMode.GUIDED:
                 self.heights_at_guided.append(self.t.relative_alt_m)
-        elif msg.command == enums.MAV_CMD_COMPONENT_ARM_DISARM:
+        elif msg.command == commands.MAV_CMD_COMPONENT_ARM_DISARM:
             state["armed"] = msg.param1 == 1.0
             if self.t.custom_mode == PlaneMode.TAKEOFF and self.climbs:
                 self._climb()
@@ -150,26 +150,26 @@ def test_a_mode_change_is_confirmed_by_the_ack_and_then_the_heartbeat() -> None:
 
 def test_a_lost_ack_is_resent() -> None:
     plane = FakePlane(1, 100.0)
-    plane.script[enums.MAV_CMD_COMPONENT_ARM_DISARM] = ["lost", "lost"]
+    plane.script[commands.MAV_CMD_COMPONENT_ARM_DISARM] = ["lost", "lost"]
     events, event = recorder()
     assert run(launch.arm(FakeFleet(plane), 1, event, FAST)) == 3
-    assert commands_sent(plane, enums.MAV_CMD_COMPONENT_ARM_DISARM) == 3
+    assert commands_sent(plane, commands.MAV_CMD_COMPONENT_ARM_DISARM) == 3
     assert plane.t.armed
     assert [e[0] for e in events] == ["command_resent", "command_resent"]
 
 
 def test_a_lost_ack_of_a_command_the_heartbeat_shows_done_confirms_it() -> None:
     plane = FakePlane(1, 100.0)
-    plane.script[enums.MAV_CMD_DO_SET_MODE] = ["ack_lost"]
+    plane.script[commands.MAV_CMD_DO_SET_MODE] = ["ack_lost"]
     events, event = recorder()
     assert run(launch.set_mode(FakeFleet(plane), 1, PlaneMode.GUIDED, event, FAST)) == 1
-    assert commands_sent(plane, enums.MAV_CMD_DO_SET_MODE) == 1
+    assert commands_sent(plane, commands.MAV_CMD_DO_SET_MODE) == 1
     assert [e[0] for e in events] == ["command_ack_lost"]
 
 
 def test_an_accepted_command_the_heartbeat_does_not_show_is_resent() -> None:
     plane = FakePlane(1, 100.0)
-    plane.script[enums.MAV_CMD_DO_SET_MODE] = ["unshown"]
+    plane.script[commands.MAV_CMD_DO_SET_MODE] = ["unshown"]
     events, event = recorder()
     assert run(launch.set_mode(FakeFleet(plane), 1, PlaneMode.GUIDED, event, FAST)) == 2
     assert "HEARTBEAT" in events[0][2]["after"]
@@ -177,11 +177,11 @@ def test_an_accepted_command_the_heartbeat_does_not_show_is_resent() -> None:
 
 def test_no_ack_at_all_fails_after_the_attempts_with_an_event() -> None:
     plane = FakePlane(1, 100.0)
-    plane.script[enums.MAV_CMD_DO_SET_MODE] = ["lost"] * 3
+    plane.script[commands.MAV_CMD_DO_SET_MODE] = ["lost"] * 3
     events, event = recorder()
-    with pytest.raises(LaunchFailed, match="mode GUIDED"):
+    with pytest.raises(CommandFailed, match="mode GUIDED"):
         run(launch.set_mode(FakeFleet(plane), 1, PlaneMode.GUIDED, event, FAST))
-    assert commands_sent(plane, enums.MAV_CMD_DO_SET_MODE) == 3
+    assert commands_sent(plane, commands.MAV_CMD_DO_SET_MODE) == 3
     failed = {"command": "mode GUIDED", "result": "no COMMAND_ACK", "attempts": 3}
     assert events[-1] == ("command_failed", 1, failed)
 
@@ -189,13 +189,13 @@ def test_no_ack_at_all_fails_after_the_attempts_with_an_event() -> None:
 @pytest.mark.parametrize(("result", "name"), [(DENIED, "DENIED"), (FAILED, "FAILED")])
 def test_a_refusal_is_final_and_raises_an_event(result: int, name: str) -> None:
     plane = FakePlane(1, 100.0)
-    plane.script[enums.MAV_CMD_COMPONENT_ARM_DISARM] = [result]
+    plane.script[commands.MAV_CMD_COMPONENT_ARM_DISARM] = [result]
     events, event = recorder()
-    with pytest.raises(LaunchFailed) as failed:
+    with pytest.raises(CommandFailed) as failed:
         run(launch.arm(FakeFleet(plane), 1, event, FAST))
     assert failed.value.vehicle_id == 1
     assert failed.value.detail["result"] == name
-    assert commands_sent(plane, enums.MAV_CMD_COMPONENT_ARM_DISARM) == 1  # not resent
+    assert commands_sent(plane, commands.MAV_CMD_COMPONENT_ARM_DISARM) == 1  # not resent
     assert events == [("command_failed", 1, {"command": "arm", "result": name, "attempts": 1})]
 
 
@@ -213,7 +213,7 @@ def test_a_vehicle_on_the_ground_takes_off_and_goes_guided_only_near_its_tkoff_a
     assert ground.heights_at_guided[0] is not None
     assert ground.heights_at_guided[0] >= 0.9 * 80.0
     assert flying.t.custom_mode == ground.t.custom_mode == PlaneMode.GUIDED
-    assert commands_sent(flying, enums.MAV_CMD_COMPONENT_ARM_DISARM) == 0  # armed already
+    assert commands_sent(flying, commands.MAV_CMD_COMPONENT_ARM_DISARM) == 0  # armed already
     assert ("takeoff", 2, {"takeoff_alt_m": 80.0}) in events
 
 
@@ -242,7 +242,7 @@ def test_the_takeoff_altitude_waited_for_is_the_one_read_back() -> None:
 def test_a_vehicle_that_does_not_climb_fails_the_launch() -> None:
     plane = FakePlane(4, 0.0, climbs=False)
     events, event = recorder()
-    with pytest.raises(LaunchFailed, match="takeoff"):
+    with pytest.raises(CommandFailed, match="takeoff"):
         run(launch.launch(FakeFleet(plane), [4], 50.0, event, FAST))
     assert events[-1][0] == "takeoff_failed"
     assert plane.heights_at_guided == []  # never switched to GUIDED
@@ -251,8 +251,8 @@ def test_a_vehicle_that_does_not_climb_fails_the_launch() -> None:
 def test_one_vehicle_failing_fails_the_launch_with_its_own_error() -> None:
     good = FakePlane(1, 100.0)
     bad = FakePlane(2, 100.0)
-    bad.script[enums.MAV_CMD_COMPONENT_ARM_DISARM] = [DENIED]
+    bad.script[commands.MAV_CMD_COMPONENT_ARM_DISARM] = [DENIED]
     _, event = recorder()
-    with pytest.raises(LaunchFailed) as failed:
+    with pytest.raises(CommandFailed) as failed:
         run(launch.launch(FakeFleet(good, bad), [1, 2], 50.0, event, FAST))
     assert failed.value.vehicle_id == 2
