@@ -1,7 +1,8 @@
 """The whole product on loopback: ``python -m sitl`` and ``gcs-ppf serve`` as real processes.
 
-An independent pymavlink listener, connected to every vehicle's own port, records where
-the vehicles really flew; the safety checks use its record, not the service's state.
+An independent pymavlink listener (``gcs_ppf.tools.observer``), connected to every vehicle's own
+port, records where the vehicles really flew; the safety checks use its record, not the
+service's state.
 """
 
 from __future__ import annotations
@@ -9,10 +10,8 @@ from __future__ import annotations
 import json
 import math
 import os
-import socket
 import subprocess
 import sys
-import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -24,73 +23,22 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
-from gcs_ppf.frames import local_target_point
-from gcs_ppf.geodesy import geodetic_to_enu
 from gcs_ppf.mission import Mission
 from gcs_ppf.service.store import Store
 from gcs_ppf.tools.demo import FINISHED
 from gcs_ppf.tools.demo import http_json as http
+from gcs_ppf.tools.observer import (
+    Observer,
+    closest_pass,
+    free_port_block,
+    resample,
+    tracks_enu,
+)
+from gcs_ppf.tools.observer import formation_offsets as observer_formation_offsets
 from tests.conftest import EXAMPLES, ROOT
 
 SPEEDUP = 10
 MISSION = EXAMPLES / "paper_table3.json"
-
-
-def free_port_block(span: int) -> int:
-    """A base port P with P … P+span free on 127.0.0.1 (best effort)."""
-    for _ in range(50):
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            base = int(s.getsockname()[1])
-        if base + span >= 65000:
-            continue
-        try:
-            for p in range(base, base + span + 1, 10):
-                with socket.socket() as t:
-                    t.bind(("127.0.0.1", p))
-            return base
-        except OSError:
-            continue
-    raise RuntimeError("no free port block")
-
-
-class Listener:
-    """Records GLOBAL_POSITION_INT of each vehicle from its own TCP port: (time_boot_ms, lat,
-    lon, alt AMSL, height above home), and when each arrived: (our wall-clock seconds,
-    time_boot_ms), the vehicles' clock against ours."""
-
-    def __init__(self, ports: dict[int, int]) -> None:
-        self.samples: dict[int, list[tuple[int, float, float, float, float]]] = {
-            i: [] for i in ports
-        }
-        self.arrivals: dict[int, list[tuple[float, int]]] = {i: [] for i in ports}
-        self._stop = threading.Event()
-        self._threads = [
-            threading.Thread(target=self._run, args=(sysid, port), daemon=True)
-            for sysid, port in ports.items()
-        ]
-
-    def _run(self, sysid: int, port: int) -> None:
-        conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=201)
-        try:
-            while not self._stop.is_set():
-                msg = conn.recv_match(type="GLOBAL_POSITION_INT", blocking=True, timeout=0.5)
-                if msg is not None and msg.get_srcSystem() == sysid:
-                    self.arrivals[sysid].append((time.time(), msg.time_boot_ms))
-                    geo = (msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3)
-                    self.samples[sysid].append((msg.time_boot_ms, *geo, msg.relative_alt * 1e-3))
-        finally:
-            conn.close()
-
-    def __enter__(self) -> Listener:
-        for t in self._threads:
-            t.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._stop.set()
-        for t in self._threads:
-            t.join(timeout=5)
 
 
 @contextmanager
@@ -116,34 +64,6 @@ def wait_for(predicate: Any, timeout_s: float, what: str) -> Any:
             return value
         time.sleep(0.1)
     raise AssertionError(f"timed out waiting for {what}")
-
-
-def tracks_enu(listener: Listener, mission: Mission) -> dict[int, np.ndarray]:
-    """Per vehicle, [K,5] rows of (time_s, x, y, z, height above home) in the mission's ICS."""
-    out = {}
-    for sysid, rows in listener.samples.items():
-        out[sysid] = np.array([(t / 1000.0, *geodetic_to_enu(la, lo, al, mission.origin), h)
-                               for t, la, lo, al, h in rows])  # fmt: skip
-    return out
-
-
-def closest_pass(track: np.ndarray, point: np.ndarray) -> float:
-    """Smallest distance from ``point`` to the polyline of ``track`` positions."""
-    p = track[:, 1:4]
-    a, b = p[:-1], p[1:]
-    seg = b - a
-    length2 = np.maximum((seg**2).sum(axis=1), 1e-12)
-    s = np.clip(((point - a) * seg).sum(axis=1) / length2, 0.0, 1.0)
-    return float(np.linalg.norm(a + s[:, None] * seg - point, axis=1).min())
-
-
-def resample(tracks: dict[int, np.ndarray], t: np.ndarray) -> np.ndarray:
-    """Positions [T,N,3] of every vehicle at common times t (linear interpolation)."""
-    ids = sorted(tracks)
-    return np.stack([
-        np.stack([np.interp(t, tracks[i][:, 0], tracks[i][:, c]) for c in (1, 2, 3)], axis=1)
-        for i in ids
-    ], axis=1)  # fmt: skip
 
 
 @dataclass
@@ -179,7 +99,7 @@ def fly(tmp_path: Path, mission_doc: dict[str, Any], *, sitl_extra: Sequence[str
             "--base-port", str(base), *sitl_extra]  # fmt: skip
     with process(sitl, tmp_path / "sitl.log"), process(serve + links, tmp_path / "gcs.log", env):
         wait_for(lambda: _vehicle_count(api) == len(ports), 60, "vehicles discovered")
-        with Listener(ports) as listener:
+        with Observer(ports) as listener:
             status, created = http("POST", f"{api}/missions", mission_doc)
             assert status == 201
             mid = created["id"]
@@ -190,9 +110,8 @@ def fly(tmp_path: Path, mission_doc: dict[str, Any], *, sitl_extra: Sequence[str
             final = wait_for(lambda: _finished(api, mid), 120, "the mission to finish")
             if after is not None:
                 after(api, mid)
-    clocks = {i: np.array(rows, dtype=float).reshape(-1, 2) * (1.0, 1e-3)
-              for i, rows in listener.arrivals.items()}  # fmt: skip
-    return Flight(mission, api, mid, final, tracks_enu(listener, mission), serve, env, clocks)
+    return Flight(mission, api, mid, final, tracks_enu(listener, mission), serve, env,
+                  listener.clocks())  # fmt: skip
 
 
 def check_safety(flight: Flight, exclude: Sequence[int] = ()) -> tuple[float, float, float]:
@@ -452,26 +371,11 @@ def test_a_run_that_outlasts_planner_max_time_fails_and_the_vehicles_hold_clear(
 
 def formation_offsets(flight: Flight, start_s: float) -> tuple[dict[int, float], float]:
     """From the listener's record: each wingman's smallest distance to its local target
-    point (Eq. 6, the leader's flight-path attitude from its track) over the run, and the
-    smallest over time of the worst wingman's distance (within the target accuracy: formed).
-    """
-    mission, tracks = flight.mission, flight.tracks
-    ids = sorted(tracks)
-    t = np.arange(start_s, start_s + flight.final["mission_time_s"], 0.1)
-    pos = resample(tracks, t)
-    lead = ids.index(mission.leader.id)
-    vel = np.gradient(pos[:, lead], t, axis=0)
-    pitch = np.arctan2(vel[:, 2], np.hypot(vel[:, 0], vel[:, 1]))
-    yaw = np.arctan2(vel[:, 1], vel[:, 0])
-    offsets = {}
-    for w in mission.wingmen:
-        assert w.slot is not None
-        slot = np.array(w.slot)
-        points = np.array([local_target_point(pos[k, lead], float(pitch[k]), float(yaw[k]), slot)
-                           for k in range(len(t))])  # fmt: skip
-        offsets[w.id] = np.linalg.norm(points - pos[:, ids.index(w.id)], axis=1)
-    worst = np.max(np.stack(list(offsets.values())), axis=0)
-    return {vid: float(d.min()) for vid, d in offsets.items()}, float(worst.min())
+    point over the run, and the smallest over time of the worst wingman's distance
+    (``gcs_ppf.tools.observer.formation_offsets``)."""
+    return observer_formation_offsets(
+        flight.mission, flight.tracks, start_s, flight.final["mission_time_s"]
+    )
 
 
 def deviation_from_offline_plan(

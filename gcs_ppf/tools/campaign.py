@@ -1,0 +1,431 @@
+"""Closed-loop campaign: missions flown end to end under stated conditions, judged independently.
+
+``python -m gcs_ppf.tools.campaign [--runs N] [--conditions a,b,c,d,e] [--missions M.json ...]
+[--out DIR] [--jobs J]``.  Each run starts ``python -m sitl`` and ``gcs-ppf serve`` on their
+own loopback ports, uploads and starts the mission over REST (httpx), and watches every
+vehicle's own port with ``gcs_ppf.tools.observer`` from the start of the run until 30 s of vehicle
+time after it ends.  A run *violates* when the observer saw two vehicles closer than
+``safe_distance_uav`` or a vehicle closer than ``safe_distance_obstacle`` to an obstacle's
+surface.  Nothing here reads the service's state to judge: the service's status gives only
+the run's end and outcome (and its own figures, recorded beside the observer's).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import httpx
+import numpy as np
+from pymavlink import mavutil
+
+from gcs_ppf.mission import Mission
+from gcs_ppf.tools.observer import Observer, free_port_block, judge, tracks_enu
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLES = ROOT / "examples"
+DEFAULT_MISSIONS = ("paper_table3", "paper_table2", "scene_head_on", "scene_narrow_gap")
+FINISHED = ("completed", "completed_unsafe", "aborted", "failed")
+AFTER_S = 30.0  # vehicle seconds watched after a run ends
+INJECTOR_SYSID = 203  # sends the run-time faults; neither a vehicle, the service nor the observer
+LOST_TIMEOUT_S = 5.0  # the service's default vehicle_timeout_s
+LOST_SLACK_S = 3.0  # the allowance the integration test gives the lost declaration
+
+
+@dataclass(frozen=True)
+class Condition:
+    """How a run is flown.  ``event`` is done ``event_at_s`` of mission time into the run:
+    ``stuck`` makes the last wingman ignore commands (SIM_CMD_IGNORE=1, the SITL's
+    ``ignore`` fault from then on), ``kill`` makes the leader die (SIM_KILL=1, the ``die``
+    fault from then on).  ``expect`` is the outcome a good run ends with."""
+
+    key: str
+    label: str
+    speedup: float
+    sitl_args: tuple[str, ...] = ()
+    burn_cpus: bool = False
+    event: str | None = None
+    expect: str = "completed"
+
+
+CONDITIONS: dict[str, Condition] = {
+    "a": Condition("a", "x10, idle", 10.0),
+    "b": Condition("b", "x10, a CPU burner per core", 10.0, burn_cpus=True),
+    "c": Condition("c", "x5, latency 300 ms, 20 % loss", 5.0, ("--fault", "latency=300,loss=20")),
+    "d": Condition("d", "x10, a wingman ignores commands", 10.0, event="stuck"),
+    "e": Condition("e", "x10, the leader's link dies", 10.0, event="kill", expect="failed"),
+}
+
+
+@contextmanager
+def process(args: Sequence[str], log: Path, env: dict[str, str] | None = None) -> Iterator[None]:
+    """A child process for the duration of the block (SIGTERM, then SIGKILL after 10 s)."""
+    with log.open("w") as out:
+        p = subprocess.Popen(list(args), stdout=out, stderr=subprocess.STDOUT, cwd=ROOT,
+                             env={**os.environ, **(env or {})})  # fmt: skip
+        try:
+            yield
+        finally:
+            p.terminate()
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+
+@contextmanager
+def cpu_burners(count: int) -> Iterator[None]:
+    """``count`` processes each burning a core (``python3 -c 'while True: pass'``)."""
+    procs = [subprocess.Popen(["python3", "-c", "while True: pass"]) for _ in range(count)]
+    try:
+        yield
+    finally:
+        for p in procs:
+            p.kill()
+        for p in procs:
+            p.wait()
+
+
+def wait_for(predicate: Callable[[], Any], timeout_s: float, what: str) -> Any:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(0.1)
+    raise TimeoutError(f"timed out waiting for {what}")
+
+
+def _get(api: httpx.Client, path: str) -> Any:
+    try:
+        r = api.get(path)
+    except httpx.HTTPError:
+        return None
+    return r.json() if r.status_code == 200 else None
+
+
+def set_param(port: int, sysid: int, name: str, value: float, *, until_silent: bool) -> None:
+    """PARAM_SET ``name`` on the vehicle at ``port`` until it confirms (its PARAM_VALUE), or
+    with ``until_silent`` until it falls silent (SIM_KILL answers nothing)."""
+    conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=INJECTOR_SYSID)
+    try:
+        for _ in range(20):
+            conn.mav.param_set_send(sysid, 1, name.encode(), value, 2)
+            deadline = time.monotonic() + 1.0
+            heard = confirmed = False
+            while time.monotonic() < deadline:
+                msg = conn.recv_match(blocking=True, timeout=0.2)
+                if msg is None or msg.get_srcSystem() != sysid:
+                    continue
+                heard = True
+                if msg.get_type() == "PARAM_VALUE" and msg.param_id == name:
+                    confirmed = msg.param_value == value
+            if (until_silent and not heard) or (not until_silent and confirmed):
+                return
+        raise TimeoutError(f"vehicle {sysid} did not take {name}={value:g}")
+    finally:
+        conn.close()
+
+
+def fly_once(
+    mission_path: Path, cond: Condition, workdir: Path, *, event_at_s: float = 15.0,
+    after_s: float = AFTER_S,
+) -> dict[str, Any]:  # fmt: skip
+    """Fly ``mission_path`` once under ``cond`` in ``workdir``; the run's record (JSON-able)."""
+    workdir.mkdir(parents=True, exist_ok=True)
+    doc = json.loads(mission_path.read_text())
+    mission = Mission.model_validate(doc)
+    n = len(mission.vehicles)
+    base = free_port_block(10 * n)
+    api_port = free_port_block(1)
+    ports = {v.id: base + 10 * k for k, v in enumerate(mission.vehicles)}
+    url = f"http://127.0.0.1:{api_port}"
+    rec: dict[str, Any] = {"mission": mission.name, "condition": cond.key, "dir": str(workdir)}
+    sitl = [sys.executable, "-m", "sitl", str(mission_path), "--speedup", f"{cond.speedup:g}",
+            "--base-port", str(base), *cond.sitl_args]  # fmt: skip
+    serve = [sys.executable, "-m", "gcs_ppf.cli", "serve", "--port", str(api_port),
+             "--db", str(workdir / "gcs.db")]  # fmt: skip
+    env = {"GCS_PPF_TLOG_DIR": str(workdir / "tlogs")}
+    budget_s = (mission.planner.max_time + 60.0) / cond.speedup * 2.0 + 60.0
+    t_total = time.monotonic()
+    sitl_log = workdir / "sitl.log"
+    with ExitStack() as stack, httpx.Client(base_url=url, timeout=5.0) as api:
+        # The service first: the vehicles fly straight on from their start states until the
+        # run starts, so the SITL starts only once the service is up (its first start may
+        # compile the planner), and the service connects to it then.
+        stack.enter_context(process(serve, workdir / "serve.log", env))
+        wait_for(lambda: _get(api, "/missions") is not None, 180, "the service")
+        stack.enter_context(process(sitl, sitl_log))
+        wait_for(lambda: "sitl ready" in sitl_log.read_text(), 60, "the SITL")
+        for p in ports.values():
+            api.post("/links", json={"url": f"tcp:127.0.0.1:{p}"}).raise_for_status()
+        obs = stack.enter_context(Observer(ports))
+        wait_for(lambda: len(_get(api, "/vehicles") or []) == n, 60, "vehicles discovered")
+        wait_for(lambda: all(obs.latest_boot_ms().values()), 30, "the observer's first samples")
+        r = api.post("/missions", json=doc)
+        r.raise_for_status()
+        mid = r.json()["id"]
+        start_v = max(obs.latest_boot_ms().values()) / 1000.0
+        t0 = time.monotonic()
+        r = api.post(f"/missions/{mid}/start")
+        r.raise_for_status()
+        status: dict[str, Any] = {}
+        event: dict[str, Any] | None = None
+        while time.monotonic() - t0 < budget_s:
+            status = _get(api, f"/missions/{mid}/status") or status
+            if status.get("state") in FINISHED:
+                break
+            if cond.event and event is None and (status.get("mission_time_s") or 0) >= event_at_s:
+                event = _inject(cond.event, mission, ports, obs, status)
+            time.sleep(0.1)
+        end_wall = time.time()
+        rec["wall_s"] = round(time.monotonic() - t0, 1)
+        end_v = max(obs.latest_boot_ms().values()) / 1000.0
+        wait_for(lambda: max(obs.latest_boot_ms().values()) / 1000.0 >= end_v + after_s,
+                 after_s / cond.speedup * 4 + 30, "vehicle time after the end")  # fmt: skip
+        rec["events"] = [
+            (e["kind"], e["vehicle_id"]) for e in _get(api, f"/missions/{mid}/events") or []
+        ]
+    rec["total_wall_s"] = round(time.monotonic() - t_total, 1)
+    raw = {v: {"pos": r.pos, "texts": r.texts} for v, r in obs.records.items()}
+    (workdir / "observer.json").write_text(json.dumps({"end_wall": end_wall, **raw}))
+    tracks = tracks_enu(obs, mission)
+    mission_time = float(status.get("mission_time_s") or 0.0)
+    rec.update(state=status.get("state", "no status"), outcome=status.get("outcome"),
+               mission_time_s=round(mission_time, 1), event=event,
+               service={k: status.get(k) for k in ("min_separation_m", "min_obstacle_clearance_m",
+                                                   "safety_violations")})  # fmt: skip
+    if status.get("state") not in FINISHED:
+        rec["state"] = f"not finished after {budget_s:.0f} s"
+    j = judge(mission, tracks, start_v, end_v + after_s, run_start_s=end_v - mission_time)
+    lim = mission.limits
+    uncontrolled = [event["vehicle"]] if event and event["kind"] == "stuck" else []
+    clearance = j.min_clearance_m(exclude=uncontrolled)
+    rec.update(
+        window_s=[round(start_v, 1), round(end_v + after_s, 1)], samples=j.samples,
+        min_separation_m=_r(j.min_separation_m), closest_pair=j.closest_pair,
+        min_clearance_m=_r(clearance),
+        uncontrolled_clearance_m=_r(min((c for v, c in j.clearance_m.items()
+                                         if v in uncontrolled and c is not None), default=None)),
+        lowest_height_m={v: _r(h) for v, h in j.lowest_m.items()},
+        leader_to_target_m=_r(j.leader_to_target_m),
+    )  # fmt: skip
+    violations = []
+    if j.min_separation_m is not None and j.min_separation_m < lim.safe_distance_uav:
+        violations.append(f"separation {j.min_separation_m:.1f} m {j.closest_pair}")
+    for v, c in j.clearance_m.items():
+        if c is not None and c < lim.safe_distance_obstacle and v not in uncontrolled:
+            violations.append(f"vehicle {v} clearance {c:.1f} m")
+    rec["violations"] = violations
+    rec["sank"] = [
+        v for v, h in j.lowest_m.items() if h is not None and h < lim.safe_distance_obstacle
+    ]
+    rec["ok"] = rec["state"] == cond.expect
+    if cond.event == "kill":
+        rec["ok"] = rec["ok"] and _failed_in_time(rec, obs, mission, event, end_wall)
+    return rec
+
+
+def _r(x: float | None) -> float | None:
+    return None if x is None else round(x, 1)
+
+
+def _inject(
+    kind: str, mission: Mission, ports: dict[int, int], obs: Observer, status: dict[str, Any]
+) -> dict[str, Any]:
+    """Do the condition's mid-run event now; what was done, and when (vehicle s)."""
+    vid = mission.wingmen[-1].id if kind == "stuck" else mission.leader.id
+    name = "SIM_CMD_IGNORE" if kind == "stuck" else "SIM_KILL"
+    set_param(ports[vid], vid, name, 1.0, until_silent=kind == "kill")
+    return {"kind": kind, "vehicle": vid, "mission_time_s": status.get("mission_time_s"),
+            "vehicle_s": max(obs.latest_boot_ms().values()) / 1000.0}  # fmt: skip
+
+
+def _failed_in_time(
+    rec: dict[str, Any], obs: Observer, mission: Mission, event: dict[str, Any] | None,
+    end_wall: float,
+) -> bool:  # fmt: skip
+    """Condition (e): the run ended ``failed`` within the lost-vehicle timeout (+ slack) of
+    the leader's last message, in vehicle time.  The end is when the status poll (every
+    0.1 s of wall time) first saw it, dated on a live vehicle's clock: an upper bound."""
+    if event is None:
+        rec["fail_delay_s"] = None
+        return False
+    clocks = obs.clocks()
+    lead = clocks[mission.leader.id]
+    alive = max((c for v, c in clocks.items() if v != mission.leader.id), key=len)
+    silent_from = float(lead[-1, 1])
+    ended = float(np.interp(end_wall, alive[:, 0], alive[:, 1]))
+    rec["fail_delay_s"] = round(ended - silent_from, 1)
+    return bool(ended - silent_from <= LOST_TIMEOUT_S + LOST_SLACK_S)
+
+
+# ---- the campaign ------------------------------------------------------------------------
+def mission_path(name: str) -> Path:
+    """A mission file, or the name of one in examples/ (``paper_table3``)."""
+    p = Path(name)
+    return p if p.suffix == ".json" else EXAMPLES / f"{name}.json"
+
+
+def run_campaign(
+    missions: Sequence[Path], conditions: Sequence[str], runs: int, out: Path, *,
+    jobs: int = 1, event_at_s: float = 15.0, progress: Callable[[str], None] = print,
+) -> list[dict[str, Any]]:  # fmt: skip
+    """Fly every mission ``runs`` times under every condition; each run's record is
+    appended to ``out/runs.jsonl`` as it ends, the summary written to ``out/summary.json``
+    and the tables to ``out/table.txt``."""
+    out.mkdir(parents=True, exist_ok=True)
+    results: list[dict[str, Any]] = []
+    total = len(missions) * len(conditions) * runs
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    for key in conditions:
+        cond = CONDITIONS[key]
+        with cpu_burners((os.cpu_count() or 1) if cond.burn_cpus else 0):
+            jobs_list = [(m, k) for m in missions for k in range(runs)]
+
+            def one(job: tuple[Path, int], cond: Condition = cond) -> dict[str, Any]:
+                m, k = job
+                workdir = out / stamp / f"{m.stem}-{cond.key}-{k}"
+                try:
+                    rec = fly_once(m, cond, workdir, event_at_s=event_at_s)
+                except Exception as exc:  # a broken run is a result too
+                    rec = {"mission": m.stem, "condition": cond.key, "dir": str(workdir),
+                           "state": "error", "error": repr(exc), "ok": False,
+                           "violations": []}  # fmt: skip
+                rec["run"] = k
+                return rec
+
+            with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+                for rec in pool.map(one, jobs_list):
+                    results.append(rec)
+                    with (out / "runs.jsonl").open("a") as f:
+                        f.write(json.dumps(rec) + "\n")
+                    progress(f"[{len(results)}/{total}] {progress_line(rec)}")
+    summary = summarize(results)
+    (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    (out / "table.txt").write_text(format_tables(summary))
+    return results
+
+
+def progress_line(rec: dict[str, Any]) -> str:
+    if rec.get("error"):
+        return f"{rec['mission']} ({rec['condition']}) run {rec['run']}: ERROR {rec['error']}"
+    extra = f" fail delay {rec['fail_delay_s']} s" if "fail_delay_s" in rec else ""
+    return (f"{rec['mission']} ({rec['condition']}) run {rec['run']}: {rec['state']}"
+            f" sep {rec['min_separation_m']} m clr {rec['min_clearance_m']} m flown"
+            f" {rec['mission_time_s']} s wall {rec['wall_s']} s{extra}"
+            + (f"  VIOLATION {'; '.join(rec['violations'])}"
+               if rec["violations"] else ""))  # fmt: skip
+
+
+def _stats(values: list[float]) -> tuple[float | None, float | None]:
+    return (min(values), statistics.median(values)) if values else (None, None)
+
+
+def summarize(results: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """Per condition, per mission and all missions: runs, violations, runs ending as
+    expected, separation and clearance (min, median), flown and wall time (median)."""
+    out: dict[str, Any] = {}
+    for key in dict.fromkeys(r["condition"] for r in results):
+        rows = [r for r in results if r["condition"] == key]
+        groups = {
+            m: [r for r in rows if r["mission"] == m]
+            for m in dict.fromkeys(r["mission"] for r in rows)
+        }
+        if len(groups) > 1:
+            groups["all"] = rows
+        out[key] = {"label": CONDITIONS[key].label, "expect": CONDITIONS[key].expect,
+                    "missions": {m: _group(g) for m, g in groups.items()}}  # fmt: skip
+    return out
+
+
+def _group(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    def vals(k: str) -> list[float]:
+        return [float(r[k]) for r in rows if r.get(k) is not None]
+
+    sep, clr = _stats(vals("min_separation_m")), _stats(vals("min_clearance_m"))
+    return {
+        "runs": len(rows), "errors": sum(1 for r in rows if r.get("error")),
+        "violations": sum(1 for r in rows if r["violations"]),
+        "as_expected": sum(1 for r in rows if r["ok"]),
+        "states": {s: sum(1 for r in rows if r["state"] == s) for s in {r["state"] for r in rows}},
+        "separation_min_m": sep[0], "separation_median_m": sep[1],
+        "clearance_min_m": clr[0], "clearance_median_m": clr[1],
+        "uncontrolled_clearance_min_m": _stats(vals("uncontrolled_clearance_m"))[0],
+        "sank": sum(1 for r in rows if r.get("sank")),
+        "fail_delay_max_s": max(vals("fail_delay_s"), default=None),
+        "flown_median_s": _stats(vals("mission_time_s"))[1],
+        "wall_median_s": _stats(vals("wall_s"))[1],
+    }  # fmt: skip
+
+
+def format_tables(summary: dict[str, Any]) -> str:
+    """One table per condition, a row per mission."""
+    lines = []
+    head = (f"{'mission':<18}{'runs':>5}{'viol':>5}{'ok':>4}{'sep min':>9}{'sep med':>9}"
+            f"{'clr min':>9}{'clr med':>9}{'flown':>7}{'wall':>6}  note")  # fmt: skip
+
+    def f(x: float | None, w: int) -> str:
+        return f"{'-' if x is None else f'{x:.1f}':>{w}}"
+
+    for key, c in summary.items():
+        lines += ["", f"({key}) {c['label']}: ok = ended {c['expect']}"
+                  + (" within the lost-vehicle timeout" if key == "e" else ""), head]  # fmt: skip
+        for m, g in c["missions"].items():
+            note = [f"{s} {k}" for s, k in sorted(g["states"].items()) if s != c["expect"]]
+            if g["uncontrolled_clearance_min_m"] is not None:
+                note.append(f"stuck wingman's clearance {g['uncontrolled_clearance_min_m']:.1f}")
+            if g["fail_delay_max_s"] is not None:
+                note.append(f"failed <= {g['fail_delay_max_s']:.1f} s after silence")
+            if g["sank"]:
+                note.append(f"{g['sank']} below the ground keep-out")
+            lines.append(
+                f"{m[:17]:<18}{g['runs']:>5}{g['violations']:>5}{g['as_expected']:>4}"
+                f"{f(g['separation_min_m'], 9)}{f(g['separation_median_m'], 9)}"
+                f"{f(g['clearance_min_m'], 9)}{f(g['clearance_median_m'], 9)}"
+                f"{f(g['flown_median_s'], 7)}{f(g['wall_median_s'], 6)}  {'; '.join(note)}"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m gcs_ppf.tools.campaign", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    p.add_argument("--runs", type=int, default=3, help="runs per mission and condition")
+    p.add_argument("--conditions", default="a,b,c,d,e",
+                   help="; ".join(f"{c.key}: {c.label}" for c in CONDITIONS.values()))  # fmt: skip
+    p.add_argument("--missions", nargs="+", default=list(DEFAULT_MISSIONS),
+                   help="mission files, or names in examples/")  # fmt: skip
+    p.add_argument("--out", type=Path, default=Path("out/campaign"))
+    p.add_argument("--jobs", type=int, default=1, help="runs at once (the default 1 suits 2 cores)")
+    p.add_argument("--event-at", type=float, default=15.0,
+                   help="mission time (s) of (d)'s stuck wingman, (e)'s dead leader")  # fmt: skip
+    a = p.parse_args(argv)
+    conditions = [c.strip() for c in a.conditions.split(",") if c.strip()]
+    unknown = [c for c in conditions if c not in CONDITIONS]
+    if unknown or a.runs < 1:
+        p.error(f"unknown conditions {unknown}" if unknown else "--runs must be at least 1")
+    missions = [mission_path(m) for m in a.missions]
+    for m in missions:
+        if not m.is_file():
+            p.error(f"no mission file {m}")
+    results = run_campaign(missions, conditions, a.runs, a.out, jobs=a.jobs, event_at_s=a.event_at)
+    print(format_tables(summarize(results)), end="")
+    print(f"runs: {a.out / 'runs.jsonl'}; summary: {a.out / 'summary.json'}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

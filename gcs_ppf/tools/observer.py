@@ -1,0 +1,334 @@
+"""An independent flight observer: where the vehicles really flew, and how safely, judged alone.
+
+Pymavlink on each vehicle's own port records its GLOBAL_POSITION_INT; separation and
+clearance are judged from that record only.  It shares nothing with the service that keeps
+the invariants: no state, no telemetry decoding, no planner — only the mission document and
+the frames (``gcs_ppf.mission``, ``gcs_ppf.geodesy``, ``gcs_ppf.frames``). The integration
+tests and the closed-loop campaign (``gcs_ppf.tools.campaign``) judge flights with it.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+from pymavlink import mavutil
+
+from gcs_ppf.frames import local_target_point
+from gcs_ppf.geodesy import geodetic_to_enu
+from gcs_ppf.mission import Mission
+
+FloatArray = NDArray[np.float64]
+
+#: The observer's MAVLink system id: neither a vehicle's nor the service's (255).
+OBSERVER_SYSID = 201
+#: MAV_SYS_STATUS_PREARM_CHECK in SYS_STATUS health (ArduPilot).
+PREARM_OK = 1 << 28
+#: Telemetry gap (vehicle s) beyond which a track is not interpolated across.
+MAX_GAP_S = 2.0
+
+
+def free_port_block(span: int) -> int:
+    """A base port P with P, P+10, … P+span free on 127.0.0.1 (best effort)."""
+    for _ in range(50):
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            base = int(s.getsockname()[1])
+        if base + span >= 65000:
+            continue
+        try:
+            for p in range(base, base + span + 1, 10):
+                with socket.socket() as t:
+                    t.bind(("127.0.0.1", p))
+            return base
+        except OSError:
+            continue
+    raise RuntimeError("no free port block")
+
+
+@dataclass
+class Record:
+    """What the observer heard from one vehicle.  ``pos`` rows: (arrival wall time s
+    (``time.time()``), time_boot_ms, lat deg, lon deg, alt AMSL m, height above home m);
+    ``texts``: (the latest time_boot_ms heard before it, text)."""
+
+    pos: list[tuple[float, int, float, float, float, float]] = field(default_factory=list)
+    texts: list[tuple[int, str]] = field(default_factory=list)
+    prearm_ok: bool = False
+
+
+class Observer:
+    """One pymavlink connection per vehicle (``ports``: system id → TCP port on 127.0.0.1),
+    a thread each, recording GLOBAL_POSITION_INT, STATUSTEXT and the pre-arm health of
+    SYS_STATUS.  With ``request_streams`` it asks the vehicle on that port for
+    GLOBAL_POSITION_INT at 10 Hz and SYS_STATUS at 1 Hz (SET_MESSAGE_INTERVAL applies to the
+    port it arrives on: real ArduPlane) until positions flow; the built-in SITL streams them
+    to every client anyway.  It sends nothing else."""
+
+    def __init__(
+        self, ports: dict[int, int], *, sysid: int = OBSERVER_SYSID, request_streams: bool = False
+    ) -> None:
+        self.records = {vid: Record() for vid in ports}
+        self._sysid = sysid
+        self._request = request_streams
+        self._stop = threading.Event()
+        self._threads = [threading.Thread(target=self._run, args=(vid, port), daemon=True)
+                         for vid, port in ports.items()]  # fmt: skip
+
+    def _run(self, vid: int, port: int) -> None:
+        rec = self.records[vid]
+        conn = mavutil.mavlink_connection(
+            f"tcp:127.0.0.1:{port}", source_system=self._sysid, source_component=191
+        )
+        last_pos = asked = 0.0
+        tbm = 0
+        try:
+            while not self._stop.is_set():
+                now = time.monotonic()
+                if self._request and now - last_pos > 1.0 and now - asked > 1.0:
+                    asked = now
+                    conn.mav.heartbeat_send(6, 8, 0, 0, 0)  # a GCS, MAV_AUTOPILOT_INVALID
+                    for msg_id, interval_us in ((33, 100_000), (1, 1_000_000)):
+                        conn.mav.command_long_send(vid, 1, 511, 0, msg_id, interval_us,
+                                                   0, 0, 0, 0, 0)  # fmt: skip
+                msg = conn.recv_match(type=["GLOBAL_POSITION_INT", "STATUSTEXT", "SYS_STATUS"],
+                                      blocking=True, timeout=0.2)  # fmt: skip
+                if msg is None or msg.get_srcSystem() != vid:
+                    continue
+                kind = msg.get_type()
+                if kind == "GLOBAL_POSITION_INT":
+                    if msg.lat == 0 and msg.lon == 0:  # no GPS fix yet
+                        continue
+                    last_pos, tbm = time.monotonic(), int(msg.time_boot_ms)
+                    rec.pos.append((time.time(), tbm, msg.lat * 1e-7, msg.lon * 1e-7,
+                                    msg.alt * 1e-3, msg.relative_alt * 1e-3))  # fmt: skip
+                elif kind == "STATUSTEXT":
+                    rec.texts.append((tbm, str(msg.text)))
+                else:
+                    rec.prearm_ok = bool(msg.onboard_control_sensors_health & PREARM_OK)
+        finally:
+            conn.close()
+
+    def latest_boot_ms(self) -> dict[int, int]:
+        """Each vehicle's latest time_boot_ms heard (0 before the first)."""
+        return {v: (r.pos[-1][1] if r.pos else 0) for v, r in self.records.items()}
+
+    def clocks(self) -> dict[int, FloatArray]:
+        """Per vehicle, [K,2] rows of (our wall-clock s, vehicle s) of its samples."""
+        return {v: np.array([(p[0], p[1] * 1e-3) for p in r.pos], dtype=float).reshape(-1, 2)
+                for v, r in self.records.items()}  # fmt: skip
+
+    def __enter__(self) -> Observer:
+        for t in self._threads:
+            t.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        for t in self._threads:
+            t.join(timeout=5)
+
+
+# ---- tracks ------------------------------------------------------------------------------
+def tracks_enu(obs: Observer, mission: Mission) -> dict[int, FloatArray]:
+    """Per vehicle, [K,5] rows of (vehicle time s, x, y, z, height above home) in the
+    mission's ICS, on each vehicle's own clock (the built-in SITL's vehicles share one)."""
+    out = {}
+    for vid, rec in obs.records.items():
+        out[vid] = np.array(
+            [(tbm / 1000.0, *geodetic_to_enu(la, lo, al, mission.origin), h)
+             for _, tbm, la, lo, al, h in rec.pos], dtype=float,
+        ).reshape(-1, 5)  # fmt: skip
+    return out
+
+
+def emission_wall_s(
+    wall_s: FloatArray, boot_ms: FloatArray, speedup: float, window: int = 50
+) -> FloatArray:
+    """When each sample left its vehicle, on the observer's wall clock, for vehicles that
+    each keep their own boot clock (one ArduPilot instance each): a sample arrives after it
+    was sent (TCP delivers in bursts), so the earliest time consistent with the samples
+    after it (each dated back along its boot clock at ``speedup``) is taken."""
+    out = wall_s.copy()
+    for k in range(1, window):
+        later = wall_s[k:] - (boot_ms[k:] - boot_ms[:-k]) / (1000.0 * speedup)
+        out[:-k] = np.minimum(out[:-k], later)
+    return out
+
+
+def tracks_on_common_clock(
+    obs: Observer, mission: Mission, t0_wall: float, speedup: float
+) -> dict[int, FloatArray]:
+    """Per vehicle [K,5] rows of (vehicle seconds since ``t0_wall`` (``time.time()``) on the
+    common clock, x, y, z in the mission's ICS, height above home) from ``t0_wall`` on: the
+    format of ``tracks_enu`` for vehicles whose boot clocks differ."""
+    out = {}
+    for vid, rec in obs.records.items():
+        rows = np.array(rec.pos, dtype=float).reshape(-1, 6)
+        t = (emission_wall_s(rows[:, 0], rows[:, 1], speedup) - t0_wall) * speedup
+        rows, t = rows[t >= 0.0], t[t >= 0.0]
+        enu = [geodetic_to_enu(la, lo, al, mission.origin) for la, lo, al in rows[:, 2:5]]
+        out[vid] = np.column_stack([t, np.array(enu).reshape(-1, 3), rows[:, 5]])
+    return out
+
+
+def closest_pass(track: FloatArray, point: FloatArray) -> float:
+    """Smallest distance from ``point`` to the polyline of ``track`` positions."""
+    p = track[:, 1:4]
+    if len(p) == 1:
+        return float(np.linalg.norm(p[0] - point))
+    a, b = p[:-1], p[1:]
+    seg = b - a
+    length2 = np.maximum((seg**2).sum(axis=1), 1e-12)
+    s = np.clip(((point - a) * seg).sum(axis=1) / length2, 0.0, 1.0)
+    return float(np.linalg.norm(a + s[:, None] * seg - point, axis=1).min())
+
+
+def resample(tracks: dict[int, FloatArray], t: FloatArray) -> FloatArray:
+    """Positions [T,N,3] of every vehicle (sorted ids) at common times t (linear
+    interpolation; held constant outside a track)."""
+    ids = sorted(tracks)
+    return np.stack([
+        np.stack([np.interp(t, tracks[i][:, 0], tracks[i][:, c]) for c in (1, 2, 3)], axis=1)
+        for i in ids
+    ], axis=1)  # fmt: skip
+
+
+def observed_at(
+    track: FloatArray, t: FloatArray, max_gap_s: float = MAX_GAP_S
+) -> NDArray[np.bool_]:
+    """[T] mask: the vehicle was heard around each time of ``t`` (inside its track, between
+    samples at most ``max_gap_s`` apart), so an interpolated position there is real."""
+    ts = track[:, 0]
+    if len(ts) == 0:
+        return np.zeros(t.shape, dtype=bool)
+    k = np.searchsorted(ts, t, side="right")
+    before = ts[np.clip(k - 1, 0, len(ts) - 1)]
+    after = ts[np.clip(k, 0, len(ts) - 1)]
+    inside = (t >= ts[0]) & (t <= ts[-1])
+    mask: NDArray[np.bool_] = inside & ((after - before <= max_gap_s) | (t == ts[-1]))
+    return mask
+
+
+def formation_offsets(
+    mission: Mission, tracks: dict[int, FloatArray], start_s: float, duration_s: float
+) -> tuple[dict[int, float], float]:
+    """From the observer's tracks: each wingman's smallest distance to its local target
+    point (Eq. 6, the leader's flight-path attitude from its track) over [start_s,
+    start_s + duration_s], and the smallest over time of the worst wingman's distance
+    (within the target accuracy: formed)."""
+    ids = sorted(tracks)
+    t = np.arange(start_s, start_s + duration_s, 0.1)
+    pos = resample(tracks, t)
+    lead = ids.index(mission.leader.id)
+    vel = np.gradient(pos[:, lead], t, axis=0)
+    pitch = np.arctan2(vel[:, 2], np.hypot(vel[:, 0], vel[:, 1]))
+    yaw = np.arctan2(vel[:, 1], vel[:, 0])
+    offsets = {}
+    for w in mission.wingmen:
+        assert w.slot is not None
+        slot = np.array(w.slot)
+        points = np.array([local_target_point(pos[k, lead], float(pitch[k]), float(yaw[k]), slot)
+                           for k in range(len(t))])  # fmt: skip
+        offsets[w.id] = np.linalg.norm(points - pos[:, ids.index(w.id)], axis=1)
+    worst = np.max(np.stack(list(offsets.values())), axis=0)
+    return {vid: float(d.min()) for vid, d in offsets.items()}, float(worst.min())
+
+
+# ---- judging -----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Judgement:
+    """What the observer saw in a window of vehicle time (all distances in metres).
+
+    ``min_separation_m``: closest centre-to-centre distance of two vehicles both heard
+    then (None: never two); ``closest_pair`` their ids.  ``clearance_m``: per vehicle, its
+    closest approach to any obstacle's surface (None without obstacles), with moving
+    obstacles placed at their positions ``t − run_start_s`` after the run's start.
+    ``lowest_m``: per vehicle, its lowest height above home once it had been
+    ``ground_keepout_m`` above it (None if it never was).  ``leader_to_target_m``: the
+    leader's closest pass by the target."""
+
+    window_s: tuple[float, float]
+    samples: int
+    min_separation_m: float | None
+    closest_pair: tuple[int, int] | None
+    clearance_m: dict[int, float | None]
+    lowest_m: dict[int, float | None]
+    leader_to_target_m: float | None
+
+    def min_clearance_m(self, exclude: Sequence[int] = ()) -> float | None:
+        """Smallest obstacle clearance over the vehicles not in ``exclude``."""
+        values = [c for v, c in self.clearance_m.items() if c is not None and v not in exclude]
+        return min(values) if values else None
+
+
+def judge(
+    mission: Mission,
+    tracks: dict[int, FloatArray],
+    start_s: float,
+    end_s: float,
+    *,
+    run_start_s: float | None = None,
+    dt_s: float = 0.05,
+    ground_keepout_m: float | None = None,
+) -> Judgement:
+    """Separation, obstacle clearance and height over [start_s, end_s] of vehicle time, at
+    ``dt_s`` steps, from the positions of the vehicles heard at each moment (a vehicle that
+    fell silent counts until its last sample)."""
+    ids = sorted(tracks)
+    t = np.arange(start_s, end_s + 1e-9, dt_s)
+    run0 = start_s if run_start_s is None else run_start_s
+    pos = np.zeros((len(t), len(ids), 3))
+    heard = np.zeros((len(t), len(ids)), dtype=bool)
+    for k, vid in enumerate(ids):
+        tr = tracks[vid]
+        if len(tr) == 0:
+            continue
+        heard[:, k] = observed_at(tr, t)
+        for c in range(3):
+            pos[:, k, c] = np.interp(t, tr[:, 0], tr[:, 1 + c])
+    sep: float | None = None
+    pair: tuple[int, int] | None = None
+    for a in range(len(ids)):
+        for b in range(a + 1, len(ids)):
+            both = heard[:, a] & heard[:, b]
+            if not both.any():
+                continue
+            d = float(np.linalg.norm(pos[both, a] - pos[both, b], axis=1).min())
+            if sep is None or d < sep:
+                sep, pair = d, (ids[a], ids[b])
+    clearance: dict[int, float | None] = {}
+    for k, vid in enumerate(ids):
+        mask = heard[:, k]
+        if not mission.obstacles or not mask.any():
+            clearance[vid] = None
+            continue
+        p, tk = pos[mask, k], t[mask]
+        clearance[vid] = min(
+            float((np.linalg.norm(
+                p - (np.array(o.center) + np.outer(tk - run0, np.array(o.velocity))), axis=1
+            ) - o.radius).min())
+            for o in mission.obstacles
+        )  # fmt: skip
+    keepout = (
+        mission.limits.safe_distance_obstacle if ground_keepout_m is None else ground_keepout_m
+    )
+    lowest: dict[int, float | None] = {}
+    for vid in ids:
+        tr = tracks[vid]
+        h = tr[(tr[:, 0] >= start_s) & (tr[:, 0] <= end_s), 4] if len(tr) else np.zeros(0)
+        up = np.flatnonzero(h >= keepout)
+        lowest[vid] = float(h[up[0] :].min()) if up.size else None
+    lead = tracks.get(mission.leader.id)
+    to_target = None
+    if lead is not None and len(lead):
+        seg = lead[(lead[:, 0] >= start_s) & (lead[:, 0] <= end_s)]
+        if len(seg):
+            to_target = closest_pass(seg, np.array(mission.target))
+    return Judgement((start_s, end_s), int(heard.any(axis=1).sum()), sep, pair, clearance,
+                     lowest, to_target)  # fmt: skip
