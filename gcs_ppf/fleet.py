@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import statistics
 import time
+from collections import deque
 from collections.abc import Callable, Coroutine
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,6 +31,9 @@ from gcs_ppf.settings import Settings
 from gcs_ppf.vehicle_clock import VehicleClock
 
 log = logging.getLogger("gcs_ppf.fleet")
+
+ROUND_TRIPS_KEPT = 5
+MAX_ROUND_TRIP_S = 30.0  # a TIMESYNC answer older than this is not ours
 
 STREAMED = {  # message id → rate factor of settings.stream_rate_hz
     33: 1.0,  # GLOBAL_POSITION_INT
@@ -49,6 +54,13 @@ class Vehicle:
     last_heard_s: float
     lost: bool = False
     clock: VehicleClock = field(default_factory=VehicleClock)
+    round_trips_s: deque[float] = field(default_factory=lambda: deque(maxlen=ROUND_TRIPS_KEPT))
+    """The link's last round trips (our seconds), from TIMESYNC."""
+
+    @property
+    def round_trip_s(self) -> float | None:
+        """The link's round trip now (our seconds): the median of the last few, or None."""
+        return statistics.median(self.round_trips_s) if self.round_trips_s else None
 
 
 @dataclass
@@ -154,6 +166,10 @@ class Fleet:
         if vehicle.lost and msg.get_type() == "HEARTBEAT":
             vehicle.lost = False
             log.info("vehicle %d is back", sysid)
+        if msg.get_type() == "TIMESYNC" and msg.tc1 != 0:  # an answer to ours
+            rtt = (time.monotonic_ns() - int(msg.ts1)) / 1e9
+            if 0.0 <= rtt <= MAX_ROUND_TRIP_S:
+                vehicle.round_trips_s.append(rtt)
         if msg.get_type() == "GLOBAL_POSITION_INT":
             self.telemetry_received_s = time.perf_counter()
             self.telemetry_event.set()
@@ -196,10 +212,12 @@ class Fleet:
             await entry.link.send(msg)
 
     async def heartbeats(self) -> None:
-        """Our HEARTBEAT on every link, for ever (CONVENTIONS §5)."""
+        """Our HEARTBEAT on every link, for ever (CONVENTIONS §5), each with a TIMESYNC
+        request that measures the link's round trip."""
         while True:
             for entry in list(self._links.values()):
                 await entry.link.send(commands.gcs_heartbeat())
+                await entry.link.send(commands.timesync_request(time.monotonic_ns()))
             await asyncio.sleep(1.0 / self.settings.heartbeat_hz)
 
     async def watchdog(self) -> None:
@@ -229,6 +247,7 @@ class Fleet:
                     "armed": t.armed,
                     "lost": v.lost,
                     "seconds_since_heard": round(now - v.last_heard_s, 3),
+                    "round_trip_s": None if v.round_trip_s is None else round(v.round_trip_s, 3),
                     "position": {
                         "lat_deg": t.lat_deg,
                         "lon_deg": t.lon_deg,

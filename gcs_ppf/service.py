@@ -15,6 +15,7 @@ import asyncio
 import contextlib
 import logging
 import math
+import statistics
 import time
 from collections import deque
 from collections.abc import AsyncIterator, Iterator
@@ -25,7 +26,18 @@ from typing import Any
 
 import numpy as np
 
-from gcs_ppf import confirmation, holding, launch, obedience, safety_monitor, separation_guard, slew
+from gcs_ppf import (
+    assurance,
+    commanding,
+    confirmation,
+    holding,
+    lag,
+    launch,
+    obedience,
+    safety_monitor,
+    separation_guard,
+    slew,
+)
 from gcs_ppf.airframe import Airframe, guard_tuning, tick_envelope
 from gcs_ppf.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.fleet import Fleet, Vehicle
@@ -37,6 +49,7 @@ from gcs_ppf.online import (
     Guidance,
     VehicleState,
     clearance,
+    coordinated_turn_rate,
     guidance,
     home_ground,
     scene_now,
@@ -90,6 +103,7 @@ class Run:
     record: StoredRun
     mission_id: int
     mission: Mission
+    orders: commanding.Orders
     state: RunState = RunState.STARTING
     outcome: str | None = None  # why it ended
     start_vehicle_time_s: float | None = None
@@ -108,11 +122,19 @@ class Run:
     obedience: obedience.Obedience = field(
         default_factory=lambda: obedience.Obedience(NOT_RESPONDING_S)
     )
+    fleet_lag: lag.Lag = field(default_factory=lambda: lag.Lag(0.0, 0.0))
+    """The fleet's lag at the last tick (``gcs_ppf.lag``), vehicle seconds."""
+    lag_budget: lag.Budget = field(default_factory=lambda: lag.Budget(LAG_BUDGET_S))
+    recent_work_s: deque[float] = field(default_factory=lambda: deque(maxlen=20))
+    """Our seconds from telemetry to commands sent, of the last ticks."""
 
 
-MAX_POSITION_AGE_S = 1.0
-"""A position older than this (vehicle seconds) is not carried further on: a silent vehicle
-is the watchdog's business, not dead reckoning's."""
+MAX_PREDICTION_S = 2.0
+"""A state is not carried on further than this (vehicle seconds): a silent vehicle is the
+watchdog's business, not dead reckoning's, and a lag beyond the budget is an event."""
+LAG_BUDGET_S = 1.0
+"""Telemetry age + command delay (vehicle seconds) beyond which a ``lag_over_budget`` event
+is raised."""
 
 
 def formation_tolerance(mission: Mission) -> float:
@@ -241,7 +263,10 @@ class FormationService:
         if missing:
             raise Conflict(f"vehicles not connected: {missing}", {"missing_ids": missing})
         record = self.store.add_run(mission_id, RunState.STARTING)
-        run = Run(record=record, mission_id=mission_id, mission=stored.mission)
+        orders = commanding.Orders(
+            stored.mission, self.settings.guidance, self.settings.lookahead_s
+        )
+        run = Run(record=record, mission_id=mission_id, mission=stored.mission, orders=orders)
         self._runs[mission_id] = run
         self._event(run, "run_started")
         run.task = self._spawn(self._fly(run))
@@ -302,6 +327,12 @@ class FormationService:
             "min_obstacle_clearance_m": run.min_clearance_m,
             "safety_violations": run.safety.count,
             "tick_latency_ms": self._latency(run),
+            "lag_s": {
+                **run.fleet_lag.as_dict(),
+                "budget_s": run.lag_budget.budget_s,
+                "worst_s": round(run.lag_budget.worst_s, 3),
+                "over_budget": run.lag_budget.over,
+            },
             "vehicles": per_vehicle,
         }
 
@@ -395,6 +426,7 @@ class FormationService:
             "safety_violations": run.safety.count,
             "deepest_violation_m": run.safety.deepest_m,
             "tick_latency_ms": self._latency(run),
+            "worst_lag_s": round(run.lag_budget.worst_s, 3),
         }
         self.store.update_run(run.record.id, state, ended=True, outcome=outcome, summary=summary)
         self._event(run, f"run_{state}", outcome=outcome)
@@ -403,7 +435,7 @@ class FormationService:
     async def _loiter_all(self, run: Run) -> None:
         """Abort, failure: every vehicle holds at its height on a circle clear of every
         obstacle (``gcs_ppf.holding``); one that has not reported a state, in LOITER."""
-        states, _ = self._states(list(self._located(run)))
+        states, _, _ = self._states(list(self._located(run)))
         await self._hold(run, states, stacked=False)
 
     async def _loiter_stacked(self, run: Run, states: dict[int, VehicleState]) -> None:
@@ -522,6 +554,7 @@ class FormationService:
             run.mission_time_s = now_v - run.start_vehicle_time_s
             done = await self._tick(run)
             run.tick_latency_s.append(time.perf_counter() - received)
+            run.recent_work_s.append(run.tick_latency_s[-1])
             if run.mission_time_s - last_sample >= sample_period:
                 last_sample = run.mission_time_s
                 self._sample(run)
@@ -583,6 +616,14 @@ class FormationService:
             self._event(run, "vehicle_responding", vid)
         return run.mission.leader.id in flagged
 
+    def _account_lag(self, run: Run, lags: list[lag.Lag]) -> None:
+        """The fleet's lag this tick, and an event when it crosses the budget."""
+        run.fleet_lag = lag.worst(lags)
+        change = run.lag_budget.update(run.fleet_lag.total_s)
+        if change is not None:
+            self._event(run, change, None, budget_s=run.lag_budget.budget_s,
+                        **run.fleet_lag.as_dict())  # fmt: skip
+
     def _located(self, run: Run) -> Iterator[tuple[Vehicle, tuple[float, float, float]]]:
         """The run's vehicles that have reported a position, with it in the ICS."""
         for v in run.mission.vehicles:
@@ -593,26 +634,32 @@ class FormationService:
 
     @staticmethod
     def _states(
-        located: list[tuple[Vehicle, tuple[float, float, float]]],
-    ) -> tuple[dict[int, VehicleState], set[int]]:
-        """Each located vehicle's state, its position carried on to this moment (vehicle
-        seconds since its GLOBAL_POSITION_INT arrived, at most ``MAX_POSITION_AGE_S``)."""
+        located: list[tuple[Vehicle, tuple[float, float, float]]], tick_work_s: float = 0.0
+    ) -> tuple[dict[int, VehicleState], set[int], dict[int, lag.Lag]]:
+        """Each located vehicle's state carried on to the moment a command sent now acts on
+        it (its lag, ``gcs_ppf.lag``: since its GLOBAL_POSITION_INT arrived, the link's
+        round trip, ``tick_work_s`` of ours; at most ``MAX_PREDICTION_S``), and its lag."""
         states: dict[int, VehicleState] = {}
         active: set[int] = set()
+        lags: dict[int, lag.Lag] = {}
         now = time.monotonic()
         for vehicle, pos in located:
             t = vehicle.telemetry
             if t.vn_m_s is None or t.ve_m_s is None or t.vd_m_s is None:
                 continue
-            age = 0.0
-            if t.position_received_s is not None:
-                age = vehicle.clock.vehicle_seconds(max(0.0, now - t.position_received_s))
+            since = 0.0 if t.position_received_s is None else max(0.0, now - t.position_received_s)
+            lags[vehicle.system_id] = lag.vehicle_lag(
+                since, vehicle.round_trip_s, tick_work_s, vehicle.clock.rate
+            )
+            ahead = min(lags[vehicle.system_id].total_s, MAX_PREDICTION_S)
+            ground_speed = math.hypot(t.vn_m_s, t.ve_m_s)
+            turn = coordinated_turn_rate(t.roll_rad, ground_speed)
             states[vehicle.system_id] = state_from_velocity(
-                pos, t.vn_m_s, t.ve_m_s, t.vd_m_s, min(age, MAX_POSITION_AGE_S)
+                pos, t.vn_m_s, t.ve_m_s, t.vd_m_s, ahead, turn
             )
             if not vehicle.lost:
                 active.add(vehicle.system_id)
-        return states, active
+        return states, active, lags
 
     async def _tick(self, run: Run) -> bool:
         """One planning tick; True when the run has ended."""
@@ -626,7 +673,9 @@ class FormationService:
         )  # fmt: skip
         reporting = [(v, p) for v, p in located if v.system_id not in run.lost_ids]
         self._watch_safety(run, reporting, mission.ground if mission.ground is not None else ground)
-        states, active = self._states(located)
+        work = statistics.median(run.recent_work_s) if run.recent_work_s else 0.0
+        states, active, lags = self._states(located, work)
+        self._account_lag(run, [lags[i] for i in active if i in lags])
         if leader_id not in states:
             return False
         positions = np.array([states[i].pos_m for i in sorted(active)], dtype=float)
@@ -661,9 +710,10 @@ class FormationService:
         airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
         lim = mission.limits
         telemetry_interval_s = 1.0 / self.settings.stream_rate_hz
+        lagging_s = telemetry_interval_s + run.fleet_lag.total_s  # what the margins must cover
         envelope = tick_envelope(
             list(airframes.values()), [states[i].speed_m_s for i in active], lim.v_min,
-            lim.v_max, lim.accel, self.settings.lookahead_s, telemetry_interval_s,
+            lim.v_max, lim.accel, self.settings.lookahead_s, lagging_s,
             self.settings.planning_margin_m,
         )  # fmt: skip
         scene = scene_now(
@@ -680,7 +730,7 @@ class FormationService:
         if self.settings.guard_horizon_s != 0.0:
             tuning = guard_tuning(
                 ordered, scene.fleet.speed.tolist(), lim.safe_distance_uav,
-                telemetry_interval_s, horizon_s=self.settings.guard_horizon_s,
+                lagging_s, horizon_s=self.settings.guard_horizon_s,
                 margin_m=self.settings.guard_margin_m,
                 resolution_m=self.settings.guard_resolution_m,
             )  # fmt: skip
@@ -698,34 +748,19 @@ class FormationService:
             g = replace(g, guided_point_m=points, resolving=resolving)
         self._note_changes(run, g)
         run.last = g
-        turn_accel = scene.limits.v_max * scene.limits.max_yaw_rate  # the plan limits turns
-        for i, vid in enumerate(g.ids):
-            if vid not in active:
-                continue
-            x, y, z = (float(c) for c in g.guided_point_m[i])
-            if self.settings.guidance == "point":
-                lat, lon, alt = enu_to_geodetic(x, y, z, mission.origin)
-                await self.fleet.send(vid, commands.reposition(vid, lat, lon, alt))
-            else:
-                cmd = slew.slew_command(
-                    g, i, ordered[i], states[vid].pos_m[2], turn_accel, self.settings.lookahead_s
-                )
-                _, _, alt = enu_to_geodetic(x, y, cmd.z_m, mission.origin)
-                course_deg = 90.0 - math.degrees(cmd.course_rad)  # ENU yaw → compass
-                heading = commands.guided_change_heading(vid, course_deg, cmd.lateral_accel_m_s2)
-                await self.fleet.send(vid, heading)
-                altitude = commands.guided_change_altitude(
-                    vid, slew.sendable_altitude(alt), cmd.rate_m_s
-                )
-                await self.fleet.send(vid, altitude)
-            t = self.fleet.by_id[vid].telemetry
-            ahead = g.speed_m_s if g.speed_ahead_m_s is None else g.speed_ahead_m_s
-            speed = slew.airspeed_command(
-                float(ahead[i]), t.airspeed_m_s, t.groundspeed_m_s, ordered[i]
-            )
-            if abs(run.commanded_speed.get(vid, -1.0) - speed) >= 0.5:
-                run.commanded_speed[vid] = speed
-                await self.fleet.send(vid, commands.change_speed(vid, speed))
+        keep = assurance.KeepOut(
+            obstacles, mission.ground if mission.ground is not None else ground,
+            lim.safe_distance_obstacle, lim.safe_distance_uav,
+        )  # fmt: skip
+        hold_s = 1.0 / self.settings.tick_hz + telemetry_interval_s + run.fleet_lag.command_delay_s
+
+        def event(kind: str, vehicle_id: int | None = None, **detail: Any) -> None:
+            self._event(run, kind, vehicle_id, **detail)
+
+        await commanding.command_fleet(
+            self.fleet, g, active, states, ordered, run.orders, keep, hold_s,
+            run.commanded_speed, event,
+        )  # fmt: skip
         return False
 
     def _note_changes(self, run: Run, g: Guidance) -> None:
