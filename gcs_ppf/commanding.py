@@ -10,18 +10,34 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from functools import partial
 from typing import Any, Protocol
 
 import numpy as np
 
-from gcs_ppf import assurance, slew
+from gcs_ppf import assurance, confirmation, holding, slew
 from gcs_ppf.airframe import Airframe
 from gcs_ppf.geodesy import enu_to_geodetic
 from gcs_ppf.mavlink import commands
+from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission
 from gcs_ppf.online import Guidance, VehicleState
+from gcs_ppf.scene import obstacles_from_mission
+
+LOITER_AHEAD_M = 800.0
+"""After the mission each vehicle circles a point this far ahead (or further, to clear)…"""
+LOITER_STACK_M = 100.0
+"""… vehicle k of the mission this much above the target (after completion)."""
+HOLD_TURN_RADII = 1.5
+"""A holding circle is this many of the vehicle's tightest turns wide …"""
+HOLD_MIN_RADIUS_M = 80.0
+"""… and at least ArduPlane's WP_LOITER_RAD."""
+HOLD_RETRY = confirmation.Retry(attempts=10)
+"""A hold is sent until it is ACCEPTED …"""
+HOLD_ACK_VEHICLE_S = 2.0
+"""… again when unanswered for this long (vehicle seconds; within 0.2–1.5 of ours)."""
 
 #: Without TECS limits, climb and sink are taken as this fraction of the speed (~24°).
 DEFAULT_PATH_SLOPE = 0.4
@@ -145,3 +161,57 @@ async def _send_speed(
     if abs(commanded_speed.get(vid, -1.0) - speed) >= 0.5:
         commanded_speed[vid] = speed
         await fleet.send(vid, commands.change_speed(vid, speed))
+
+
+def hold_retry(clock_rate: float) -> confirmation.Retry:
+    """``HOLD_RETRY`` with its ACK wait in the vehicles' time (``clock_rate``: theirs per
+    ours)."""
+    wait = min(1.5, max(0.2, HOLD_ACK_VEHICLE_S / clock_rate))
+    return replace(HOLD_RETRY, ack_timeout_s=wait)
+
+
+def hold_orders(
+    orders: Orders, states: dict[int, VehicleState], airframes: dict[int, Airframe],
+    mission_time_s: float, stacked: bool, event: Callable[..., None],
+) -> list[confirmation.Order]:  # fmt: skip
+    """Each vehicle to a holding circle that cuts no obstacle's keep-out (twice the safe
+    distance) at the radius it flies (``HOLD_TURN_RADII`` turn radii at its speed,
+    ``gcs_ppf.holding``): after completion (``stacked``) vehicle k of the mission
+    ``LOITER_STACK_M``·k above the target, so the circles of a formation flying close
+    together do not cross at one height; after an abort or a failure at its own height.  A
+    vehicle without a state is put in LOITER.  A ``hold_not_clear`` event when no circle
+    keeps the keep-out."""
+    mission = orders.mission
+    obstacles = obstacles_from_mission(mission).at(mission_time_s)
+    keep_out = 2.0 * mission.limits.safe_distance_obstacle
+    out: list[confirmation.Order] = []
+    for k, v in enumerate(mission.vehicles):
+        s = states.get(v.id)
+        if s is None or v.id not in airframes:
+            out.append(confirmation.Order(
+                v.id, partial(commands.set_mode, v.id, PlaneMode.LOITER),
+                commands.MAV_CMD_DO_SET_MODE, "hold: mode LOITER",
+                lambda t: t.custom_mode == PlaneMode.LOITER,
+            ))  # fmt: skip
+            continue
+        airframe_omega = airframes[v.id].max_turn_rate(s.speed_m_s)
+        omega = min(airframe_omega or math.inf, mission.limits.max_yaw_rate)
+        radius = max(HOLD_MIN_RADIUS_M, HOLD_TURN_RADII * s.speed_m_s / omega)
+        z = mission.target[2] + LOITER_STACK_M * k if stacked else s.pos_m[2]
+        hold = holding.holding_circle(
+            np.array(s.pos_m), s.yaw_rad, z, radius, LOITER_AHEAD_M, obstacles, keep_out
+        )
+        if hold.clearance_m < keep_out:
+            event("hold_not_clear", v.id, clearance_m=round(hold.clearance_m, 1))
+        lat, lon, alt = enu_to_geodetic(hold.x_m, hold.y_m, hold.z_m, mission.origin)
+        out.append(confirmation.Order(
+            v.id, partial(commands.reposition, v.id, lat, lon, alt, radius),
+            commands.MAV_CMD_DO_REPOSITION, "hold: guided loiter",
+        ))  # fmt: skip
+        if orders.guidance_mode == "course":  # the guided altitude outlives the course
+            altitude = slew.sendable_altitude(alt)
+            out.append(confirmation.Order(
+                v.id, partial(commands.guided_change_altitude, v.id, altitude, 0.0),
+                commands.MAV_CMD_GUIDED_CHANGE_ALTITUDE, "hold: altitude",
+            ))  # fmt: skip
+    return out

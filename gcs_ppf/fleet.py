@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import math
 import statistics
 import time
 from collections import deque
@@ -19,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from gcs_ppf import lag
 from gcs_ppf.airframe import Airframe
 from gcs_ppf.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.geodesy import geodetic_to_enu
@@ -27,11 +29,15 @@ from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import mode_name
 from gcs_ppf.mavlink.telemetry import AIRFRAME_PARAMS, VehicleTelemetry, apply
 from gcs_ppf.mission import Mission
+from gcs_ppf.online import VehicleState, coordinated_turn_rate, state_from_velocity
 from gcs_ppf.settings import Settings
 from gcs_ppf.vehicle_clock import VehicleClock
 
 log = logging.getLogger("gcs_ppf.fleet")
 
+MAX_PREDICTION_S = 2.0
+"""A state is not carried on further than this (vehicle seconds): a silent vehicle is the
+watchdog's business, not dead reckoning's, and a lag beyond the budget is an event."""
 ROUND_TRIPS_KEPT = 5
 MAX_ROUND_TRIP_S = 30.0  # a TIMESYNC answer older than this is not ours
 
@@ -272,3 +278,32 @@ class Fleet:
         if t.lat_deg is None or t.lon_deg is None or t.alt_amsl_m is None:
             return None
         return geodetic_to_enu(t.lat_deg, t.lon_deg, t.alt_amsl_m, mission.origin)
+
+
+def planning_states(
+    located: list[tuple[Vehicle, tuple[float, float, float]]], tick_work_s: float = 0.0
+) -> tuple[dict[int, VehicleState], set[int], dict[int, lag.Lag]]:
+    """Each located vehicle's state carried on to the moment a command sent now acts on
+    it (its lag, ``gcs_ppf.lag``: since its GLOBAL_POSITION_INT arrived, the link's
+    round trip, ``tick_work_s`` of ours; at most ``MAX_PREDICTION_S``), and its lag."""
+    states: dict[int, VehicleState] = {}
+    active: set[int] = set()
+    lags: dict[int, lag.Lag] = {}
+    now = time.monotonic()
+    for vehicle, pos in located:
+        t = vehicle.telemetry
+        if t.vn_m_s is None or t.ve_m_s is None or t.vd_m_s is None:
+            continue
+        since = 0.0 if t.position_received_s is None else max(0.0, now - t.position_received_s)
+        lags[vehicle.system_id] = lag.vehicle_lag(
+            since, vehicle.round_trip_s, tick_work_s, vehicle.clock.rate
+        )
+        ahead = min(lags[vehicle.system_id].total_s, MAX_PREDICTION_S)
+        ground_speed = math.hypot(t.vn_m_s, t.ve_m_s)
+        turn = coordinated_turn_rate(t.roll_rad, ground_speed)
+        states[vehicle.system_id] = state_from_velocity(
+            pos, t.vn_m_s, t.ve_m_s, t.vd_m_s, ahead, turn
+        )
+        if not vehicle.lost:
+            active.add(vehicle.system_id)
+    return states, active, lags

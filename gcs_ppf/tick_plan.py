@@ -1,0 +1,84 @@
+"""One tick's plan, pure: the envelope the fleet flies in now, the online scene, the PPF
+guidance and the separation guard's resolutions, with margins for the lag the tick measured.
+
+The service (``gcs_ppf.service``) gathers the states and sends the commands; this is what
+it decides in between, with no I/O and no clock.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+from typing import Any
+
+from gcs_ppf import separation_guard
+from gcs_ppf.airframe import Airframe, guard_tuning, tick_envelope
+from gcs_ppf.mission import Mission
+from gcs_ppf.online import Guidance, VehicleState, guidance, scene_now
+from gcs_ppf.run import formation_tolerance, in_formation
+from gcs_ppf.scene import Obstacles
+
+
+@dataclass(frozen=True)
+class Tuning:
+    """The service settings the plan depends on (``gcs_ppf.settings.Settings``)."""
+
+    lookahead_s: float
+    planner_dt_s: float
+    carrot_m: float
+    planning_margin_m: float | None
+    guard_horizon_s: float | None
+    guard_margin_m: float | None
+    guard_resolution_m: float | None
+
+    @classmethod
+    def of(cls, settings: Any) -> Tuning:
+        return cls(**{f.name: getattr(settings, f.name) for f in fields(cls)})
+
+
+def plan(
+    mission: Mission,
+    states: dict[int, VehicleState],
+    active: set[int],
+    obstacles: Obstacles,
+    ground_z_m: float | None,
+    airframes: dict[int, Airframe],
+    tuning: Tuning,
+    lagging_s: float,
+    previous: Guidance | None,
+) -> tuple[Guidance, list[Airframe]]:
+    """The guidance for the ``active`` vehicles, and their airframes in its order.
+
+    ``lagging_s`` (the telemetry interval and the measured lag, vehicle seconds) is what the
+    planning margin and the guard's margins must cover (``gcs_ppf.airframe``)."""
+    lim = mission.limits
+    envelope = tick_envelope(
+        list(airframes.values()), [states[i].speed_m_s for i in active], lim.v_min,
+        lim.v_max, lim.accel, tuning.lookahead_s, lagging_s, tuning.planning_margin_m,
+    )  # fmt: skip
+    scene = scene_now(
+        mission, states, active, obstacles, envelope.planning_margin_m, ground_z_m,
+        envelope=envelope.limits,
+    )  # fmt: skip
+    g = guidance(
+        scene, lookahead_s=tuning.lookahead_s, dt=tuning.planner_dt_s, carrot_m=tuning.carrot_m
+    )
+    ordered = [airframes.get(vid, Airframe()) for vid in g.ids]
+    if tuning.guard_horizon_s == 0.0:
+        return g, ordered
+    guard = guard_tuning(
+        ordered, scene.fleet.speed.tolist(), lim.safe_distance_uav, lagging_s,
+        horizon_s=tuning.guard_horizon_s, margin_m=tuning.guard_margin_m,
+        resolution_m=tuning.guard_resolution_m,
+    )  # fmt: skip
+    points, resolving = separation_guard.resolve(
+        scene,
+        g.guided_point_m,
+        distance_m=lim.safe_distance_uav + guard.margin_m,
+        horizon_s=guard.horizon_s,
+        resolution_m=guard.resolution_up_m,
+        resolution_down_m=guard.resolution_down_m,
+        release_m=guard.margin_m,
+        previous=previous.resolving if previous is not None else None,
+        in_formation=in_formation(g, formation_tolerance(mission)),
+    )
+    return replace(g, guided_point_m=points, resolving=resolving), ordered
