@@ -172,20 +172,22 @@ def hold_retry(clock_rate: float) -> confirmation.Retry:
 
 def hold_orders(
     orders: Orders, states: dict[int, VehicleState], airframes: dict[int, Airframe],
-    mission_time_s: float, stacked: bool, event: Callable[..., None],
+    mission_time_s: float, stacked: bool, event: Callable[..., None], heard: set[int],
 ) -> list[confirmation.Order]:  # fmt: skip
     """Each vehicle to a holding circle that cuts no obstacle's keep-out (twice the safe
     distance) at the radius it flies (``HOLD_TURN_RADII`` turn radii at its speed,
     ``gcs_ppf.holding``): after completion (``stacked``) vehicle k of the mission
     ``LOITER_STACK_M``·k above the target, so the circles of a formation flying close
     together do not cross at one height; after an abort or a failure at its own height.  A
-    vehicle without a state is put in LOITER.  A ``hold_not_clear`` event when no circle
-    keeps the keep-out."""
+    vehicle without a state is put in LOITER; one not ``heard`` (lost) is not commanded.  A
+    ``hold_not_clear`` event when no circle keeps the keep-out."""
     mission = orders.mission
     obstacles = obstacles_from_mission(mission).at(mission_time_s)
     keep_out = 2.0 * mission.limits.safe_distance_obstacle
     out: list[confirmation.Order] = []
     for k, v in enumerate(mission.vehicles):
+        if v.id not in heard:
+            continue
         s = states.get(v.id)
         if s is None or v.id not in airframes:
             out.append(confirmation.Order(

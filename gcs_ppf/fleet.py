@@ -38,6 +38,10 @@ log = logging.getLogger("gcs_ppf.fleet")
 MAX_PREDICTION_S = 2.0
 """A state is not carried on further than this (vehicle seconds): a silent vehicle is the
 watchdog's business, not dead reckoning's, and a lag beyond the budget is an event."""
+WATCHDOG_PERIOD_S = 0.2
+"""Vehicle seconds between two checks for silent vehicles."""
+ALL_SILENT_FACTOR = 3.0
+"""When every vehicle is silent at once, each is lost only after this many timeouts."""
 ROUND_TRIPS_KEPT = 5
 MAX_ROUND_TRIP_S = 30.0  # a TIMESYNC answer older than this is not ours
 
@@ -227,18 +231,17 @@ class Fleet:
             await asyncio.sleep(1.0 / self.settings.heartbeat_hz)
 
     async def watchdog(self) -> None:
-        """Mark vehicles lost after the timeout of silence, in their own seconds."""
+        """Mark vehicles lost after the timeout of silence, in their own seconds
+        (``silent_vehicles``), checked every ``WATCHDOG_PERIOD_S`` of vehicle time."""
         while True:
-            now = time.monotonic()
-            for v in self.by_id.values():  # the timeout is in vehicle seconds
-                silent = v.clock.vehicle_seconds(now - v.last_heard_s)
-                if not v.lost and silent > self.settings.vehicle_timeout_s:
-                    v.lost = True
-                    log.warning(
-                        "vehicle %d lost (silent %.1f s of its time, %.1f s of ours)",
-                        v.system_id, silent, now - v.last_heard_s,
-                    )  # fmt: skip
-            await asyncio.sleep(0.2)
+            for v in silent_vehicles(
+                list(self.by_id.values()), time.monotonic(), self.settings.vehicle_timeout_s
+            ):
+                v.lost = True
+                log.warning("vehicle %d lost (silent %.1f s of ours)", v.system_id,
+                            time.monotonic() - v.last_heard_s)  # fmt: skip
+            rate = max((v.clock.rate for v in self.by_id.values()), default=1.0)
+            await asyncio.sleep(max(0.01, WATCHDOG_PERIOD_S / rate))
 
     def vehicles(self) -> list[dict[str, Any]]:
         now = time.monotonic()
@@ -307,3 +310,26 @@ def planning_states(
         if not vehicle.lost:
             active.add(vehicle.system_id)
     return states, active, lags
+
+
+def silent_vehicles(vehicles: list[Vehicle], now_s: float, timeout_s: float) -> list[Vehicle]:
+    """The vehicles not lost yet that have been silent for ``timeout_s`` of their own time
+    *while another vehicle was heard*: silent that long, and that far behind the last one
+    heard.  A ground station starved of CPU reads every link late at once (measured: three
+    of five vehicles declared lost together under load, while an independent observer heard
+    all five without a gap over 0.12 s); so when every vehicle is silent together, each is
+    lost only after ``ALL_SILENT_FACTOR`` timeouts (a single vehicle: after the timeout)."""
+    alive = [v for v in vehicles if not v.lost]
+    if not alive:
+        return []
+    freshest = max(v.last_heard_s for v in alive)
+    out = []
+    for v in alive:
+        silent = v.clock.vehicle_seconds(now_s - v.last_heard_s)
+        behind = v.clock.vehicle_seconds(freshest - v.last_heard_s)
+        alone = len(alive) == 1
+        if silent > timeout_s and (
+            alone or behind > timeout_s or silent > ALL_SILENT_FACTOR * timeout_s
+        ):
+            out.append(v)
+    return out

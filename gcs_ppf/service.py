@@ -166,8 +166,7 @@ class FormationService:
                 {"state": run.state if run else RunState.PENDING},
             )
         run.abort.set()
-        await self._loiter_all(run)
-        self._finish(run, RunState.ABORTED, "aborted by the operator")
+        self._end(run, RunState.ABORTED, "aborted by the operator")
         if run.task is not None:
             run.task.cancel()
         return self.status(mission_id)
@@ -273,17 +272,19 @@ class FormationService:
         self._event(run, f"run_{state}", outcome=outcome)
         self._publish()
 
-    async def _loiter_all(self, run: Run) -> None:
-        """Abort, failure: every vehicle holds at its height on a circle clear of every
-        obstacle (``gcs_ppf.holding``); one that has not reported a state, in LOITER."""
-        states, _, _ = planning_states(list(self._located(run)))
-        await self._hold(run, states, stacked=False)
-
-    async def _loiter_stacked(self, run: Run, states: dict[int, VehicleState]) -> None:
-        """After the mission: each vehicle circles a point ahead of it, vehicle k of the
-        mission ``LOITER_STACK_M``·k above the target, so the circles of a formation that
-        flies close together do not cross at one height (plain LOITER would)."""
-        await self._hold(run, states, stacked=True)
+    def _end(
+        self, run: Run, state: RunState, outcome: str,
+        states: dict[int, VehicleState] | None = None,
+    ) -> None:  # fmt: skip
+        """The run ends now (its state, at once: a hold that takes long to confirm, or a
+        dead vehicle's that never is, does not delay it); every vehicle still heard then
+        holds clear of every obstacle, in the background: after completion (``states``
+        given) stacked above the target, otherwise at its height."""
+        self._finish(run, state, outcome)
+        stacked = states is not None
+        if states is None:
+            states, _, _ = planning_states(list(self._located(run)))
+        self._spawn(self._hold(run, states, stacked))
 
     async def _hold(self, run: Run, states: dict[int, VehicleState], stacked: bool) -> None:
         """Each vehicle to its holding circle (``commanding.hold_orders``), every command
@@ -296,8 +297,9 @@ class FormationService:
         def event(kind: str, vehicle_id: int | None = None, **detail: Any) -> None:
             self._event(run, kind, vehicle_id, **detail)
 
+        heard = {i for i, v in self.fleet.by_id.items() if not v.lost}
         orders = commanding.hold_orders(
-            run.orders, states, airframes, run.mission_time_s, stacked, event
+            run.orders, states, airframes, run.mission_time_s, stacked, event, heard
         )
         rate = max([v.clock.rate for v in self.fleet.by_id.values()] or [1.0])
         await confirmation.confirm_all(self.fleet, orders, event, commanding.hold_retry(rate))
@@ -335,8 +337,7 @@ class FormationService:
             raise
         except Exception as exc:  # a run must never take the service down
             log.exception("mission %d failed", run.mission_id)
-            await self._loiter_all(run)
-            self._finish(run, RunState.FAILED, f"error: {exc}")
+            self._end(run, RunState.FAILED, f"error: {exc}")
 
     async def _tick_loop(self, run: Run) -> None:
         period = 1.0 / self.settings.tick_hz
@@ -382,8 +383,7 @@ class FormationService:
                 self._event(run, "vehicle_lost", v.id)
         if run.mission.leader.id not in run.lost_ids:
             return False
-        await self._loiter_all(run)
-        self._finish(run, RunState.FAILED, "leader lost")
+        self._end(run, RunState.FAILED, "leader lost")
         return True
 
     def _watch_safety(
@@ -469,18 +469,15 @@ class FormationService:
         if passes_within(
             previous, leader_pos, np.array(mission.target), mission.limits.target_accuracy
         ):
-            await self._loiter_stacked(run, states)
-            self._finish(run, RunState.COMPLETED, "leader reached the target")
+            self._end(run, RunState.COMPLETED, "leader reached the target", states)
             return True
 
         if run.mission_time_s > mission.planner.max_time:
-            await self._loiter_all(run)
-            self._finish(run, RunState.FAILED, "planner.max_time passed before the target")
+            self._end(run, RunState.FAILED, "planner.max_time passed before the target")
             return True
 
         if self._obedience(run, located):
-            await self._loiter_all(run)
-            self._finish(run, RunState.FAILED, "leader not responding")
+            self._end(run, RunState.FAILED, "leader not responding")
             return True
         uncontrolled = run.obedience.not_responding & set(states)
         active -= uncontrolled  # not planned for, not commanded: avoided as traffic
