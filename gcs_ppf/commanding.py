@@ -103,9 +103,9 @@ async def command_fleet(
     hold_s: float,
     commanded_speed: dict[int, float],
     event: Callable[..., None],
-) -> list[assurance.Verdict]:
+) -> dict[int, assurance.Verdict]:
     """Send every active vehicle its commands for this tick, each assured first; returns
-    the verdicts (in the order of the active vehicles in ``g``)."""
+    each one's verdict (the command it was sent)."""
     mission = orders.mission
     turn_accel = mission.limits.v_max * mission.limits.max_yaw_rate  # the plan limits turns
     planned = planned_commands(g, states, airframes, orders, turn_accel)
@@ -121,7 +121,7 @@ async def command_fleet(
                   course_deg=round(90.0 - math.degrees(v.command.course_rad), 1))  # fmt: skip
         await _send_course(fleet, vid, planned[i], v, m, orders, g.guided_point_m[i])
         await _send_speed(fleet, vid, g, i, airframes[i], commanded_speed)
-    return verdicts
+    return {g.ids[i]: v for i, v in zip(idx, verdicts, strict=True)}
 
 
 async def _send_course(
@@ -201,7 +201,14 @@ def hold_orders(
         radius = max(HOLD_MIN_RADIUS_M, HOLD_TURN_RADII * s.speed_m_s / omega)
         z = mission.target[2] + LOITER_STACK_M * k if stacked else s.pos_m[2]
         hold = holding.holding_circle(
-            np.array(s.pos_m), s.yaw_rad, z, radius, LOITER_AHEAD_M, obstacles, keep_out
+            np.array(s.pos_m),
+            s.yaw_rad,
+            z,
+            radius,
+            LOITER_AHEAD_M,
+            obstacles,
+            keep_out,
+            motion(s, airframes[v.id], mission),
         )
         if hold.clearance_m < keep_out:
             event("hold_not_clear", v.id, clearance_m=round(hold.clearance_m, 1))

@@ -34,6 +34,7 @@ from gcs_ppf.online import (
     Guidance,
     VehicleState,
     clearance,
+    coordinated_turn_rate,
     home_ground,
     separations,
     warm_up,
@@ -405,16 +406,27 @@ class FormationService:
                         depth_m=round(v.depth_m, 1))  # fmt: skip
 
     def _obedience(
-        self, run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]]
-    ) -> bool:
-        """Which vehicles obey (GUIDED, the course command ACCEPTED): events when one stops
-        for ``not_responding_s`` of vehicle time or comes back; True if it is the leader."""
+        self, run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]],
+        states: dict[int, VehicleState],
+    ) -> bool:  # fmt: skip
+        """Which vehicles obey (GUIDED, the course command ACCEPTED, the course sent flown
+        or turned to): events when one stops for ``NOT_RESPONDING_S`` of vehicle time or
+        comes back; True if it is the leader."""
         command = COURSE_COMMAND[self.settings.guidance]
         reports = []
         for v, _ in located:
-            ack = v.telemetry.ack(command)
-            guided = v.telemetry.custom_mode == PlaneMode.GUIDED
-            reports.append(obedience.Report(v.system_id, guided, ack.result if ack else None))
+            t = v.telemetry
+            ack = t.ack(command)
+            guided = t.custom_mode == PlaneMode.GUIDED
+            s = states.get(v.system_id)
+            sent = run.sent_course.get(v.system_id)
+            error = turn = None
+            if s is not None and sent is not None:
+                error = math.remainder(sent - s.yaw_rad, math.tau)
+                turn = coordinated_turn_rate(t.roll_rad, s.speed_m_s)
+            reports.append(obedience.Report(
+                v.system_id, guided, ack.result if ack else None, error, turn or 0.0
+            ))  # fmt: skip
         flagged, cleared = run.obedience.update(run.mission_time_s, reports)
         by_id = {v.system_id: v.telemetry for v, _ in located}
         for vid in flagged:
@@ -476,7 +488,7 @@ class FormationService:
             self._end(run, RunState.FAILED, "planner.max_time passed before the target")
             return True
 
-        if self._obedience(run, located):
+        if self._obedience(run, located, states):
             self._end(run, RunState.FAILED, "leader not responding")
             return True
         uncontrolled = run.obedience.not_responding & set(states)
@@ -504,10 +516,11 @@ class FormationService:
         def event(kind: str, vehicle_id: int | None = None, **detail: Any) -> None:
             self._event(run, kind, vehicle_id, **detail)
 
-        await commanding.command_fleet(
+        verdicts = await commanding.command_fleet(
             self.fleet, g, active, states, ordered, run.orders, keep, hold_s,
             run.commanded_speed, event,
         )  # fmt: skip
+        run.sent_course.update({vid: v.command.course_rad for vid, v in verdicts.items()})
         return False
 
     def _note_changes(self, run: Run, g: Guidance) -> None:
