@@ -39,12 +39,13 @@ from gcs_ppf.geodesy import heading_ned_to_yaw
 from gcs_ppf.mission import Limits, Mission, Obstacle
 from gcs_ppf.online import state_from_velocity
 from gcs_ppf.ppf.primitives import influence_radius
-from gcs_ppf.service import FINISHED, FormationService
+from gcs_ppf.service import FormationService
 
 STATIC_DIR = Path(__file__).parent / "static"
 MAX_FRAME_HZ = 20.0
 IDLE_FRAME_S = 0.5
 EVENTS_EVERY_S = 0.25  # the run's events are read from the store at most this often
+FINISHED = frozenset({"completed", "completed_unsafe", "aborted", "failed"})  # run states (API)
 MOVING_M_S = 1.0  # below this ground speed the heading comes from the attitude, not velocity
 
 

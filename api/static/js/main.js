@@ -30,7 +30,7 @@ const state = {
   replay: null,
 };
 
-const perf = { frames: 0, drawMs: 0, drawMaxMs: 0, messages: 0 };
+const perf = { frames: 0, draws: 0, drawMs: 0, drawMaxMs: 0, messages: 0 };
 
 // Views ---------------------------------------------------------------------------------
 const top = new TopView($("map"), {
@@ -98,17 +98,28 @@ function buildScene() {
   };
 }
 
+// Redrawn when something changed (a frame, the pointer, a key, a resize, the replay
+// clock), and at least every REDRAW_MS; otherwise an animation frame costs nothing.
+const REDRAW_MS = 250;
+let dirty = true;
+let lastDraw = 0;
+const touch = () => (dirty = true);
+
 function draw() {
   requestAnimationFrame(draw);
   const t0 = performance.now();
+  perf.frames += 1;
   if (state.mode === "replay") replayAdvance(t0);
+  if (!dirty && t0 - lastDraw < REDRAW_MS) return;
+  dirty = false;
+  lastDraw = t0;
   const scene = state.paused && state.frozen ? state.frozen : buildScene();
   top.scene = scene;
   side.scene = scene;
   top.draw();
   side.draw();
   const ms = performance.now() - t0;
-  perf.frames += 1;
+  perf.draws += 1;
   perf.drawMs += ms;
   perf.drawMaxMs = Math.max(perf.drawMaxMs, ms);
 }
@@ -119,6 +130,7 @@ let lastTableUpdate = 0;
 
 function onFrame(f) {
   perf.messages += 1;
+  dirty = true;
   if (f.type !== "frame") return;
   const runId = f.run ? f.run.run_id : null;
   if (runId !== state.runId) {
@@ -416,7 +428,7 @@ function placeObstacle(x, y) {
   setPlacing(false);
   if (!state.doc) return;
   const z = Array.isArray(state.doc.target) ? Number(state.doc.target[2]) || 0 : 0;
-  const radius = Math.max(50, Math.round(60 / top.view.scale));
+  const radius = Math.max(50, Math.round(25 / top.view.scale / 50) * 50); // 25 px, in 50 m
   state.doc.obstacles = Array.isArray(state.doc.obstacles) ? state.doc.obstacles : [];
   state.doc.obstacles.push({ center: [Math.round(x), Math.round(y), z], radius, velocity: [0, 0, 0] });
   state.selected = state.doc.obstacles.length - 1;
@@ -705,6 +717,7 @@ function replaySeek(t) {
 function replayAdvance(now) {
   const r = state.replay;
   if (r.playing) {
+    dirty = true;
     if (r.last !== null) replaySeek(r.t + ((now - r.last) / 1000) * r.speed);
     r.last = now;
     if (r.t >= r.T) {
@@ -833,6 +846,10 @@ function selectTab(name) {
 }
 
 function bind() {
+  for (const kind of ["pointerdown", "pointermove", "pointerup", "wheel", "keydown", "change", "input", "click"]) {
+    document.addEventListener(kind, touch, { capture: true, passive: true });
+  }
+  window.addEventListener("resize", touch);
   $("file-input").addEventListener("change", (e) => {
     const file = e.target.files[0];
     if (file) loadFile(file);

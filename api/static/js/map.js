@@ -24,11 +24,16 @@ export class Trail {
     this.start = 0;
     this.length = 0;
   }
-  /** Calls f(x, y, z, k) oldest first. */
-  each(f) {
-    for (let k = 0; k < this.length; k++) {
-      const i = ((this.start + k) % this.capacity) * 3;
-      f(this.xyz[i], this.xyz[i + 1], this.xyz[i + 2], k);
+  /** Adds the trail to the canvas path as a polyline through project(x, y, z) → [sx, sy],
+   * every `step`-th point (and the newest). */
+  trace(ctx, px, py, step = 1) {
+    const { xyz, capacity, start, length } = this;
+    for (let k = 0; k < length; k += k + step < length || k === length - 1 ? step : length - 1 - k) {
+      const i = ((start + k) % capacity) * 3;
+      const x = px(xyz[i], xyz[i + 1], xyz[i + 2]);
+      const y = py(xyz[i], xyz[i + 1], xyz[i + 2]);
+      if (k) ctx.lineTo(x, y);
+      else ctx.moveTo(x, y);
     }
   }
 }
@@ -320,20 +325,19 @@ export class TopView {
       ctx.fillText(`${v.id}${v.role === "leader" ? " L" : ""}`, x + 10 * dpr, y + 12 * dpr);
     }
 
-    // Trails.
+    // Trails (every other point or fewer when there are many: a point is 0.1 s of flight).
     ctx.lineWidth = 1.5 * dpr;
+    let points = 0;
+    for (const t of (s.trails || new Map()).values()) points += t.length;
+    const step = Math.max(1, Math.ceil(points / 15000));
     for (const v of s.vehicles || []) {
       const trail = s.trails && s.trails.get(v.id);
       if (!trail || trail.length < 2) continue;
       ctx.strokeStyle = vehicleColour(col, v);
       ctx.globalAlpha = 0.6;
       ctx.beginPath();
-      trail.each((tx, ty, _tz, j) => {
-        const x = c.width / 2 + (tx - this.view.x) * k;
-        const y = c.height / 2 - (ty - this.view.y) * k;
-        if (j) ctx.lineTo(x, y);
-        else ctx.moveTo(x, y);
-      });
+      const cx = c.width / 2 - this.view.x * k, cy = c.height / 2 + this.view.y * k;
+      trail.trace(ctx, (tx) => cx + tx * k, (_tx, ty) => cy - ty * k, step);
       ctx.stroke();
       ctx.globalAlpha = 1;
     }
@@ -568,11 +572,7 @@ export class SideView {
       ctx.strokeStyle = vehicleColour(col, v);
       ctx.globalAlpha = 0.6;
       ctx.beginPath();
-      trail.each((tx, ty, tz, j) => {
-        const x = X(along(tx, ty)), y = Z(tz);
-        if (j) ctx.lineTo(x, y);
-        else ctx.moveTo(x, y);
-      });
+      trail.trace(ctx, (tx, ty) => X(along(tx, ty)), (_tx, _ty, tz) => Z(tz), 4);
       ctx.stroke();
       ctx.globalAlpha = 1;
     }

@@ -44,7 +44,7 @@ export function fieldErrors(detail, prefix = "") {
   };
   if (typeof detail === "string") {
     const lines = detail.split("\n").filter((l) => /Value error|^\s*\S+\[\d+\]/.test(l));
-    for (const line of lines) out.push(fromText(line.replace(/^.*Value error, /, "")));
+    for (const line of lines) out.push(fromText(line.replace(/^.*Value error, /, "").replace(/ \[type=.*$/, "")));
     if (!out.length) out.push({ path: "", message: detail });
     return out;
   }
@@ -213,7 +213,8 @@ export function showFieldErrors(form, errors) {
     let path = e.path;
     let el = null;
     while (path) {
-      el = form.querySelector(`[data-path="${CSS.escape(path)}"]`);
+      const sel = `[data-path="${CSS.escape(path)}"]`;
+      el = form.querySelector(`input${sel}, select${sel}`) || form.querySelector(sel);
       if (el) break;
       path = path.includes(".") ? path.slice(0, path.lastIndexOf(".")) : "";
     }
