@@ -238,8 +238,9 @@ class Fleet:
                 list(self.by_id.values()), time.monotonic(), self.settings.vehicle_timeout_s
             ):
                 v.lost = True
-                log.warning("vehicle %d lost (silent %.1f s of ours)", v.system_id,
-                            time.monotonic() - v.last_heard_s)  # fmt: skip
+                ours = time.monotonic() - v.last_heard_s
+                log.warning("vehicle %d lost (silent %.1f s of its time, %.2f s of ours)",
+                            v.system_id, v.clock.vehicle_seconds(ours), ours)  # fmt: skip
             rate = max((v.clock.rate for v in self.by_id.values()), default=1.0)
             await asyncio.sleep(max(0.01, WATCHDOG_PERIOD_S / rate))
 
