@@ -14,7 +14,7 @@ algorithm for one step; each equation group it uses is a numba function of its o
 * ``trend_matrix``          Eq. 19: pitch and yaw entries of f (erratum 2)
 * ``speed_trend``           Eq. 19's f_l with Eq. 21–24 (wingman braking, leader waiting)
 * ``kinematics``            Eq. 3–5: the new speed, pitch and yaw
-* ``move``                  Eq. 5: one step of flight
+* ``fly``                   Eq. 5: one step of flight
 
 The small formulas these are built from (frames, influence radius, saturated trend,
 braking speed, flight-path limits) are in ``gcs_ppf.ppf.primitives``.  The equation
@@ -83,12 +83,14 @@ __all__ = [
     "SIDEWAYS_EPS",
     "KernelLimits",
     "airframe_limited",
+    "attitude_trig",
     "attraction",
     "away_from_obstacles",
     "braking_speed",
     "escape_local_minimum",
     "fleet_step",
     "flight_path_limited",
+    "fly",
     "follow_direction",
     "formation_targets",
     "from_vcs",
@@ -97,7 +99,7 @@ __all__ = [
     "limit_climb",
     "lowest_climb",
     "move",
-    "nearby_obstacles",
+    "move_obstacles",
     "obstacle_repulsion",
     "obstacles_first",
     "slide_along_obstacles",
@@ -116,19 +118,25 @@ JUST_CLEAR = 1  # a teammate conflict only just avoided: hold course
 CONFLICT = 2  # a teammate that repels (a moving obstacle)
 
 
-@njit(cache=True, inline="always")
-def unit_velocities(
-    pitch: np.ndarray, yaw: np.ndarray, trig: np.ndarray, direction: np.ndarray
-) -> None:
-    """Each vehicle's flight direction, Eq. 5 divided by v, into ``direction[N,3]``; the
-    cosines and sines of pitch and yaw into ``trig[N,4]`` (cos θ, sin θ, cos ψ, sin ψ)."""
+@njit(cache=True)
+def attitude_trig(pitch: np.ndarray, yaw: np.ndarray, trig: np.ndarray) -> None:
+    """cos θ, sin θ, cos ψ, sin ψ of every vehicle into ``trig[N, 0:4]``."""
     for i in range(pitch.shape[0]):
-        cp, sp = math.cos(pitch[i]), math.sin(pitch[i])
-        cy, sy = math.cos(yaw[i]), math.sin(yaw[i])
-        trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3] = cp, sp, cy, sy
+        trig[i, 0], trig[i, 1] = math.cos(pitch[i]), math.sin(pitch[i])
+        trig[i, 2], trig[i, 3] = math.cos(yaw[i]), math.sin(yaw[i])
+
+
+@njit(cache=True, inline="always")
+def unit_velocities(speed: np.ndarray, trig: np.ndarray, direction: np.ndarray) -> None:
+    """Each vehicle's flight direction, Eq. 5 divided by v, into ``direction[N,3]``, and its
+    velocity (Eq. 5) into ``trig[N, 4:7]``, from cos/sin of pitch and yaw in ``trig[N, 0:4]``."""
+    for i in range(speed.shape[0]):
+        cp, sp, cy, sy = trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3]
         direction[i, 0] = cp * cy
         direction[i, 1] = cp * sy
         direction[i, 2] = sp
+        for c in range(3):
+            trig[i, 4 + c] = speed[i] * direction[i, c]
 
 
 @njit(cache=True, inline="always")
@@ -297,14 +305,16 @@ def teammate_conflicts(
     rz: float,
     pos: np.ndarray,
     speed: np.ndarray,
-    direction: np.ndarray,
-    rank: np.ndarray,
-    active: np.ndarray,
+    trig: np.ndarray,
+    mate_start: np.ndarray,
+    mates: np.ndarray,
     lim: KernelLimits,
     dt: float,
 ) -> tuple[float, float, float, bool, bool, float, float, float]:
     """The repulsion (rx, ry, rz) on vehicle i with that of its teammates of higher
-    priority (lower rank) added (Eq. 12–13; each one by ``teammate_conflict``).
+    priority (lower rank) added (Eq. 12–13; each one by ``teammate_conflict``).  Only
+    ``mates[mate_start[i]:mate_start[i+1]]`` are looked at (see ``nearby_teammates``);
+    ``trig[:, 4:7]`` are the velocities (``unit_velocities``).
 
     Returns (F_r, whether a mate repels, whether a conflict was only just avoided, the sum
     of those conflicts' miss vectors).
@@ -314,16 +324,15 @@ def teammate_conflicts(
     repelled_by_mate = False
     hold_course = False
     hx, hy, hz = 0.0, 0.0, 0.0
-    for k in range(pos.shape[0]):
-        if k == i or not active[k] or rank[k] >= rank[i]:
-            continue
+    for c in range(mate_start[i], mate_start[i + 1]):
+        k = mates[c]
         kind, mx, my, mz = teammate_conflict(
             px - pos[k, 0],
             py - pos[k, 1],
             pz - pos[k, 2],
-            speed[k] * direction[k, 0] - vi * direction[i, 0],
-            speed[k] * direction[k, 1] - vi * direction[i, 1],
-            speed[k] * direction[k, 2] - vi * direction[i, 2],
+            trig[k, 4] - trig[i, 4],
+            trig[k, 5] - trig[i, 5],
+            trig[k, 6] - trig[i, 6],
             vi,
             speed[k],
             lim,
@@ -546,6 +555,37 @@ def kinematics(
     return v_new, th, ps
 
 
+@njit(cache=True, inline="always")
+def fly(
+    i: int,
+    pos: np.ndarray,
+    pitch: np.ndarray,
+    yaw: np.ndarray,
+    speed: np.ndarray,
+    next_motion: np.ndarray,
+    dt: float,
+) -> tuple[float, float, float, float]:
+    """Vehicle i takes the new (speed, pitch, yaw) of ``next_motion`` and flies one step
+    (Eq. 5); returns cos θ, sin θ, cos ψ, sin ψ of its new attitude."""
+    speed[i] = next_motion[i, 0]
+    pitch[i] = next_motion[i, 1]
+    yaw[i] = next_motion[i, 2]
+    cp, sp = math.cos(pitch[i]), math.sin(pitch[i])
+    cy, sy = math.cos(yaw[i]), math.sin(yaw[i])
+    pos[i, 0] += speed[i] * cp * cy * dt
+    pos[i, 1] += speed[i] * cp * sy * dt
+    pos[i, 2] += speed[i] * sp * dt
+    return cp, sp, cy, sy
+
+
+@njit(cache=True)
+def move_obstacles(obs_center: np.ndarray, obs_velocity: np.ndarray, dt: float) -> None:
+    """Every obstacle moves one step at its constant velocity."""
+    for j in range(obs_center.shape[0]):
+        for c in range(3):
+            obs_center[j, c] += obs_velocity[j, c] * dt
+
+
 @njit(cache=True)
 def move(
     pos: np.ndarray,
@@ -561,59 +601,9 @@ def move(
     """Take the new (speed, pitch, yaw) of ``next_motion`` and fly one step (Eq. 5);
     move the obstacles at their constant velocity."""
     for i in range(pos.shape[0]):
-        if not active[i]:
-            continue
-        speed[i] = next_motion[i, 0]
-        pitch[i] = next_motion[i, 1]
-        yaw[i] = next_motion[i, 2]
-        cp = math.cos(pitch[i])
-        pos[i, 0] += speed[i] * cp * math.cos(yaw[i]) * dt
-        pos[i, 1] += speed[i] * cp * math.sin(yaw[i]) * dt
-        pos[i, 2] += speed[i] * math.sin(pitch[i]) * dt
-    for j in range(obs_center.shape[0]):
-        for c in range(3):
-            obs_center[j, c] += obs_velocity[j, c] * dt
-
-
-@njit(cache=True)
-def nearby_obstacles(
-    pos: np.ndarray,
-    obs_center: np.ndarray,
-    obs_radius: np.ndarray,
-    obs_velocity: np.ndarray,
-    lim: KernelLimits,
-    dt: float,
-    horizon_steps: int,
-    near_start: np.ndarray,
-    near_obstacles: np.ndarray,
-) -> None:
-    """The obstacles each vehicle could come under the influence of within the next
-    ``horizon_steps`` steps (a neighbour list, so that a step need not look at all M).
-
-    A vehicle is influenced from at most keep_out + v_max/ω + v_max·Δt + u·T (the cheap
-    bound in ``fleet_step``; one v_max/ω more for an ``airframe_limited`` one); over the
-    horizon the two close by at most (v_max + u)·steps·Δt.
-    Fills ``near_obstacles`` in CSR form: vehicle i's are ``near_start[i]:near_start[i+1]``.
-    """
-    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
-    turns = 2.0 if airframe_limited(lim) else 1.0  # the half turn of fleet_step
-    count = 0
-    for i in range(pos.shape[0]):
-        near_start[i] = count
-        for j in range(obs_center.shape[0]):
-            u = math.sqrt(
-                obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2
-            )
-            reach = obs_radius[j] + lim.safe_distance_obstacle + turns * lim.v_max / omega
-            reach += INFLUENCE_STEPS * lim.v_max * dt + u * AVOIDANCE_TURN_ANGLE / omega
-            reach += (lim.v_max + u) * horizon_steps * dt
-            dx = pos[i, 0] - obs_center[j, 0]
-            dy = pos[i, 1] - obs_center[j, 1]
-            dz = pos[i, 2] - obs_center[j, 2]
-            if dx * dx + dy * dy + dz * dz <= reach * reach:
-                near_obstacles[count] = j
-                count += 1
-    near_start[pos.shape[0]] = count
+        if active[i]:
+            fly(i, pos, pitch, yaw, speed, next_motion, dt)
+    move_obstacles(obs_center, obs_velocity, dt)
 
 
 @njit(cache=True)
@@ -639,6 +629,9 @@ def fleet_step(
     next_motion: np.ndarray,
     near_start: np.ndarray,
     near_obstacles: np.ndarray,
+    mate_start: np.ndarray,
+    mates: np.ndarray,
+    trig: np.ndarray,
 ) -> None:
     """Advance the fleet one step Δt in place: the paper's algorithm (Eq. 3–24).
 
@@ -647,13 +640,15 @@ def fleet_step(
     accuracy of its local target point, ``local_target[N,3]`` the wingmen's local target
     points G_i (Eq. 6).  ``direction[N,3]`` and ``next_motion[N,3]`` are scratch space.
     Vehicle i considers only the obstacles ``near_obstacles[near_start[i]:near_start[i+1]]``
-    (see ``nearby_obstacles``).
+    (see ``nearby_obstacles``), and only the teammates ``mates[mate_start[i]:mate_start[i+1]]``
+    (see ``nearby_teammates``; every active teammate of higher priority for all pairs).
+    ``trig[N,7]`` holds cos θ, sin θ, cos ψ, sin ψ of every vehicle on entry
+    (``attitude_trig``) and of its new attitude on return; its last columns are scratch.
     Every vehicle decides from the fleet's state at the start of the step.
     Obstacles are moved by their velocity at the end of the step.
     """
     n = pos.shape[0]
-    trig = np.empty((n, 4))
-    unit_velocities(pitch, yaw, trig, direction)  # Eq. 5 / v
+    unit_velocities(speed, trig, direction)  # Eq. 5
     leader_waits = formation_targets(pos, slot, active, trig, direction, lim, local_target, formed)
     lead = speed[0] / min(lim.max_pitch_rate, lim.max_yaw_rate)  # one turn time ahead
     for i in range(n):
@@ -667,7 +662,7 @@ def fleet_step(
             lim, dt,
         )  # fmt: skip
         rx, ry, rz, mate, hold_course, hx, hy, hz = teammate_conflicts(
-            i, ox, oy, oz, pos, speed, direction, rank, active, lim, dt
+            i, ox, oy, oz, pos, speed, trig, mate_start, mates, lim, dt
         )
         rx, ry, rz = obstacles_first(rx, ry, rz, ox, oy, oz)
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0
@@ -700,4 +695,9 @@ def fleet_step(
         next_motion[i, 0], next_motion[i, 1], next_motion[i, 2] = kinematics(
             speed[i], pitch[i], yaw[i], f_speed, f_pitch, f_yaw, lim, dt
         )
-    move(pos, pitch, yaw, speed, active, next_motion, obs_center, obs_velocity, dt)
+    for i in range(n):  # Eq. 5: every vehicle flies its new motion
+        if active[i]:
+            trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3] = fly(
+                i, pos, pitch, yaw, speed, next_motion, dt
+            )
+    move_obstacles(obs_center, obs_velocity, dt)
