@@ -13,7 +13,7 @@ LOCK   := requirements-lock.txt
 UV_VERSION   := 0.13.9
 LOCK_UPGRADE ?= --upgrade
 
-.PHONY: install run plan sitl test lint bench sitl-bench clean lock chromium
+.PHONY: install run plan sitl test lint bench sitl-bench clean lock chromium web-bench
 
 # Exactly the locked set (pip refuses anything unpinned or with another hash), then gcs-ppf
 # itself on top, editable, without dependencies, built by the locked setuptools; pip check
@@ -69,6 +69,11 @@ test: lint
 
 bench: install
 	$(PY) -m gcs_ppf.benchmark
+
+# The operator's page with 50 vehicles at 10 Hz in headless chromium: fps and JS heap
+# (WEB_BENCH="--minutes 1" for a short run).
+web-bench: install
+	$(PY) -m tests.web.bench $(WEB_BENCH)
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache

@@ -31,7 +31,7 @@ from fastapi.staticfiles import StaticFiles
 
 from api.view import STATIC_DIR, frame
 from gcs_ppf.mission import Mission
-from tests.web.harness import browser, chromium_missing, free_port, wait_for
+from tests.web.harness import browser, chromium_missing, free_port, screenshot, wait_for
 
 RADIUS_M = 6000.0
 SPEED_M_S = 100.0
@@ -228,6 +228,7 @@ def main() -> None:
                   f"{row[4]:6.1f} {heap:8.1f} {points:9d}", flush=True)  # fmt: skip
         heap_end = heap_after_gc_mb(driver)
         vehicles_drawn = driver.execute_script("return window.gcs.state.frame.vehicles.length")
+        shot = screenshot(driver, f"bench-{args.vehicles}-{width}x{height}")
     fps_all = [r[1] for r in rows]
     print(
         f"\n{args.vehicles} vehicles ({vehicles_drawn} drawn) at {args.hz:g} Hz, "
@@ -238,7 +239,7 @@ def main() -> None:
         f"{statistics.fmean(r[4] for r in rows):.1f}/s; JS heap after GC "
         f"{heap_start:.1f} MB at the start, {heap_end:.1f} MB at the end "
         f"({heap_end - heap_start:+.1f} MB); used heap between "
-        f"{min(r[5] for r in rows):.1f} and {max(r[5] for r in rows):.1f} MB"
+        f"{min(r[5] for r in rows):.1f} and {max(r[5] for r in rows):.1f} MB; screenshot {shot}"
     )
 
 

@@ -188,3 +188,71 @@ def test_the_service_restarted_under_the_page(page: Page) -> None:
         page.driver.find_element(By.ID, "btn-preview").click()
         wait_for(lambda: page.driver.find_elements(By.ID, "metrics-table"), 60, "the plan")
         assert "Plan of mission #1" in page.text("load-message")
+
+
+@pytest.mark.integration
+def test_keyboard_shortcuts_and_themes(page: Page) -> None:
+    page.upload("table3.json", MISSION.read_text())
+    wait_for(lambda: "stored as mission #1" in page.text("load-message"), 10, "the mission")
+    body = page.driver.find_element(By.TAG_NAME, "body")
+    scale = page.js("window.gcs.top.view.scale")
+    body.send_keys("+")
+    assert page.js("window.gcs.top.view.scale") == pytest.approx(scale * 1.4)
+    body.send_keys("0")
+    assert page.js("window.gcs.top.view.scale") == pytest.approx(scale, rel=1e-3)
+    body.send_keys("f")
+    assert page.driver.find_element(By.ID, "btn-follow").get_attribute("aria-pressed") == "true"
+    theme = page.js("document.documentElement.dataset.theme")
+    body.send_keys("t")
+    other = page.js("document.documentElement.dataset.theme")
+    assert {theme, other} == {"light", "dark"}
+    background = page.js("getComputedStyle(document.body).backgroundColor")
+    body.send_keys("3")
+    assert page.driver.find_element(By.ID, "tab-history").is_displayed()
+    body.send_keys("1")
+    screenshot(page.driver, f"plan-{other}")
+    body.send_keys("t")
+    assert page.js("getComputedStyle(document.body).backgroundColor") != background
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize(("width", "height"), [(1280, 720), (3840, 2160)])
+def test_the_page_fits_the_screen(tmp_path: Path, width: int, height: int) -> None:
+    """Nothing sticks out of the window; the map keeps most of it; text grows on 4K."""
+    port = free_port()
+    api = f"http://127.0.0.1:{port}"
+    log = tmp_path / "gcs.log"
+    with process(serve_args(port, tmp_path / "gcs.db"), log) as gcs, \
+            browser(width, height) as driver:  # fmt: skip
+        wait_serving(api, gcs, log)
+        driver.get(f"{api}/")
+        wait_for(lambda: driver.find_element(By.ID, "conn").text == "connected", 20, "the page")
+        inner = driver.execute_script("return [window.innerWidth, window.innerHeight]")
+        scroll = driver.execute_script(
+            "return [document.documentElement.scrollWidth, document.documentElement.scrollHeight]"
+        )
+        assert scroll[0] <= inner[0]
+        assert scroll[1] <= inner[1]
+        map_size = driver.find_element(By.ID, "map").size
+        assert map_size["width"] >= 0.45 * inner[0]
+        assert map_size["height"] >= 0.45 * inner[1]
+        font_px = float(driver.execute_script(
+            "return parseFloat(getComputedStyle(document.documentElement).fontSize)"))  # fmt: skip
+        assert font_px >= (20 if width >= 3840 else 13)
+        screenshot(driver, f"empty-{width}x{height}")
+
+
+@pytest.mark.integration
+def test_links_are_added_and_removed_from_the_fleet_tab(page: Page) -> None:
+    page.driver.find_element(By.CSS_SELECTOR, "[data-tab=fleet]").click()
+    page.driver.find_element(By.ID, "btn-add-link").click()
+    assert "Type a MAVLink URL first" in page.text("link-message")
+    url = f"udpin:127.0.0.1:{free_port()}"
+    page.driver.find_element(By.ID, "link-url").send_keys(url)
+    page.driver.find_element(By.ID, "btn-add-link").click()
+    wait_for(lambda: url in page.text("links-table"), 10, "the link listed")
+    assert "Link 1 added" in page.text("link-message")
+    assert [link["url"] for link in http("GET", f"{page.api}/links")[1]] == [url]
+    page.driver.find_element(By.CSS_SELECTOR, "#links-table button").click()
+    wait_for(lambda: url not in page.text("links-table"), 10, "the link gone")
+    assert http("GET", f"{page.api}/links")[1] == []

@@ -281,6 +281,7 @@ function updateVehicleTable(f) {
     state.notResponding.has(v.id) ? "not responding" : v.ppf_state ?? "–",
     v.pos_m ? v.pos_m.map((c) => c.toFixed(0)).join(", ") : "–",
     v.speed_m_s === null ? "–" : `${v.speed_m_s.toFixed(1)} m/s`,
+    v.local_target_distance_m === null || v.local_target_distance_m === undefined ? "–" : `${v.local_target_distance_m.toFixed(1)} m`,
   ]);
   while (body.rows.length > rows.length) body.deleteRow(-1);
   rows.forEach((cells, i) => {

@@ -57,6 +57,8 @@ function colours() {
     lost: c("--lost"), obstacle: c("--obstacle"), keepout: c("--keepout"),
     influence: c("--influence"), plan: c("--plan"), target: c("--target"), accent: c("--accent"),
     font: c("--font"), mono: c("--mono"),
+    // Marks and text on the canvases grow with the page's font (larger on a 4K screen).
+    scale: Math.max(1, parseFloat(s.fontSize) / 13),
   };
 }
 
@@ -138,7 +140,7 @@ export class TopView {
     for (const v of s.vehicles || []) if (v.pos_m) add(v.pos_m[0], v.pos_m[1], 100);
     for (const id in s.plan || {}) for (const p of s.plan[id].position_m) add(p[0], p[1]);
     if (!Number.isFinite(x0)) return;
-    const dpr = fitCanvas(this.canvas);
+    const dpr = fitCanvas(this.canvas) * this.col.scale;
     const c = this.canvas;
     const top = 44 * dpr; // the toolbar
     const margin = 16 * dpr;
@@ -230,7 +232,7 @@ export class TopView {
   }
 
   draw() {
-    const dpr = fitCanvas(this.canvas);
+    const dpr = fitCanvas(this.canvas) * this.col.scale;
     const { ctx, col } = this;
     const s = this.scene;
     const c = this.canvas;
@@ -342,8 +344,10 @@ export class TopView {
       ctx.globalAlpha = 1;
     }
 
-    // Each wingman's local target point and the line to it with its distance.
+    // Each wingman's local target point and the line to it with its distance (written for
+    // up to 12 wingmen; beyond, the Fleet tab lists them).
     ctx.font = font(11, true);
+    const withSlots = (s.vehicles || []).filter((v) => v.local_target_m).length;
     for (const v of s.vehicles || []) {
       if (!v.pos_m || !v.local_target_m || v.lost) continue;
       const [x, y] = this.toScreen(v.pos_m[0], v.pos_m[1]);
@@ -358,6 +362,7 @@ export class TopView {
       ctx.setLineDash([]);
       ctx.strokeRect(gx - 4 * dpr, gy - 4 * dpr, 8 * dpr, 8 * dpr);
       const d = v.local_target_distance_m ?? Math.hypot(...v.pos_m.map((p, j) => p - v.local_target_m[j]));
+      if (withSlots > 12) continue;
       ctx.fillStyle = d <= (s.accuracy_m || 10) ? col.ok : col.muted;
       ctx.textAlign = "left";
       ctx.fillText(`${d.toFixed(0)} m`, (x + gx) / 2 + 4 * dpr, (y + gy) / 2 - 4 * dpr);
@@ -497,7 +502,7 @@ export class SideView {
   }
 
   draw() {
-    const dpr = fitCanvas(this.canvas);
+    const dpr = fitCanvas(this.canvas) * this.col.scale;
     const { ctx, col, canvas: c } = this;
     ctx.setTransform(1, 0, 0, 1, 0, 0);
     ctx.fillStyle = col.map;

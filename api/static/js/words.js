@@ -26,6 +26,8 @@ const WORDS = {
   hold_not_clear: (e) => `${v(e)}: holding circle only ${d(e).clearance_m ?? "?"} m clear of an obstacle`,
   parameter_not_set: (e) => `${v(e)}: parameter ${d(e).name} reads ${d(e).read}, not ${d(e).sent}`,
   parameter_unanswered: (e) => `${v(e)}: parameter ${d(e).name} not answered`,
+  lag_over_budget: (e) => `Lag over budget: telemetry ${d(e).telemetry_age_s} s + commands ${d(e).command_delay_s} s = ${d(e).total_s} s (budget ${d(e).budget_s} s)`,
+  lag_within_budget: (e) => `Lag within budget again (${d(e).total_s} s of ${d(e).budget_s} s)`,
 };
 
 const LEVEL = {
@@ -34,7 +36,7 @@ const LEVEL = {
   vehicle_not_responding: "bad", safety_violation: "bad", takeoff_failed: "bad",
   formation_broken: "warn", avoidance_entered: "warn", conflict_resolution_began: "warn",
   local_minimum_escape: "warn", hold_not_clear: "warn", parameter_not_set: "warn",
-  parameter_unanswered: "warn",
+  parameter_unanswered: "warn", lag_over_budget: "warn",
 };
 
 export function eventWords(e) {
