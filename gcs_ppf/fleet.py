@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import math
 import statistics
 import time
 from collections import deque
@@ -29,7 +28,7 @@ from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import mode_name
 from gcs_ppf.mavlink.telemetry import AIRFRAME_PARAMS, VehicleTelemetry, apply
 from gcs_ppf.mission import Mission
-from gcs_ppf.online import VehicleState, coordinated_turn_rate, state_from_velocity
+from gcs_ppf.online import VehicleState, state_from_velocity
 from gcs_ppf.settings import Settings
 from gcs_ppf.vehicle_clock import VehicleClock
 
@@ -303,8 +302,7 @@ def planning_states(
             since, vehicle.round_trip_s, tick_work_s, vehicle.clock.rate
         )
         ahead = min(lags[vehicle.system_id].total_s, MAX_PREDICTION_S)
-        ground_speed = math.hypot(t.vn_m_s, t.ve_m_s)
-        turn = coordinated_turn_rate(t.roll_rad, ground_speed)
+        turn = -t.course_rate_rad_s  # clockwise from north → ICS yaw rate
         states[vehicle.system_id] = state_from_velocity(
             pos, t.vn_m_s, t.ve_m_s, t.vd_m_s, ahead, turn
         )

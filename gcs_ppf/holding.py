@@ -10,7 +10,9 @@ safe distance wins.  The approach is flown as the run-time assurance predicts a 
 (``gcs_ppf.assurance``: turning at its turn rate, climbing at its limits) when its
 ``Motion`` is given; a straight line from the vehicle to the ring otherwise (a vehicle at
 210 m/s turning 400 m wide onto a circle checked as a straight line flew 46 m into a sphere
-after a run had ended, issue 10 (d)).
+after a run had ended, issue 10 (d)); and the ring is checked as wide as the capture can
+swing out, a turn's radius beyond radius / η (at 200 m/s, a wingman captured on a 525 m
+circle flew 240 m outside it, into a sphere, campaign (c)).
 """
 
 from __future__ import annotations
@@ -136,9 +138,12 @@ def holding_circle(
                 approach = points_clearance(
                     approach_path(motion, x, y, z_m, radius_m / TURN_EFFICIENCY), obstacles
                 )
+            wide = radius_m / TURN_EFFICIENCY  # flown wider
+            if motion is not None:  # and the capture swings out by up to a turn's radius
+                wide += motion.speed_m_s / max(motion.turn_rate_rad_s, 1e-6)
             clear = min(
                 ring_clearance(x, y, z_m, radius_m, obstacles),
-                ring_clearance(x, y, z_m, radius_m / TURN_EFFICIENCY, obstacles),  # flown wider
+                ring_clearance(x, y, z_m, wide, obstacles),
                 approach,
             )
             hold = Hold(x, y, z_m, radius_m, clear)

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from gcs_ppf.airframe import G_M_S2, TURN_EFFICIENCY, OnlineLimits
+from gcs_ppf.airframe import OnlineLimits
 from gcs_ppf.frames import local_target_point
 from gcs_ppf.geodesy import velocity_ned_to_enu
 from gcs_ppf.mission import Mission
@@ -67,18 +67,6 @@ def state_from_velocity(
         yaw_rad=math.atan2(math.sin(yaw + turned), math.cos(yaw + turned)),
         speed_m_s=math.sqrt(horizontal**2 + vu**2),
     )
-
-
-def coordinated_turn_rate(
-    roll_rad: float | None, speed_m_s: float, efficiency: float = TURN_EFFICIENCY
-) -> float:
-    """The turn rate (rad/s, +: left in the ICS) at this bank: a fixed-wing turns by
-    banking, ψ' = η·g·tan φ / v (φ > 0 is right wing down: a right turn, clockwise seen from
-    above, negative ICS yaw rate; η: ArduPlane turns at ~72 % of a coordinated turn,
-    ``gcs_ppf.airframe.TURN_EFFICIENCY``)."""
-    if roll_rad is None or speed_m_s < 1.0:
-        return 0.0
-    return -efficiency * G_M_S2 * math.tan(roll_rad) / speed_m_s
 
 
 @dataclass(frozen=True)

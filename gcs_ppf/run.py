@@ -62,6 +62,8 @@ class Run:
     abort: asyncio.Event = field(default_factory=asyncio.Event)
     lost_ids: set[int] = field(default_factory=set)
     commanded_speed: dict[int, float] = field(default_factory=dict)
+    ended_vehicle_s: float | None = None
+    """The fleet's vehicle time when the run ended (``FormationService._fleet_time_s``)."""
     sent_course: dict[int, float] = field(default_factory=dict)
     """The course (ICS yaw, rad) each vehicle was last sent."""
     leader_pos: Any = None  # ICS position at the last tick

@@ -34,7 +34,6 @@ from gcs_ppf.online import (
     Guidance,
     VehicleState,
     clearance,
-    coordinated_turn_rate,
     home_ground,
     separations,
     warm_up,
@@ -59,6 +58,7 @@ __all__ = ["FINISHED", "FormationService", "RunState"]
 log = logging.getLogger("gcs_ppf.service")
 
 COURSE_COMMAND = {"course": 43002, "point": 192}  # the command each guidance mode flies by
+WATCH_AFTER_END_S = 60.0  # vehicle seconds the safety monitor goes on after a run ends
 
 
 class FormationService:
@@ -198,6 +198,7 @@ class FormationService:
                     {
                         "run_id": e.run_id,
                         "mission_time_s": e.mission_time_s,
+                        "wall_s": e.wall_s,
                         "kind": e.kind,
                         "vehicle_id": e.vehicle_id,
                         "detail": e.detail,
@@ -252,15 +253,9 @@ class FormationService:
             detail or "",
         )
 
-    def _finish(self, run: Run, state: RunState, outcome: str) -> None:
-        if run.state in FINISHED:
-            return
-        if state == RunState.COMPLETED and run.safety.count:
-            state = RunState.COMPLETED_UNSAFE
-            outcome = f"{outcome}; {run.safety.count} safety violation(s)"
-        run.state = state
-        run.outcome = outcome
-        summary = {
+    @staticmethod
+    def _summary(run: Run) -> dict[str, Any]:
+        return {
             "mission_time_s": run.mission_time_s,
             "min_separation_m": run.min_separation_m,
             "min_obstacle_clearance_m": run.min_clearance_m,
@@ -269,7 +264,18 @@ class FormationService:
             "tick_latency_ms": latency_ms(run),
             "worst_lag_s": round(run.lag_budget.worst_s, 3),
         }
-        self.store.update_run(run.record.id, state, ended=True, outcome=outcome, summary=summary)
+
+    def _finish(self, run: Run, state: RunState, outcome: str) -> None:
+        if run.state in FINISHED:
+            return
+        if state == RunState.COMPLETED and run.safety.count:
+            state = RunState.COMPLETED_UNSAFE
+            outcome = f"{outcome}; {run.safety.count} safety violation(s)"
+        run.state = state
+        run.outcome = outcome
+        self.store.update_run(
+            run.record.id, state, ended=True, outcome=outcome, summary=self._summary(run)
+        )
         self._event(run, f"run_{state}", outcome=outcome)
         self._publish()
 
@@ -282,6 +288,7 @@ class FormationService:
         holds clear of every obstacle, in the background: after completion (``states``
         given) stacked above the target, otherwise at its height."""
         self._finish(run, state, outcome)
+        run.ended_vehicle_s = self._fleet_time_s()
         stacked = states is not None
         if states is None:
             states, _, _ = planning_states(list(self._located(run)))
@@ -304,6 +311,54 @@ class FormationService:
         )
         rate = max([v.clock.rate for v in self.fleet.by_id.values()] or [1.0])
         await confirmation.confirm_all(self.fleet, orders, event, commanding.hold_retry(rate))
+        await self._watch_after_end(run)
+
+    def _fleet_time_s(self) -> float | None:
+        """The latest vehicle time any vehicle still heard has reported (seconds)."""
+        times = [v.telemetry.time_boot_ms for v in self.fleet.by_id.values()
+                 if not v.lost and v.telemetry.time_boot_ms is not None]  # fmt: skip
+        return max(times) / 1000.0 if times else None
+
+    async def _watch_after_end(self, run: Run) -> None:
+        """The safety monitor goes on for ``WATCH_AFTER_END_S`` of vehicle time after the
+        run ended, while the vehicles fly to and around their holds (an observer saw a
+        wingman enter a sphere 4.2 s after a run it ended plain ``completed``): a violation
+        is a ``safety_violation`` event, and a completed run becomes ``completed_unsafe``.
+        It stops when another run of the mission starts."""
+        start = run.ended_vehicle_s
+        while start is not None:
+            self.fleet.telemetry_event.clear()
+            with contextlib.suppress(TimeoutError):
+                async with asyncio.timeout(1.0):
+                    await self.fleet.telemetry_event.wait()
+            now = self._fleet_time_s()
+            if (
+                now is None
+                or now - start > WATCH_AFTER_END_S
+                or self._runs.get(run.mission_id) is not run
+            ):
+                return
+            located = [(v, p) for v, p in self._located(run) if not v.lost]
+            before = run.safety.count
+            self._watch_safety(run, located, self._ground(run, located), now - start)
+            if run.safety.count > before and run.state == RunState.COMPLETED:
+                run.state = RunState.COMPLETED_UNSAFE
+                run.outcome = f"{run.outcome}; a safety violation after the end"
+                self.store.update_run(
+                    run.record.id, run.state, outcome=run.outcome, summary=self._summary(run)
+                )
+                self._event(run, f"run_{run.state}", outcome=run.outcome)
+                self._publish()
+
+    @staticmethod
+    def _ground(
+        run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]]
+    ) -> float | None:
+        """The mission's ground, or the vehicles' home (``online.home_ground``)."""
+        if run.mission.ground is not None:
+            return run.mission.ground
+        return home_ground([(pos[2], v.telemetry.relative_alt_m) for v, pos in located
+                            if v.telemetry.relative_alt_m is not None])  # fmt: skip
 
     def _vehicle_time_s(self, run: Run) -> float | None:
         leader = self.fleet.by_id.get(run.mission.leader.id)
@@ -389,7 +444,7 @@ class FormationService:
 
     def _watch_safety(
         self, run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]],
-        ground_z_m: float | None,
+        ground_z_m: float | None, after_end_s: float = 0.0,
     ) -> None:  # fmt: skip
         """The safety monitor on the positions the vehicles report (not carried on, not
         planned): a ``safety_violation`` event for each keep-out entered."""
@@ -398,12 +453,13 @@ class FormationService:
         lim = run.mission.limits
         began = run.safety.watch(
             [v.system_id for v, _ in located], np.array([p for _, p in located], dtype=float),
-            obstacles_from_mission(run.mission).at(run.mission_time_s), ground_z_m,
+            obstacles_from_mission(run.mission).at(run.mission_time_s + after_end_s), ground_z_m,
             lim.safe_distance_uav, lim.safe_distance_obstacle,
         )  # fmt: skip
+        late = {"after_end_s": round(after_end_s, 1)} if after_end_s else {}
         for v in began:
             self._event(run, "safety_violation", v.vehicle_id, keep_out=v.kind, other=v.other,
-                        depth_m=round(v.depth_m, 1))  # fmt: skip
+                        depth_m=round(v.depth_m, 1), **late)  # fmt: skip
 
     def _obedience(
         self, run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]],
@@ -423,7 +479,7 @@ class FormationService:
             error = turn = None
             if s is not None and sent is not None:
                 error = math.remainder(sent - s.yaw_rad, math.tau)
-                turn = coordinated_turn_rate(t.roll_rad, s.speed_m_s)
+                turn = -t.course_rate_rad_s  # clockwise from north → ICS yaw rate
             reports.append(obedience.Report(
                 v.system_id, guided, ack.result if ack else None, error, turn or 0.0
             ))  # fmt: skip
