@@ -256,3 +256,20 @@ def test_links_are_added_and_removed_from_the_fleet_tab(page: Page) -> None:
     page.driver.find_element(By.CSS_SELECTOR, "#links-table button").click()
     wait_for(lambda: url not in page.text("links-table"), 10, "the link gone")
     assert http("GET", f"{page.api}/links")[1] == []
+
+
+@pytest.mark.integration
+def test_a_mission_dropped_on_the_map_is_read_and_validated(page: Page) -> None:
+    drop = """
+        const [text, target] = arguments;
+        const data = new DataTransfer();
+        data.items.add(new File([text], "dropped.json", {type: "application/json"}));
+        document.getElementById(target).dispatchEvent(
+            new DragEvent("drop", {dataTransfer: data, bubbles: true, cancelable: true}));
+    """
+    page.driver.execute_script(drop, MISSION.read_text(), "map")
+    wait_for(lambda: "stored as mission #1" in page.text("load-message"), 10, "the mission")
+    page.driver.execute_script(drop, "{nope", "drop")
+    wait_for(lambda: "dropped.json is not a JSON document" in page.text("load-message"), 10,
+             "the message")  # fmt: skip
+    assert len(http("GET", f"{page.api}/missions")[1]) == 1
