@@ -13,7 +13,7 @@ LOCK   := requirements-lock.txt
 UV_VERSION   := 0.13.9
 LOCK_UPGRADE ?= --upgrade
 
-.PHONY: install run plan sitl test lint bench sitl-bench clean lock
+.PHONY: install run plan sitl test lint bench sitl-bench clean lock chromium web-bench
 
 # Exactly the locked set (pip refuses anything unpinned or with another hash), then gcs-ppf
 # itself on top, editable, without dependencies, built by the locked setuptools; pip check
@@ -25,7 +25,18 @@ $(STAMP): pyproject.toml $(LOCK)
 	$(PY) -m pip check
 	touch $(STAMP)
 
-install: $(STAMP)
+install: $(STAMP) chromium
+
+# Debian's chromium and chromium-driver for the operator's page tests (tests/web, skipped
+# without them), with apt-get when either is missing (root, or sudo); otherwise nothing.
+chromium:
+	@if [ ! -x /usr/bin/chromium ] || [ ! -x /usr/bin/chromedriver ]; then \
+	  SUDO=$$([ "$$(id -u)" = 0 ] || echo sudo); \
+	  if command -v apt-get >/dev/null && $$SUDO apt-get update -qq && \
+	    DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq chromium chromium-driver >/dev/null; \
+	  then echo "installed chromium and chromium-driver"; \
+	  else echo "chromium not installed: the browser tests (tests/web) will be skipped"; fi; \
+	fi
 
 # uv resolves (into the venv with pip, pinned); installing from the lock needs only pip.
 lock:
@@ -58,6 +69,11 @@ test: lint
 
 bench: install
 	$(PY) -m gcs_ppf.offline.benchmark
+
+# The operator's page with 50 vehicles at 10 Hz in headless chromium: fps and JS heap
+# (WEB_BENCH="--minutes 1" for a short run).
+web-bench: install
+	$(PY) -m tests.web.bench $(WEB_BENCH)
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache

@@ -16,6 +16,7 @@ from fastapi import Depends, FastAPI, Path, Request, WebSocket, WebSocketDisconn
 from fastapi.responses import JSONResponse
 from pydantic import BaseModel, Field
 
+from api import view
 from gcs_ppf.mission import Mission, Obstacle
 from gcs_ppf.service.errors import ServiceError
 from gcs_ppf.service.runs import FormationService
@@ -204,4 +205,5 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         finally:
             service.unsubscribe(queue)
 
+    view.install(app)  # the operator's page and its read-only routes (api/view.py)
     return app

@@ -297,6 +297,15 @@ def on_request_data_stream(
     )
 
 
+def on_timesync(
+    ap: Autopilot, msg: Any, src: Src, kin: Kinematics, clock: Clock, out: Outbox
+) -> None:
+    """As ArduPilot's ``handle_timesync``: a request (tc1 = 0) is answered with tc1 = our
+    clock in ns and ts1 echoed; an answer is ignored."""
+    if msg.tc1 == 0:
+        out.reply.append(mb.timesync(int(clock.sim_s * 1e9), int(msg.ts1)))
+
+
 def on_ftp(ap: Autopilot, msg: Any, src: Src, kin: Kinematics, clock: Clock, out: Outbox) -> None:
     out.reply.append(mb.ftp_nak_file_not_found(bytes(msg.payload), src[0], src[1]))
 
@@ -507,6 +516,7 @@ HANDLERS: dict[str, Handler] = {
     "COMMAND_LONG": on_command,
     "COMMAND_INT": on_command,
     "SET_MODE": on_set_mode,
+    "TIMESYNC": on_timesync,
     "SET_POSITION_TARGET_GLOBAL_INT": on_set_position_target_global_int,
     "REQUEST_DATA_STREAM": on_request_data_stream,
     "FILE_TRANSFER_PROTOCOL": on_ftp,

@@ -167,6 +167,10 @@ def statustext(severity: int, text: str) -> Message:
     return mavlink.MAVLink_statustext_message(severity, text.encode("ascii", "replace")[:50])
 
 
+def timesync(tc1_ns: int, ts1_ns: int) -> Message:
+    return mavlink.MAVLink_timesync_message(tc1_ns, ts1_ns)
+
+
 def command_ack(command: int, result: int, target_system: int, target_component: int) -> Message:
     return mavlink.MAVLink_command_ack_message(
         command, result, 0, 0, target_system, target_component

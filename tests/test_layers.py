@@ -79,7 +79,19 @@ LAYERS = (
     Layer("tools", ("gcs_ppf.tools",), (*CONTRACTS, "gcs_ppf.tools"), frozenset({"api", "sitl"})),
     Layer("package", ("gcs_ppf",), (), frozenset()),  # gcs_ppf/__init__.py: numba's cache dir
     Layer("cli", ("gcs_ppf.cli",), ("gcs_ppf", "api"), frozenset({"sitl"})),
-    Layer("api", ("api",), (*CONTRACTS, "gcs_ppf.service", "gcs_ppf.offline", "api"), frozenset()),
+    Layer(
+        "api",
+        ("api",),
+        (
+            *CONTRACTS,
+            "gcs_ppf.planning",
+            "gcs_ppf.guidance",
+            "gcs_ppf.service",
+            "gcs_ppf.offline",
+            "api",
+        ),
+        frozenset(),
+    ),
     Layer("sitl", ("sitl",), (*CONTRACTS, "gcs_ppf.mavlink", "sitl"), frozenset({"api"})),
 )
 

@@ -5,8 +5,14 @@ without crossing one.
 Pure. Flown closed loop, vehicles left circling a point straight ahead of them flew through
 an obstacle after the run had ended (issue 10: Table 3 at 10×, 4 of 6 runs). Candidates are
 tried nearest the vehicle's heading first, then further out; the first circle whose ring (at the
-radius asked and at the wider one ArduPlane flies, radius / η) and whose approach (the
-straight line from the vehicle to the ring) keep the safe distance wins.
+radius asked and at the wider one ArduPlane flies, radius / η) and whose approach keep the
+safe distance wins.  The approach is flown as the run-time assurance predicts a vehicle
+(``gcs_ppf.guidance.assurance``: turning at its turn rate, climbing at its limits) when its
+``Motion`` is given; a straight line from the vehicle to the ring otherwise (a vehicle at
+210 m/s turning 400 m wide onto a circle checked as a straight line flew 46 m into a sphere
+after a run had ended, issue 10 (d)); and the ring is checked as wide as the capture can
+swing out, a turn's radius beyond radius / η (at 200 m/s, a wingman captured on a 525 m
+circle flew 240 m outside it, into a sphere, campaign (c)).
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_ppf.guidance.airframe import TURN_EFFICIENCY
+from gcs_ppf.guidance.assurance import Motion
 from gcs_ppf.planning.scene import FloatArray, Obstacles
 
 #: Bearings tried, off the vehicle's heading (radians), nearest first.
@@ -25,6 +32,9 @@ BEARINGS = tuple(math.radians(b) for b in (0, 30, -30, 60, -60, 90, -90, 120, -1
 REACH_STEPS = (0.0, 2.0, 4.0, 8.0)
 #: Points sampled along the approach.
 APPROACH_SAMPLES = 24
+#: Seconds between the points of a flown approach, and the longest approach flown.
+APPROACH_STEP_S = 0.5
+APPROACH_MAX_S = 180.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -61,6 +71,44 @@ def path_clearance(a: FloatArray, b: FloatArray, obstacles: Obstacles) -> float:
     return float((np.linalg.norm(obstacles.center - closest, axis=1) - obstacles.radius).min())
 
 
+def approach_path(m: Motion, x: float, y: float, z: float, radius_m: float) -> FloatArray:
+    """Where a vehicle flies [k,3] from its state ``m`` to the loiter circle (centre x, y at
+    height z): turning towards the centre at its turn rate (first order with its heading
+    time constant), climbing or sinking at its limits, until it is on the ring, then once
+    around the ring's first half (the capture swings out)."""
+    px, py, pz = m.pos_m
+    yaw = m.yaw_rad
+    dt = APPROACH_STEP_S
+    out = [(px, py, pz)]
+    t, on_ring_s = 0.0, None
+    half_turn_s = math.pi * radius_m / max(m.speed_m_s, 1.0)
+    while t < APPROACH_MAX_S:
+        if on_ring_s is None and math.hypot(x - px, y - py) <= radius_m:
+            on_ring_s = t
+        if on_ring_s is not None and t - on_ring_s >= half_turn_s:
+            break
+        aim = math.atan2(y - py, x - px)
+        if on_ring_s is not None:  # circling: tangent to the ring, clockwise (radius > 0)
+            aim += math.pi / 2.0
+        err = math.remainder(aim - yaw, math.tau)
+        rate = max(-m.turn_rate_rad_s, min(m.turn_rate_rad_s, err / max(m.heading_tau_s, dt)))
+        yaw += rate * dt
+        px += m.speed_m_s * math.cos(yaw) * dt
+        py += m.speed_m_s * math.sin(yaw) * dt
+        pz += max(-m.sink_m_s * dt, min(m.climb_m_s * dt, z - pz))
+        out.append((px, py, pz))
+        t += dt
+    return np.array(out)
+
+
+def points_clearance(points: FloatArray, obstacles: Obstacles) -> float:
+    """Smallest distance from any of ``points`` [k,3] to any obstacle's surface."""
+    if obstacles.radius.shape[0] == 0:
+        return math.inf
+    gap = np.linalg.norm(points[:, None] - obstacles.center[None], axis=-1) - obstacles.radius
+    return float(gap.min())
+
+
 def holding_circle(
     pos_m: FloatArray,
     yaw_rad: float,
@@ -69,6 +117,7 @@ def holding_circle(
     ahead_m: float,
     obstacles: Obstacles,
     keep_out_m: float,
+    motion: Motion | None = None,
 ) -> Hold:
     """The loiter circle for a vehicle at ``pos_m`` heading ``yaw_rad``: centred ``ahead_m``
     (or further) off its nose, as near the heading as keeps ``keep_out_m`` from every
@@ -83,10 +132,19 @@ def holding_circle(
             entry = np.array(
                 [x - radius_m * math.cos(heading), y - radius_m * math.sin(heading), z_m]
             )
+            if motion is None:
+                approach = path_clearance(np.asarray(pos_m, dtype=float), entry, obstacles)
+            else:
+                approach = points_clearance(
+                    approach_path(motion, x, y, z_m, radius_m / TURN_EFFICIENCY), obstacles
+                )
+            wide = radius_m / TURN_EFFICIENCY  # flown wider
+            if motion is not None:  # and the capture swings out by up to a turn's radius
+                wide += motion.speed_m_s / max(motion.turn_rate_rad_s, 1e-6)
             clear = min(
                 ring_clearance(x, y, z_m, radius_m, obstacles),
-                ring_clearance(x, y, z_m, radius_m / TURN_EFFICIENCY, obstacles),  # flown wider
-                path_clearance(np.asarray(pos_m, dtype=float), entry, obstacles),
+                ring_clearance(x, y, z_m, wide, obstacles),
+                approach,
             )
             hold = Hold(x, y, z_m, radius_m, clear)
             if clear >= keep_out_m:

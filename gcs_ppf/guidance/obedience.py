@@ -1,11 +1,15 @@
 """Whether each vehicle obeys the service during a run: in GUIDED, its commands acknowledged
-ACCEPTED — and, when not for longer than a bound of its own time, ``vehicle_not_responding``.
+ACCEPTED, its course converging on the course it was sent — and, when not for longer than a
+bound of its own time, ``vehicle_not_responding``.
 
 Pure bookkeeping, fed once per tick with what the vehicles report (HEARTBEAT mode, the last
 COMMAND_ACK of the course command). Flown with a lossy link (issue 10), a leader stayed in
 MANUAL while the service sent it 2,851 commands, 1,800 answered FAILED, and nothing noticed:
 now a vehicle that has not obeyed for ``bound_s`` of vehicle time is flagged, the others
-treat it as an uncontrolled moving obstacle, and it is cleared once it obeys again.
+treat it as an uncontrolled moving obstacle, and it is cleared once it obeys again.  An
+autopilot stuck on its last command stays in GUIDED and ACKs everything ACCEPTED (the SITL's
+``ignore`` fault; unflagged, it was flown around by no one while two teammates entered
+obstacles): so a vehicle must also fly the course it is sent, or be turning towards it.
 """
 
 from __future__ import annotations
@@ -20,6 +24,10 @@ from gcs_ppf.mavlink.enums import MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS
 from gcs_ppf.planning.scene import Obstacles
 
 OBEYED = (MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS)
+COURSE_TOLERANCE_RAD = math.radians(20.0)
+"""A course within this of the one sent is flown."""
+TURNING_RAD_S = 0.02
+"""A vehicle turning towards the course sent at least this fast is converging."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -30,6 +38,20 @@ class Report:
     vehicle_id: int
     guided: bool
     last_ack_result: int | None
+    course_error_rad: float | None = None
+    """The course sent minus the course flown (ICS, wrapped; None: no course sent yet)."""
+    turn_rate_rad_s: float = 0.0
+    """How fast it turns (ICS, +: left)."""
+
+    @property
+    def converging(self) -> bool:
+        """Flying the course sent, or turning towards it."""
+        e = self.course_error_rad
+        return (
+            e is None
+            or abs(e) <= COURSE_TOLERANCE_RAD
+            or (e * self.turn_rate_rad_s > 0.0 and abs(self.turn_rate_rad_s) >= TURNING_RAD_S)
+        )
 
 
 @dataclass
@@ -43,8 +65,10 @@ class Obedience:
     @staticmethod
     def obeys(report: Report) -> bool:
         ack = report.last_ack_result
-        return report.guided and (
-            ack is None or ack in (MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS)
+        return (
+            report.guided
+            and (ack is None or ack in (MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS))
+            and report.converging
         )
 
     def update(self, now_s: float, reports: list[Report]) -> tuple[list[int], list[int]]:

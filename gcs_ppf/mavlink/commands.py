@@ -87,6 +87,13 @@ def _command_long(
     return mavlink2.MAVLink_command_long_message(target_system, target_component, command, 0, *p)
 
 
+def timesync_request(now_ns: int) -> MAVLinkMessage:
+    """TIMESYNC with tc1 = 0 and ts1 = our clock (ns): ArduPilot answers with tc1 = its own
+    clock and ts1 echoed (``GCS_MAVLINK::handle_timesync``), so our clock at the answer
+    minus ts1 is the link's round trip (how MAVROS and MAVSDK measure it)."""
+    return mavlink2.MAVLink_timesync_message(0, now_ns)
+
+
 def gcs_heartbeat() -> MAVLinkMessage:
     """The ground station's 1 Hz HEARTBEAT: ``MAV_TYPE_GCS``, ``MAV_AUTOPILOT_INVALID``.
 

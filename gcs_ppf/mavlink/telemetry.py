@@ -18,6 +18,8 @@ from gcs_ppf.mavlink.codec import MAVLinkMessage
 
 UINT16_UNKNOWN = 0xFFFF
 """GLOBAL_POSITION_INT.hdg when the heading is unknown."""
+COURSE_RATE_SMOOTHING = 0.5
+"""Weight of the newest measurement in the course rate (an exponential average)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -78,6 +80,12 @@ class VehicleTelemetry:
     """GLOBAL_POSITION_INT.hdg: [0, 360) from north, clockwise; None if unknown."""
     position_received_s: float | None = None
     """Caller's clock when the last GLOBAL_POSITION_INT arrived."""
+    position_boot_ms: int | None = None
+    """GLOBAL_POSITION_INT.time_boot_ms of the last one."""
+    course_rate_rad_s: float = 0.0
+    """How fast the course over the ground turns (rad/s, from north, +: clockwise, as the
+    heading), from successive
+    GLOBAL_POSITION_INT velocities in vehicle time, smoothed (``COURSE_RATE_SMOOTHING``)."""
     roll_rad: float | None = None
     pitch_rad: float | None = None
     yaw_rad: float | None = None
@@ -158,11 +166,27 @@ def _heartbeat(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict
     }
 
 
+def _course_rate(tel: VehicleTelemetry, vn: float, ve: float, boot_ms: int) -> float:
+    """The course's rate of turn from the previous velocity to this one (0 when either is
+    too slow to have a course, or the two are not 0–1 s of vehicle time apart)."""
+    if tel.vn_m_s is None or tel.ve_m_s is None or tel.position_boot_ms is None:
+        return 0.0
+    dt = (boot_ms - tel.position_boot_ms) / 1000.0
+    if not 0.0 < dt <= 1.0 or math.hypot(vn, ve) < 1.0 or math.hypot(tel.vn_m_s, tel.ve_m_s) < 1.0:
+        return tel.course_rate_rad_s if dt == 0.0 else 0.0
+    turned = math.remainder(math.atan2(ve, vn) - math.atan2(tel.ve_m_s, tel.vn_m_s), math.tau)
+    a = COURSE_RATE_SMOOTHING
+    return a * turned / dt + (1.0 - a) * tel.course_rate_rad_s
+
+
 def _global_position_int(
     tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float
 ) -> dict[str, Any]:
     hdg = int(msg.hdg)
+    vn, ve = msg.vx * 1e-2, msg.vy * 1e-2
     return {
+        "position_boot_ms": int(msg.time_boot_ms),
+        "course_rate_rad_s": _course_rate(tel, vn, ve, int(msg.time_boot_ms)),
         "lat_deg": msg.lat * 1e-7,
         "lon_deg": msg.lon * 1e-7,
         "alt_amsl_m": msg.alt * 1e-3,

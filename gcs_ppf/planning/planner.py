@@ -13,10 +13,13 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from gcs_ppf.planning.ppf.neighbours import MATES_ALL_PAIRS, MATES_AUTO, MATES_GRID
 from gcs_ppf.planning.rollout import APF, PPF, run_fleet
 from gcs_ppf.planning.scene import BoolArray, FloatArray, IntArray, Scene
 
 Method = Literal["ppf", "apf"]
+MateSearch = Literal["auto", "all-pairs", "grid"]
+_MATE_SEARCH = {"auto": MATES_AUTO, "all-pairs": MATES_ALL_PAIRS, "grid": MATES_GRID}
 STATE_NAMES = {1: "s1", 2: "s2", 3: "s3"}  # PPF state codes of Trajectory.state
 StateArray = NDArray[np.int8]
 
@@ -88,10 +91,13 @@ def advance(
     method: Method = "ppf",
     record_every: int = 1,
     t0: float = 0.0,
+    mates: MateSearch = "auto",
 ) -> Advance:
     """Run ``n_steps`` planner steps of ``dt`` seconds from ``scene`` (stopping early when
     the leader reaches the target).  Records every ``record_every``-th step and the last;
-    record times are ``t0`` plus the flight time since the start."""
+    record times are ``t0`` plus the flight time since the start.  ``mates`` is how PPF
+    finds the teammates each vehicle checks for conflicts (``nearby_teammates``); every
+    choice gives the same plan."""
     if dt <= 0.0 or n_steps < 0 or record_every < 1:
         raise ValueError("advance: dt > 0, n_steps >= 0 and record_every >= 1 are required")
     fleet = scene.fleet.copy()
@@ -111,7 +117,7 @@ def advance(
         fleet.active, obstacles.center, obstacles.radius, obstacles.velocity,
         scene.target, scene.limits, float(dt), PPF if method == "ppf" else APF,
         int(n_steps), int(record_every), rec_t, rec_pos, rec_pitch, rec_yaw, rec_speed,
-        rec_state, rec_avoiding, rec_formed,
+        rec_state, rec_avoiding, rec_formed, _MATE_SEARCH[mates],
     )  # fmt: skip
     trajectory = Trajectory(
         ids=fleet.ids.copy(),

@@ -13,11 +13,18 @@ import numpy as np
 from numba import njit
 
 from gcs_ppf.planning.apf import apf_fleet_step
-from gcs_ppf.planning.ppf.kernel import KernelLimits, fleet_step, nearby_obstacles
+from gcs_ppf.planning.ppf.kernel import KernelLimits, attitude_trig, fleet_step
+from gcs_ppf.planning.ppf.neighbours import (
+    MATES_ALL_PAIRS,
+    mate_search_for,
+    nearby_obstacles,
+    nearby_teammates,
+)
 
 PPF = 0
 APF = 1
 NEIGHBOUR_LIST_STEPS = 25  # PPF refreshes each vehicle's nearby obstacles this often
+MATE_LIST_STEPS = 25  # and its nearby teammates this often
 
 
 @njit(cache=True)
@@ -73,9 +80,12 @@ def run_fleet(
     rec_state: np.ndarray,
     rec_avoiding: np.ndarray,
     rec_formed: np.ndarray,
+    mate_search: int,
 ) -> tuple[int, int, float, bool]:
     """Run up to ``n_steps`` steps in place, stopping when the leader reaches the target.
 
+    ``mate_search`` is how PPF finds the teammates a vehicle looks at (``nearby_teammates``:
+    ``MATES_ALL_PAIRS``, ``MATES_GRID`` or ``MATES_AUTO``; the plan is the same).
     Records every ``record_every``-th step and the last one into the ``rec_*`` arrays
     (``rec_dt[k]`` is the flight time since the start of this run).  The final step is cut
     short at the point where the leader enters the target accuracy, every vehicle's
@@ -93,6 +103,11 @@ def run_fleet(
     prev_motion = np.empty((n, 3))
     near_start = np.zeros(n + 1, dtype=np.int64)
     near_obstacles = np.empty(n * obs_center.shape[0], dtype=np.int64)
+    mate_start = np.zeros(n + 1, dtype=np.int64)
+    mates = np.empty(4 * n, dtype=np.int64)
+    trig = np.empty((n, 7))
+    attitude_trig(pitch, yaw, trig)  # then kept by fleet_step
+    mate_search = mate_search_for(mate_search, n)
     elapsed = 0.0
     records = 0
     for step in range(n_steps):
@@ -106,10 +121,15 @@ def run_fleet(
                     pos, obs_center, obs_radius, obs_velocity, lim, dt, NEIGHBOUR_LIST_STEPS,
                     near_start, near_obstacles,
                 )  # fmt: skip
+            if step == 0 or (mate_search != MATES_ALL_PAIRS and step % MATE_LIST_STEPS == 0):
+                mates = nearby_teammates(
+                    pos, pitch, yaw, speed, rank, active, lim, dt, MATE_LIST_STEPS,
+                    mate_search, mate_start, mates,
+                )  # fmt: skip
             fleet_step(
                 pos, pitch, yaw, speed, slot, rank, active, obs_center, obs_radius,
                 obs_velocity, target, lim, dt, state, avoiding, formed, direction,
-                local_target, next_motion, near_start, near_obstacles,
+                local_target, next_motion, near_start, near_obstacles, mate_start, mates, trig,
             )  # fmt: skip
         else:
             apf_fleet_step(

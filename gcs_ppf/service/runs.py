@@ -1,12 +1,14 @@
 """The ground-station service: missions and their runs (the imperative shell).
 
-It owns the clocks and the tasks; the vehicles and their links are ``gcs_ppf.fleet``,
-launching them (takeoff, confirmed arm and mode changes) is ``gcs_ppf.launch``, planning is
-``gcs_ppf.online`` (pure) within each airframe's envelope (``gcs_ppf.airframe``, from the
-vehicles' ArduPlane parameters) with ``gcs_ppf.separation_guard``, what the commands carry
-is ``gcs_ppf.slew``, the wire is ``gcs_ppf.links`` and ``gcs_ppf.mavlink``, storage is
-``gcs_ppf.store``.  Routes in ``api/`` call the public methods here and of ``fleet``,
-nothing else.
+It owns the clocks and the tasks.  The vehicles and their links are ``service.fleet``
+(each vehicle's state carried on by its measured lag, ``guidance.lag``); launching them is
+``service.launch``, with commands confirmed by ``service.confirmation``; a run's record and
+status are ``service.run``; each tick plans with ``guidance.tick_plan`` (pure: the
+envelope, PPF guidance, the separation guard) and commands with ``service.commanding``
+(every command through the run-time assurance, ``guidance.assurance``; the holds that end a
+run); the safety monitor and obedience are ``guidance.safety_monitor`` and
+``guidance.obedience``; storage is ``service.store``.  Routes in ``api/`` call the public
+methods here and of ``fleet``, nothing else.  (Modules under ``gcs_ppf``.)
 """
 
 from __future__ import annotations
@@ -15,143 +17,48 @@ import asyncio
 import contextlib
 import logging
 import math
+import statistics
 import time
-from collections import deque
 from collections.abc import AsyncIterator, Iterator
-from dataclasses import dataclass, field, replace
-from enum import StrEnum
-from functools import partial
 from typing import Any
 
 import numpy as np
 
-from gcs_ppf.geodesy import enu_to_geodetic
-from gcs_ppf.guidance import holding, obedience, safety_monitor, separation_guard, slew
-from gcs_ppf.guidance.airframe import Airframe, guard_tuning, tick_envelope
+from gcs_ppf.guidance import assurance, lag, obedience, tick_plan
+from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import (
     Guidance,
     VehicleState,
     clearance,
-    guidance,
     home_ground,
-    scene_now,
     separations,
-    state_from_velocity,
     warm_up,
 )
-from gcs_ppf.mavlink import commands
+from gcs_ppf.guidance.tick_plan import passes_within, traffic_radius_m
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mission import Mission, Obstacle
 from gcs_ppf.planning.scene import obstacles_from_mission
-from gcs_ppf.service import confirmation, launch
+from gcs_ppf.service import commanding, confirmation, launch
 from gcs_ppf.service.errors import Conflict, NotFound, ServiceError
-from gcs_ppf.service.fleet import Fleet, Vehicle
+from gcs_ppf.service.fleet import Fleet, Vehicle, planning_states
+from gcs_ppf.service.run import (
+    FINISHED,
+    Run,
+    RunState,
+    changes,
+    latency_ms,
+    min_of,
+)
+from gcs_ppf.service.run import status as run_status
 from gcs_ppf.service.settings import Settings
 from gcs_ppf.service.store import Store, StoredMission, StoredRun
 
-log = logging.getLogger("gcs_ppf.service")
+__all__ = ["FINISHED", "FormationService", "RunState"]
 
-LOITER_AHEAD_M = 800.0  # after the mission each vehicle circles a point this far ahead …
-LOITER_STACK_M = 100.0  # … at its own height: vehicle k of the mission this much above
-NOT_RESPONDING_S = 3.0  # vehicle seconds out of GUIDED or refusing the course: not responding
+log = logging.getLogger("gcs_ppf.service.runs")
+
 COURSE_COMMAND = {"course": 43002, "point": 192}  # the command each guidance mode flies by
-HOLD_TURN_RADII = 1.5  # a holding circle is this many of the vehicle's tightest turns wide …
-HOLD_MIN_RADIUS_M = 80.0  # … and at least ArduPlane's WP_LOITER_RAD
-HOLD_RETRY = confirmation.Retry(attempts=10)  # a hold is sent until it is ACCEPTED …
-HOLD_ACK_VEHICLE_S = 2.0  # … again when unanswered for this long (vehicle seconds)
-
-
-class RunState(StrEnum):
-    """Life of a mission run."""
-
-    PENDING = "pending"
-    """Uploaded, never started (or not since its last run ended)."""
-    STARTING = "starting"
-    """Vehicles being launched or switched to GUIDED."""
-    RUNNING = "running"
-    """Planning and commanding every tick."""
-    COMPLETED = "completed"
-    """The leader reached the target; every vehicle loiters."""
-    COMPLETED_UNSAFE = "completed_unsafe"
-    """The leader reached the target, but a vehicle entered a keep-out on the way
-    (``safety_violation`` events): never a plain ``completed``."""
-    ABORTED = "aborted"
-    """Stopped by the operator; every vehicle loiters."""
-    FAILED = "failed"
-    """The leader was lost (or the run could not go on); every vehicle loiters."""
-
-
-FINISHED = {RunState.COMPLETED, RunState.COMPLETED_UNSAFE, RunState.ABORTED, RunState.FAILED}
-
-
-@dataclass
-class Run:
-    """A mission run in flight (its lasting record is in the store)."""
-
-    record: StoredRun
-    mission_id: int
-    mission: Mission
-    state: RunState = RunState.STARTING
-    outcome: str | None = None  # why it ended
-    start_vehicle_time_s: float | None = None
-    mission_time_s: float = 0.0
-    last: Guidance | None = None
-    min_separation_m: float | None = None
-    min_clearance_m: float | None = None
-    formed: bool = False
-    abort: asyncio.Event = field(default_factory=asyncio.Event)
-    lost_ids: set[int] = field(default_factory=set)
-    commanded_speed: dict[int, float] = field(default_factory=dict)
-    leader_pos: Any = None  # ICS position at the last tick
-    tick_latency_s: deque[float] = field(default_factory=lambda: deque(maxlen=10_000))
-    task: asyncio.Task[None] | None = None
-    safety: safety_monitor.Monitor = field(default_factory=safety_monitor.Monitor)
-    obedience: obedience.Obedience = field(
-        default_factory=lambda: obedience.Obedience(NOT_RESPONDING_S)
-    )
-
-
-MAX_POSITION_AGE_S = 1.0
-"""A position older than this (vehicle seconds) is not carried further on: a silent vehicle
-is the watchdog's business, not dead reckoning's."""
-
-
-def formation_tolerance(mission: Mission) -> float:
-    """``separation_guard.formation_tolerance_m`` of the mission's slots."""
-    slots = np.array([v.slot for v in mission.vehicles if v.slot is not None], dtype=float)
-    return separation_guard.formation_tolerance_m(slots, mission.limits.safe_distance_uav)
-
-
-def in_formation(g: Guidance, tolerance_m: float) -> list[bool]:
-    """The leader, and each wingman within ``tolerance_m`` of its local target point."""
-    return [i == 0 or (d is not None and d <= tolerance_m)
-            for i, d in enumerate(g.local_target_distance_m)]  # fmt: skip
-
-
-def traffic_radius_m(mission: Mission) -> float:
-    """The radius of a sphere standing for an uncontrolled vehicle: its keep-out (radius +
-    safe_distance_obstacle) is then the teammates' safe distance (at least the vehicle)."""
-    lim = mission.limits
-    return max(lim.safe_distance_uav - lim.safe_distance_obstacle, lim.collision_radius)
-
-
-def passes_within(start: Any, end: Any, point: Any, radius: float) -> bool:
-    """Whether the segment start → end (or the point ``end`` alone when ``start`` is None)
-    comes within ``radius`` of ``point``: telemetry at 10 Hz can step over a 10 m sphere."""
-    if start is None:
-        return bool(np.linalg.norm(end - point) <= radius)
-    seg = end - start
-    length2 = float(seg @ seg)
-    s = 0.0 if length2 == 0.0 else min(max(float((point - start) @ seg) / length2, 0.0), 1.0)
-    return bool(np.linalg.norm(start + s * seg - point) <= radius)
-
-
-def _min(a: float | None, b: float | None) -> float | None:
-    if a is None:
-        return b
-    if b is None:
-        return a
-    return min(a, b)
+WATCH_AFTER_END_S = 60.0  # vehicle seconds the safety monitor goes on after a run ends
 
 
 class FormationService:
@@ -242,7 +149,10 @@ class FormationService:
         if missing:
             raise Conflict(f"vehicles not connected: {missing}", {"missing_ids": missing})
         record = self.store.add_run(mission_id, RunState.STARTING)
-        run = Run(record=record, mission_id=mission_id, mission=stored.mission)
+        orders = commanding.Orders(
+            stored.mission, self.settings.guidance, self.settings.lookahead_s
+        )
+        run = Run(record=record, mission_id=mission_id, mission=stored.mission, orders=orders)
         self._runs[mission_id] = run
         self._event(run, "run_started")
         run.task = self._spawn(self._fly(run))
@@ -257,8 +167,7 @@ class FormationService:
                 {"state": run.state if run else RunState.PENDING},
             )
         run.abort.set()
-        await self._loiter_all(run)
-        self._finish(run, RunState.ABORTED, "aborted by the operator")
+        self._end(run, RunState.ABORTED, "aborted by the operator")
         if run.task is not None:
             run.task.cancel()
         return self.status(mission_id)
@@ -278,33 +187,7 @@ class FormationService:
                 "outcome": last.outcome,
                 "summary": last.summary,
             }
-        g = run.last
-        per_vehicle = []
-        if g is not None:
-            for i, vid in enumerate(g.ids):
-                per_vehicle.append(
-                    {
-                        "id": vid,
-                        "ppf_state": g.state[i],
-                        "avoiding": g.avoiding[i],
-                        "formed": g.formed[i] if i else None,
-                        "local_target_distance_m": g.local_target_distance_m[i],
-                        "lost": vid in run.lost_ids,
-                    }
-                )
-        return {
-            "mission_id": mission_id,
-            "run_id": run.record.id,
-            "state": run.state,
-            "outcome": run.outcome,
-            "mission_time_s": round(run.mission_time_s, 3),
-            "formation_formed": run.formed,
-            "min_separation_m": run.min_separation_m,
-            "min_obstacle_clearance_m": run.min_clearance_m,
-            "safety_violations": run.safety.count,
-            "tick_latency_ms": self._latency(run),
-            "vehicles": per_vehicle,
-        }
+        return run_status(run)
 
     def events(self, mission_id: int) -> list[dict[str, Any]]:
         self.mission(mission_id)
@@ -315,6 +198,7 @@ class FormationService:
                     {
                         "run_id": e.run_id,
                         "mission_time_s": e.mission_time_s,
+                        "wall_s": e.wall_s,
                         "kind": e.kind,
                         "vehicle_id": e.vehicle_id,
                         "detail": e.detail,
@@ -324,18 +208,6 @@ class FormationService:
 
     def runs(self) -> list[StoredRun]:
         return self.store.runs()
-
-    @staticmethod
-    def _latency(run: Run) -> dict[str, float] | None:
-        """Tick latency (telemetry received → commands sent) percentiles, ms."""
-        if not run.tick_latency_s:
-            return None
-        ms = np.array(run.tick_latency_s) * 1e3
-        return {
-            "p50": round(float(np.percentile(ms, 50)), 3),
-            "p99": round(float(np.percentile(ms, 99)), 3),
-            "ticks": int(ms.size),
-        }
 
     # Live stream -------------------------------------------------------------------------
     def subscribe(self) -> asyncio.Queue[dict[str, Any]]:
@@ -381,6 +253,18 @@ class FormationService:
             detail or "",
         )
 
+    @staticmethod
+    def _summary(run: Run) -> dict[str, Any]:
+        return {
+            "mission_time_s": run.mission_time_s,
+            "min_separation_m": run.min_separation_m,
+            "min_obstacle_clearance_m": run.min_clearance_m,
+            "safety_violations": run.safety.count,
+            "deepest_violation_m": run.safety.deepest_m,
+            "tick_latency_ms": latency_ms(run),
+            "worst_lag_s": round(run.lag_budget.worst_s, 3),
+        }
+
     def _finish(self, run: Run, state: RunState, outcome: str) -> None:
         if run.state in FINISHED:
             return
@@ -389,77 +273,92 @@ class FormationService:
             outcome = f"{outcome}; {run.safety.count} safety violation(s)"
         run.state = state
         run.outcome = outcome
-        summary = {
-            "mission_time_s": run.mission_time_s,
-            "min_separation_m": run.min_separation_m,
-            "min_obstacle_clearance_m": run.min_clearance_m,
-            "safety_violations": run.safety.count,
-            "deepest_violation_m": run.safety.deepest_m,
-            "tick_latency_ms": self._latency(run),
-        }
-        self.store.update_run(run.record.id, state, ended=True, outcome=outcome, summary=summary)
+        self.store.update_run(
+            run.record.id, state, ended=True, outcome=outcome, summary=self._summary(run)
+        )
         self._event(run, f"run_{state}", outcome=outcome)
         self._publish()
 
-    async def _loiter_all(self, run: Run) -> None:
-        """Abort, failure: every vehicle holds at its height on a circle clear of every
-        obstacle (``gcs_ppf.holding``); one that has not reported a state, in LOITER."""
-        states, _ = self._states(list(self._located(run)))
-        await self._hold(run, states, stacked=False)
-
-    async def _loiter_stacked(self, run: Run, states: dict[int, VehicleState]) -> None:
-        """After the mission: each vehicle circles a point ahead of it, vehicle k of the
-        mission ``LOITER_STACK_M``·k above the target, so the circles of a formation that
-        flies close together do not cross at one height (plain LOITER would)."""
-        await self._hold(run, states, stacked=True)
+    def _end(
+        self, run: Run, state: RunState, outcome: str,
+        states: dict[int, VehicleState] | None = None,
+    ) -> None:  # fmt: skip
+        """The run ends now (its state, at once: a hold that takes long to confirm, or a
+        dead vehicle's that never is, does not delay it); every vehicle still heard then
+        holds clear of every obstacle, in the background: after completion (``states``
+        given) stacked above the target, otherwise at its height."""
+        self._finish(run, state, outcome)
+        run.ended_vehicle_s = self._fleet_time_s()
+        stacked = states is not None
+        if states is None:
+            states, _, _ = planning_states(list(self._located(run)))
+        self._spawn(self._hold(run, states, stacked))
 
     async def _hold(self, run: Run, states: dict[int, VehicleState], stacked: bool) -> None:
-        """Each vehicle to a holding circle that cuts no obstacle's keep-out (twice the safe
-        distance) at the radius it flies (``HOLD_TURN_RADII`` turn radii at its speed), every
-        command confirmed by its ACK and sent again while unanswered (``HOLD_RETRY``): a hold
-        lost on a lossy link left a vehicle flying its last course into an obstacle."""
-        mission = run.mission
-        obstacles = obstacles_from_mission(mission).at(run.mission_time_s)
-        keep_out = 2.0 * mission.limits.safe_distance_obstacle
-        orders: list[confirmation.Order] = []
-        for k, v in enumerate(mission.vehicles):
-            s = states.get(v.id)
-            vehicle = self.fleet.by_id.get(v.id)
-            if s is None or vehicle is None:
-                orders.append(confirmation.Order(
-                    v.id, partial(commands.set_mode, v.id, PlaneMode.LOITER),
-                    commands.MAV_CMD_DO_SET_MODE, "hold: mode LOITER",
-                    lambda t: t.custom_mode == PlaneMode.LOITER,
-                ))  # fmt: skip
-                continue
-            airframe_omega = Airframe.from_telemetry(vehicle.telemetry).max_turn_rate(s.speed_m_s)
-            omega = min(airframe_omega or math.inf, mission.limits.max_yaw_rate)
-            radius = max(HOLD_MIN_RADIUS_M, HOLD_TURN_RADII * s.speed_m_s / omega)
-            z = mission.target[2] + LOITER_STACK_M * k if stacked else s.pos_m[2]
-            hold = holding.holding_circle(
-                np.array(s.pos_m), s.yaw_rad, z, radius, LOITER_AHEAD_M, obstacles, keep_out
-            )
-            if hold.clearance_m < keep_out:
-                self._event(run, "hold_not_clear", v.id, clearance_m=round(hold.clearance_m, 1))
-            lat, lon, alt = enu_to_geodetic(hold.x_m, hold.y_m, hold.z_m, mission.origin)
-            orders.append(confirmation.Order(
-                v.id, partial(commands.reposition, v.id, lat, lon, alt, radius),
-                commands.MAV_CMD_DO_REPOSITION, "hold: guided loiter",
-            ))  # fmt: skip
-            if self.settings.guidance == "course":  # the guided altitude outlives the course
-                altitude = slew.sendable_altitude(alt)
-                orders.append(confirmation.Order(
-                    v.id, partial(commands.guided_change_altitude, v.id, altitude, 0.0),
-                    commands.MAV_CMD_GUIDED_CHANGE_ALTITUDE, "hold: altitude",
-                ))  # fmt: skip
+        """Each vehicle to its holding circle (``commanding.hold_orders``), every command
+        confirmed by its ACK and sent again while unanswered: a hold lost on a lossy link
+        left a vehicle flying its last course into an obstacle."""
+        airframes = {
+            vid: Airframe.from_telemetry(v.telemetry) for vid, v in self.fleet.by_id.items()
+        }
 
         def event(kind: str, vehicle_id: int | None = None, **detail: Any) -> None:
             self._event(run, kind, vehicle_id, **detail)
 
-        rate = max([self.fleet.by_id[o.vehicle_id].clock.rate for o in orders
-                    if o.vehicle_id in self.fleet.by_id] or [1.0])  # fmt: skip
-        retry = replace(HOLD_RETRY, ack_timeout_s=min(1.5, max(0.2, HOLD_ACK_VEHICLE_S / rate)))
-        await confirmation.confirm_all(self.fleet, orders, event, retry)
+        heard = {i for i, v in self.fleet.by_id.items() if not v.lost}
+        orders = commanding.hold_orders(
+            run.orders, states, airframes, run.mission_time_s, stacked, event, heard
+        )
+        rate = max([v.clock.rate for v in self.fleet.by_id.values()] or [1.0])
+        await confirmation.confirm_all(self.fleet, orders, event, commanding.hold_retry(rate))
+        await self._watch_after_end(run)
+
+    def _fleet_time_s(self) -> float | None:
+        """The latest vehicle time any vehicle still heard has reported (seconds)."""
+        times = [v.telemetry.time_boot_ms for v in self.fleet.by_id.values()
+                 if not v.lost and v.telemetry.time_boot_ms is not None]  # fmt: skip
+        return max(times) / 1000.0 if times else None
+
+    async def _watch_after_end(self, run: Run) -> None:
+        """The safety monitor goes on for ``WATCH_AFTER_END_S`` of vehicle time after the
+        run ended, while the vehicles fly to and around their holds (an observer saw a
+        wingman enter a sphere 4.2 s after a run it ended plain ``completed``): a violation
+        is a ``safety_violation`` event, and a completed run becomes ``completed_unsafe``.
+        It stops when another run of the mission starts."""
+        start = run.ended_vehicle_s
+        while start is not None:
+            self.fleet.telemetry_event.clear()
+            with contextlib.suppress(TimeoutError):
+                async with asyncio.timeout(1.0):
+                    await self.fleet.telemetry_event.wait()
+            now = self._fleet_time_s()
+            if (
+                now is None
+                or now - start > WATCH_AFTER_END_S
+                or self._runs.get(run.mission_id) is not run
+            ):
+                return
+            located = [(v, p) for v, p in self._located(run) if not v.lost]
+            before = run.safety.count
+            self._watch_safety(run, located, self._ground(run, located), now - start)
+            if run.safety.count > before and run.state == RunState.COMPLETED:
+                run.state = RunState.COMPLETED_UNSAFE
+                run.outcome = f"{run.outcome}; a safety violation after the end"
+                self.store.update_run(
+                    run.record.id, run.state, outcome=run.outcome, summary=self._summary(run)
+                )
+                self._event(run, f"run_{run.state}", outcome=run.outcome)
+                self._publish()
+
+    @staticmethod
+    def _ground(
+        run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]]
+    ) -> float | None:
+        """The mission's ground, or the vehicles' home (``online.home_ground``)."""
+        if run.mission.ground is not None:
+            return run.mission.ground
+        return home_ground([(pos[2], v.telemetry.relative_alt_m) for v, pos in located
+                            if v.telemetry.relative_alt_m is not None])  # fmt: skip
 
     def _vehicle_time_s(self, run: Run) -> float | None:
         leader = self.fleet.by_id.get(run.mission.leader.id)
@@ -468,7 +367,7 @@ class FormationService:
         return leader.telemetry.time_boot_ms / 1000.0
 
     async def _launch(self, run: Run) -> None:
-        """Every vehicle flying in GUIDED (``gcs_ppf.launch``: those on the ground taken off
+        """Every vehicle flying in GUIDED (``gcs_ppf.service.launch``: those on the ground taken off
         in TAKEOFF mode to their TKOFF_ALT first, every arm and mode change confirmed);
         parameters not answered yet are asked for again first."""
         ids = [v.id for v in run.mission.vehicles]
@@ -494,8 +393,7 @@ class FormationService:
             raise
         except Exception as exc:  # a run must never take the service down
             log.exception("mission %d failed", run.mission_id)
-            await self._loiter_all(run)
-            self._finish(run, RunState.FAILED, f"error: {exc}")
+            self._end(run, RunState.FAILED, f"error: {exc}")
 
     async def _tick_loop(self, run: Run) -> None:
         period = 1.0 / self.settings.tick_hz
@@ -523,6 +421,7 @@ class FormationService:
             run.mission_time_s = now_v - run.start_vehicle_time_s
             done = await self._tick(run)
             run.tick_latency_s.append(time.perf_counter() - received)
+            run.recent_work_s.append(run.tick_latency_s[-1])
             if run.mission_time_s - last_sample >= sample_period:
                 last_sample = run.mission_time_s
                 self._sample(run)
@@ -540,13 +439,12 @@ class FormationService:
                 self._event(run, "vehicle_lost", v.id)
         if run.mission.leader.id not in run.lost_ids:
             return False
-        await self._loiter_all(run)
-        self._finish(run, RunState.FAILED, "leader lost")
+        self._end(run, RunState.FAILED, "leader lost")
         return True
 
     def _watch_safety(
         self, run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]],
-        ground_z_m: float | None,
+        ground_z_m: float | None, after_end_s: float = 0.0,
     ) -> None:  # fmt: skip
         """The safety monitor on the positions the vehicles report (not carried on, not
         planned): a ``safety_violation`` event for each keep-out entered."""
@@ -555,24 +453,36 @@ class FormationService:
         lim = run.mission.limits
         began = run.safety.watch(
             [v.system_id for v, _ in located], np.array([p for _, p in located], dtype=float),
-            obstacles_from_mission(run.mission).at(run.mission_time_s), ground_z_m,
+            obstacles_from_mission(run.mission).at(run.mission_time_s + after_end_s), ground_z_m,
             lim.safe_distance_uav, lim.safe_distance_obstacle,
         )  # fmt: skip
+        late = {"after_end_s": round(after_end_s, 1)} if after_end_s else {}
         for v in began:
             self._event(run, "safety_violation", v.vehicle_id, keep_out=v.kind, other=v.other,
-                        depth_m=round(v.depth_m, 1))  # fmt: skip
+                        depth_m=round(v.depth_m, 1), **late)  # fmt: skip
 
     def _obedience(
-        self, run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]]
-    ) -> bool:
-        """Which vehicles obey (GUIDED, the course command ACCEPTED): events when one stops
-        for ``not_responding_s`` of vehicle time or comes back; True if it is the leader."""
+        self, run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]],
+        states: dict[int, VehicleState],
+    ) -> bool:  # fmt: skip
+        """Which vehicles obey (GUIDED, the course command ACCEPTED, the course sent flown
+        or turned to): events when one stops for ``NOT_RESPONDING_S`` of vehicle time or
+        comes back; True if it is the leader."""
         command = COURSE_COMMAND[self.settings.guidance]
         reports = []
         for v, _ in located:
-            ack = v.telemetry.ack(command)
-            guided = v.telemetry.custom_mode == PlaneMode.GUIDED
-            reports.append(obedience.Report(v.system_id, guided, ack.result if ack else None))
+            t = v.telemetry
+            ack = t.ack(command)
+            guided = t.custom_mode == PlaneMode.GUIDED
+            s = states.get(v.system_id)
+            sent = run.sent_course.get(v.system_id)
+            error = turn = None
+            if s is not None and sent is not None:
+                error = math.remainder(sent - s.yaw_rad, math.tau)
+                turn = -t.course_rate_rad_s  # clockwise from north → ICS yaw rate
+            reports.append(obedience.Report(
+                v.system_id, guided, ack.result if ack else None, error, turn or 0.0
+            ))  # fmt: skip
         flagged, cleared = run.obedience.update(run.mission_time_s, reports)
         by_id = {v.system_id: v.telemetry for v, _ in located}
         for vid in flagged:
@@ -584,6 +494,14 @@ class FormationService:
             self._event(run, "vehicle_responding", vid)
         return run.mission.leader.id in flagged
 
+    def _account_lag(self, run: Run, lags: list[lag.Lag]) -> None:
+        """The fleet's lag this tick, and an event when it crosses the budget."""
+        run.fleet_lag = lag.worst(lags)
+        change = run.lag_budget.update(run.fleet_lag.total_s)
+        if change is not None:
+            self._event(run, change, None, budget_s=run.lag_budget.budget_s,
+                        **run.fleet_lag.as_dict())  # fmt: skip
+
     def _located(self, run: Run) -> Iterator[tuple[Vehicle, tuple[float, float, float]]]:
         """The run's vehicles that have reported a position, with it in the ICS."""
         for v in run.mission.vehicles:
@@ -591,29 +509,6 @@ class FormationService:
             pos = None if vehicle is None else Fleet.vehicle_enu(vehicle, run.mission)
             if vehicle is not None and pos is not None:
                 yield vehicle, pos
-
-    @staticmethod
-    def _states(
-        located: list[tuple[Vehicle, tuple[float, float, float]]],
-    ) -> tuple[dict[int, VehicleState], set[int]]:
-        """Each located vehicle's state, its position carried on to this moment (vehicle
-        seconds since its GLOBAL_POSITION_INT arrived, at most ``MAX_POSITION_AGE_S``)."""
-        states: dict[int, VehicleState] = {}
-        active: set[int] = set()
-        now = time.monotonic()
-        for vehicle, pos in located:
-            t = vehicle.telemetry
-            if t.vn_m_s is None or t.ve_m_s is None or t.vd_m_s is None:
-                continue
-            age = 0.0
-            if t.position_received_s is not None:
-                age = vehicle.clock.vehicle_seconds(max(0.0, now - t.position_received_s))
-            states[vehicle.system_id] = state_from_velocity(
-                pos, t.vn_m_s, t.ve_m_s, t.vd_m_s, min(age, MAX_POSITION_AGE_S)
-            )
-            if not vehicle.lost:
-                active.add(vehicle.system_id)
-        return states, active
 
     async def _tick(self, run: Run) -> bool:
         """One planning tick; True when the run has ended."""
@@ -627,31 +522,30 @@ class FormationService:
         )  # fmt: skip
         reporting = [(v, p) for v, p in located if v.system_id not in run.lost_ids]
         self._watch_safety(run, reporting, mission.ground if mission.ground is not None else ground)
-        states, active = self._states(located)
+        work = statistics.median(run.recent_work_s) if run.recent_work_s else 0.0
+        states, active, lags = planning_states(located, work)
+        self._account_lag(run, [lags[i] for i in active if i in lags])
         if leader_id not in states:
             return False
         positions = np.array([states[i].pos_m for i in sorted(active)], dtype=float)
         obstacles = obstacles_from_mission(mission).at(run.mission_time_s)
-        run.min_separation_m = _min(run.min_separation_m, separations(positions))
-        run.min_clearance_m = _min(run.min_clearance_m, clearance(positions, obstacles))
+        run.min_separation_m = min_of(run.min_separation_m, separations(positions))
+        run.min_clearance_m = min_of(run.min_clearance_m, clearance(positions, obstacles))
 
         leader_pos = np.array(states[leader_id].pos_m)
         previous, run.leader_pos = run.leader_pos, leader_pos
         if passes_within(
             previous, leader_pos, np.array(mission.target), mission.limits.target_accuracy
         ):
-            await self._loiter_stacked(run, states)
-            self._finish(run, RunState.COMPLETED, "leader reached the target")
+            self._end(run, RunState.COMPLETED, "leader reached the target", states)
             return True
 
         if run.mission_time_s > mission.planner.max_time:
-            await self._loiter_all(run)
-            self._finish(run, RunState.FAILED, "planner.max_time passed before the target")
+            self._end(run, RunState.FAILED, "planner.max_time passed before the target")
             return True
 
-        if self._obedience(run, located):
-            await self._loiter_all(run)
-            self._finish(run, RunState.FAILED, "leader not responding")
+        if self._obedience(run, located, states):
+            self._end(run, RunState.FAILED, "leader not responding")
             return True
         uncontrolled = run.obedience.not_responding & set(states)
         active -= uncontrolled  # not planned for, not commanded: avoided as traffic
@@ -662,92 +556,33 @@ class FormationService:
         airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
         lim = mission.limits
         telemetry_interval_s = 1.0 / self.settings.stream_rate_hz
-        envelope = tick_envelope(
-            list(airframes.values()), [states[i].speed_m_s for i in active], lim.v_min,
-            lim.v_max, lim.accel, self.settings.lookahead_s, telemetry_interval_s,
-            self.settings.planning_margin_m,
+        lagging_s = telemetry_interval_s + run.fleet_lag.total_s  # what the margins must cover
+        g, ordered = tick_plan.plan(
+            mission, states, active, obstacles, ground, airframes,
+            tick_plan.Tuning.of(self.settings), lagging_s, run.last,
         )  # fmt: skip
-        scene = scene_now(
-            mission, states, active, obstacles, envelope.planning_margin_m, ground,
-            envelope=envelope.limits,
-        )  # fmt: skip
-        g = guidance(
-            scene,
-            lookahead_s=self.settings.lookahead_s,
-            dt=self.settings.planner_dt_s,
-            carrot_m=self.settings.carrot_m,
-        )
-        ordered = [airframes.get(vid, Airframe()) for vid in g.ids]
-        if self.settings.guard_horizon_s != 0.0:
-            tuning = guard_tuning(
-                ordered, scene.fleet.speed.tolist(), lim.safe_distance_uav,
-                telemetry_interval_s, horizon_s=self.settings.guard_horizon_s,
-                margin_m=self.settings.guard_margin_m,
-                resolution_m=self.settings.guard_resolution_m,
-            )  # fmt: skip
-            points, resolving = separation_guard.resolve(
-                scene,
-                g.guided_point_m,
-                distance_m=lim.safe_distance_uav + tuning.margin_m,
-                horizon_s=tuning.horizon_s,
-                resolution_m=tuning.resolution_up_m,
-                resolution_down_m=tuning.resolution_down_m,
-                release_m=tuning.margin_m,
-                previous=run.last.resolving if run.last is not None else None,
-                in_formation=in_formation(g, formation_tolerance(mission)),
-            )
-            g = replace(g, guided_point_m=points, resolving=resolving)
         self._note_changes(run, g)
         run.last = g
-        turn_accel = scene.limits.v_max * scene.limits.max_yaw_rate  # the plan limits turns
-        for i, vid in enumerate(g.ids):
-            if vid not in active:
-                continue
-            x, y, z = (float(c) for c in g.guided_point_m[i])
-            if self.settings.guidance == "point":
-                lat, lon, alt = enu_to_geodetic(x, y, z, mission.origin)
-                await self.fleet.send(vid, commands.reposition(vid, lat, lon, alt))
-            else:
-                cmd = slew.slew_command(
-                    g, i, ordered[i], states[vid].pos_m[2], turn_accel, self.settings.lookahead_s
-                )
-                _, _, alt = enu_to_geodetic(x, y, cmd.z_m, mission.origin)
-                course_deg = 90.0 - math.degrees(cmd.course_rad)  # ENU yaw → compass
-                heading = commands.guided_change_heading(vid, course_deg, cmd.lateral_accel_m_s2)
-                await self.fleet.send(vid, heading)
-                altitude = commands.guided_change_altitude(
-                    vid, slew.sendable_altitude(alt), cmd.rate_m_s
-                )
-                await self.fleet.send(vid, altitude)
-            t = self.fleet.by_id[vid].telemetry
-            ahead = g.speed_m_s if g.speed_ahead_m_s is None else g.speed_ahead_m_s
-            speed = slew.airspeed_command(
-                float(ahead[i]), t.airspeed_m_s, t.groundspeed_m_s, ordered[i]
-            )
-            if abs(run.commanded_speed.get(vid, -1.0) - speed) >= 0.5:
-                run.commanded_speed[vid] = speed
-                await self.fleet.send(vid, commands.change_speed(vid, speed))
+        keep = assurance.KeepOut(
+            obstacles, mission.ground if mission.ground is not None else ground,
+            lim.safe_distance_obstacle, lim.safe_distance_uav,
+        )  # fmt: skip
+        hold_s = 1.0 / self.settings.tick_hz + telemetry_interval_s + run.fleet_lag.command_delay_s
+
+        def event(kind: str, vehicle_id: int | None = None, **detail: Any) -> None:
+            self._event(run, kind, vehicle_id, **detail)
+
+        verdicts = await commanding.command_fleet(
+            self.fleet, g, active, states, ordered, run.orders, keep, hold_s,
+            run.commanded_speed, event,
+        )  # fmt: skip
+        run.sent_course.update({vid: v.command.course_rad for vid, v in verdicts.items()})
         return False
 
     def _note_changes(self, run: Run, g: Guidance) -> None:
-        """Events for what changed since the last tick."""
-        before = run.last
-        wingmen_formed = all(
-            f for i, f in enumerate(g.formed) if i and g.ids[i] not in run.lost_ids
-        )
-        if wingmen_formed != run.formed:
-            run.formed = wingmen_formed
-            self._event(run, "formation_formed" if wingmen_formed else "formation_broken")
-        if before is None:
-            return
-        for i, vid in enumerate(g.ids):
-            if g.avoiding[i] != before.avoiding[i]:
-                self._event(run, "avoidance_entered" if g.avoiding[i] else "avoidance_left", vid)
-            if g.resolving and before.resolving and g.resolving[i] != before.resolving[i]:
-                kind = "conflict_resolution_" + ("began" if g.resolving[i] else "ended")
-                self._event(run, kind, vid)
-            if g.state[i] == "s2" and before.state[i] != "s2":
-                self._event(run, "local_minimum_escape", vid)
+        """Events for what changed since the last tick (``gcs_ppf.service.run.changes``)."""
+        for kind, vehicle_id in changes(run, g):
+            self._event(run, kind, vehicle_id)
 
     def _sample(self, run: Run) -> None:
         rows = []

@@ -261,6 +261,15 @@ class Store:
                 [(run_id, *r) for r in rows],
             )
 
+    def telemetry(self, run_id: int) -> list[TelemetryRow]:
+        """A run's rows (as ``add_telemetry`` took them), by mission time."""
+        rows = self._db.execute(
+            "SELECT mission_time_s, vehicle_id, lat_deg, lon_deg, alt_amsl_m, x_m, y_m, z_m, "
+            "speed_m_s FROM telemetry WHERE run_id = ? ORDER BY mission_time_s, vehicle_id",
+            (run_id,),
+        ).fetchall()
+        return [tuple(r) for r in rows]
+
     def telemetry_count(self, run_id: int) -> int:
         row = self._db.execute("SELECT COUNT(*) FROM telemetry WHERE run_id = ?", (run_id,))
         return int(row.fetchone()[0])

@@ -141,9 +141,11 @@ def set_param(port: int, sysid: int, name: str, value: float, *, until_silent: b
 
 def fly_once(
     mission_path: Path, cond: Condition, workdir: Path, *, event_at_s: float = 15.0,
-    after_s: float = AFTER_S,
+    after_s: float = AFTER_S, seed: int = 0,
 ) -> dict[str, Any]:  # fmt: skip
-    """Fly ``mission_path`` once under ``cond`` in ``workdir``; the run's record (JSON-able)."""
+    """Fly ``mission_path`` once under ``cond`` in ``workdir``; the run's record (JSON-able).
+    ``seed`` seeds the SITL's packet loss and noise: runs with one seed lose the same
+    packets, so each run of a campaign gets its own."""
     workdir.mkdir(parents=True, exist_ok=True)
     doc = json.loads(mission_path.read_text())
     mission = Mission.model_validate(doc)
@@ -154,7 +156,7 @@ def fly_once(
     url = f"http://127.0.0.1:{api_port}"
     rec: dict[str, Any] = {"mission": mission.name, "condition": cond.key, "dir": str(workdir)}
     sitl = [sys.executable, "-m", "sitl", str(mission_path), "--speedup", f"{cond.speedup:g}",
-            "--base-port", str(base), *cond.sitl_args]  # fmt: skip
+            "--base-port", str(base), "--seed", str(seed), *cond.sitl_args]  # fmt: skip
     serve = [sys.executable, "-m", "gcs_ppf.cli", "serve", "--port", str(api_port),
              "--db", str(workdir / "gcs.db")]  # fmt: skip
     env = {"GCS_PPF_TLOG_DIR": str(workdir / "tlogs")}
@@ -195,9 +197,14 @@ def fly_once(
         end_v = max(obs.latest_boot_ms().values()) / 1000.0
         wait_for(lambda: max(obs.latest_boot_ms().values()) / 1000.0 >= end_v + after_s,
                  after_s / cond.speedup * 4 + 30, "vehicle time after the end")  # fmt: skip
-        rec["events"] = [
-            (e["kind"], e["vehicle_id"]) for e in _get(api, f"/missions/{mid}/events") or []
-        ]
+        # the service watches after the end too: a violation then makes a completed run
+        # completed_unsafe, so its last word is read after the watch
+        status = _get(api, f"/missions/{mid}/status") or status
+        events = _get(api, f"/missions/{mid}/events") or []
+        rec["events"] = [(e["kind"], e["vehicle_id"]) for e in events]
+        ended = [e["wall_s"] for e in events if e["kind"] in {f"run_{s}" for s in FINISHED}]
+        if ended:  # the service's own moment (the status poll may be held up by an event)
+            end_wall = min(end_wall, min(ended))
     rec["total_wall_s"] = round(time.monotonic() - t_total, 1)
     raw = {v: {"pos": r.pos, "texts": r.texts} for v, r in obs.records.items()}
     (workdir / "observer.json").write_text(json.dumps({"end_wall": end_wall, **raw}))
@@ -299,7 +306,7 @@ def run_campaign(
                 m, k = job
                 workdir = out / stamp / f"{m.stem}-{cond.key}-{k}"
                 try:
-                    rec = fly_once(m, cond, workdir, event_at_s=event_at_s)
+                    rec = fly_once(m, cond, workdir, event_at_s=event_at_s, seed=k)
                 except Exception as exc:  # a broken run is a result too
                     rec = {"mission": m.stem, "condition": cond.key, "dir": str(workdir),
                            "state": "error", "error": repr(exc), "ok": False,

@@ -340,3 +340,18 @@ def test_gcs_failsafe_over_a_cut_link() -> None:
                 cleared = m
         assert cleared is not None  # the failsafe fired during the cut and cleared after it
         assert c.wait("HEARTBEAT").custom_mode == 11  # it went RTL and stays there
+
+
+def test_timesync_is_answered_as_arduplane_does() -> None:
+    """A request (tc1 = 0) comes back with ts1 echoed and tc1 the vehicle's clock in ns
+    (near its time_boot_ms); an answer (tc1 ≠ 0) is not answered."""
+    with run_sitl(TWO) as sitl, Client(sitl.port(0)) as c:
+        boot_ms = c.wait("GLOBAL_POSITION_INT").time_boot_ms
+        c.mav.timesync_send(0, 123456789)
+        answer = c.wait("TIMESYNC", lambda m: m.ts1 == 123456789)
+        assert answer.get_srcSystem() == 1
+        assert abs(answer.tc1 / 1e6 - boot_ms) < 5000.0
+        c.mav.timesync_send(5, 987654321)
+        c.mav.timesync_send(0, 42)
+        later = c.wait("TIMESYNC", lambda m: m.ts1 in (987654321, 42))
+        assert later.ts1 == 42

@@ -1,14 +1,25 @@
 """The PPF formation planner's compiled kernel: one time step of the whole fleet.
 
-Plain arrays in, plain arrays out; no I/O, no clock.  One numba function per equation
-group of the paper, so the equations stay visible:
+Plain arrays in, plain arrays out; no I/O, no clock.  ``fleet_step`` is the paper's
+algorithm for one step; each equation group it uses is a numba function of its own:
 
-* ``influence_radius``      Eq. 10–11, corrected (CONVENTIONS §2 erratum 4)
-* ``to_vcs``                Eq. 16–18 (ICS → VCS)
-* ``slot_to_ics``           Eq. 6–8 (VCS → ICS, erratum 1: the pitch matrix transposed)
-* ``trend``                 Eq. 19 (velocity change trend matrix f, erratum 2)
-* ``braking_speed``         Eq. 21–23 (wingman deceleration ahead of its local target)
-* ``fleet_step``            Eq. 9, 12–15, 20, 24 and the kinematics of Eq. 3–5
+* ``unit_velocities``       Eq. 5 over v: each vehicle's flight direction
+* ``formation_targets``     Eq. 6 (local target points G_i) and Eq. 24's condition (leader waits)
+* ``obstacle_repulsion``    Eq. 10–13: ε₁ from every obstacle whose influence radius we are in
+* ``teammate_conflicts``    Eq. 12–13 with teammates of higher priority as moving obstacles
+* ``attraction``            Eq. 14–15: towards the target point while nothing repels
+* ``escape_local_minimum``  Eq. 20: state s2, F_add along +z_v
+* ``slide_along_obstacles`` Eq. 19's wanted direction around static obstacles
+* ``flight_path_limited``   the wanted direction within the flight-path and ground limits
+* ``trend_matrix``          Eq. 19: pitch and yaw entries of f (erratum 2)
+* ``speed_trend``           Eq. 19's f_l with Eq. 21–24 (wingman braking, leader waiting)
+* ``kinematics``            Eq. 3–5: the new speed, pitch and yaw
+* ``fly``                   Eq. 5: one step of flight
+
+The small formulas these are built from (frames, influence radius, saturated trend,
+braking speed, flight-path limits) are in ``gcs_ppf.planning.ppf.primitives``.  The equation
+groups are inlined into ``fleet_step`` by numba (``inline="always"``): left to LLVM, the
+calls were not inlined and the step ran about twice as slow.
 
 Fleet layout (structure of arrays, N vehicles, M obstacles):
 ``pos[N,3]`` ICS metres, ``pitch[N]``, ``yaw[N]`` radians, ``speed[N]`` m/s,
@@ -24,311 +35,555 @@ next to the code that makes them; the README summarises them.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-S1_FOLLOW = 1  # target following and obstacle avoidance
-S2_LOCAL_MINIMUM = 2  # local-minimum escape (Eq. 20)
-S3_FORMATION = 3  # formation forming: leader waits, wingman brakes (Eq. 21–24)
+from gcs_ppf.planning.ppf.primitives import (
+    AVOIDANCE_TURN_ANGLE,
+    CONFLICT_HORIZON_TURNS,
+    EPSILON_1,
+    EPSILON_3,
+    INFLUENCE_STEPS,
+    LOCAL_MINIMUM_ANGLE,
+    MAX_AVOID_PITCH,
+    MAX_FOLLOW_PITCH,
+    S1_FOLLOW,
+    S2_LOCAL_MINIMUM,
+    S3_FORMATION,
+    SIDEWAYS_EPS,
+    KernelLimits,
+    airframe_limited,
+    away_from_obstacles,
+    braking_speed,
+    closing_speed,
+    follow_direction,
+    from_vcs,
+    influence_radius,
+    limit_climb,
+    lowest_climb,
+    obstacles_first,
+    slot_to_ics,
+    to_vcs,
+    trend,
+)
 
-EPSILON_1 = 1.0e6  # |F_j| inside an influence radius, ε₁ ≫ 1 (Eq. 13)
-EPSILON_3 = 1.0e9  # braking vector of s3, ε₃ ≫ |F_v^sx| (Eq. 24)
-LOCAL_MINIMUM_ANGLE = math.radians(1.0)  # repulsion this close to antiparallel → s2
-AVOIDANCE_TURN_ANGLE = math.pi / 2  # a moving obstacle is out-turned in a quarter turn
-MAX_FOLLOW_PITCH = math.pi / 4  # steepest flight path target following asks for
-MAX_AVOID_PITCH = math.pi / 3  # steepest flight path any wanted direction may have
-INFLUENCE_STEPS = 3.0  # steps of travel added to the influence radius (discrete turning)
-SIDEWAYS_EPS = 1e-9  # |F_v^y| below this fraction of |F_v| counts as 0 in Eq. 19 (round-off)
-CONFLICT_HORIZON_TURNS = 1.0  # teammate conflicts are looked for this many quarter turns ahead
+__all__ = [
+    "AVOIDANCE_TURN_ANGLE",
+    "CONFLICT_HORIZON_TURNS",
+    "EPSILON_1",
+    "EPSILON_3",
+    "INFLUENCE_STEPS",
+    "LOCAL_MINIMUM_ANGLE",
+    "MAX_AVOID_PITCH",
+    "MAX_FOLLOW_PITCH",
+    "S1_FOLLOW",
+    "S2_LOCAL_MINIMUM",
+    "S3_FORMATION",
+    "SIDEWAYS_EPS",
+    "KernelLimits",
+    "airframe_limited",
+    "attitude_trig",
+    "attraction",
+    "away_from_obstacles",
+    "braking_speed",
+    "escape_local_minimum",
+    "fleet_step",
+    "flight_path_limited",
+    "fly",
+    "follow_direction",
+    "formation_targets",
+    "from_vcs",
+    "influence_radius",
+    "kinematics",
+    "limit_climb",
+    "lowest_climb",
+    "move",
+    "move_obstacles",
+    "obstacle_repulsion",
+    "obstacles_first",
+    "slide_along_obstacles",
+    "slot_to_ics",
+    "speed_trend",
+    "teammate_conflict",
+    "teammate_conflicts",
+    "to_vcs",
+    "trend",
+    "trend_matrix",
+    "unit_velocities",
+]
 
-
-class KernelLimits(NamedTuple):
-    """The performance envelope and safety distances the kernel needs (SI units)."""
-
-    v_min: float
-    v_max: float
-    accel: float
-    decel: float
-    max_pitch_rate: float
-    max_yaw_rate: float
-    target_accuracy: float
-    safe_distance_uav: float
-    safe_distance_obstacle: float
-    ground: float
-    """ICS z of the ground (flat), kept ``safe_distance_obstacle`` below every vehicle;
-    −∞ for the paper's free space."""
-    max_climb_angle: float = math.pi / 2
-    """Steepest flight-path angle up the airframe flies (rad; ArduPlane PTCH_LIM_MAX_DEG);
-    π/2 for the paper's vehicles, whose pitch is limited by Eq. 1 only."""
-    max_dive_angle: float = math.pi / 2
-    """Steepest flight-path angle down, as a positive angle (ArduPlane −PTCH_LIM_MIN_DEG)."""
+NO_CONFLICT = 0  # a teammate that does not repel
+JUST_CLEAR = 1  # a teammate conflict only just avoided: hold course
+CONFLICT = 2  # a teammate that repels (a moving obstacle)
 
 
 @njit(cache=True)
-def airframe_limited(lim: KernelLimits) -> bool:
-    """Whether the airframe's flight-path limits bind before ``MAX_AVOID_PITCH`` does.
+def attitude_trig(pitch: np.ndarray, yaw: np.ndarray, trig: np.ndarray) -> None:
+    """cos θ, sin θ, cos ψ, sin ψ of every vehicle into ``trig[N, 0:4]``."""
+    for i in range(pitch.shape[0]):
+        trig[i, 0], trig[i, 1] = math.cos(pitch[i]), math.sin(pitch[i])
+        trig[i, 2], trig[i, 3] = math.cos(yaw[i]), math.sin(yaw[i])
 
-    Such a vehicle cannot climb over an obstacle in a quarter turn as the paper's can, and
-    two obstacles whose keep-outs overlap make a wall it must turn back from: it starts
-    avoiding one turn radius further out (room for a half turn), and its pitch follows the
-    flight-path angle (see ``fleet_step``).  Flown closed loop at ArduPlane's +20°/−25°,
-    Table 3's wall of 650 m spheres was entered by 3.5 m in 1 of 9 runs without the half
-    turn; with it the closest any vehicle came to an obstacle in 5 runs was 240 m.
+
+@njit(cache=True, inline="always")
+def unit_velocities(speed: np.ndarray, trig: np.ndarray, direction: np.ndarray) -> None:
+    """Each vehicle's flight direction, Eq. 5 divided by v, into ``direction[N,3]``, and its
+    velocity (Eq. 5) into ``trig[N, 4:7]``, from cos/sin of pitch and yaw in ``trig[N, 0:4]``."""
+    for i in range(speed.shape[0]):
+        cp, sp, cy, sy = trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3]
+        direction[i, 0] = cp * cy
+        direction[i, 1] = cp * sy
+        direction[i, 2] = sp
+        for c in range(3):
+            trig[i, 4 + c] = speed[i] * direction[i, c]
+
+
+@njit(cache=True, inline="always")
+def formation_targets(
+    pos: np.ndarray,
+    slot: np.ndarray,
+    active: np.ndarray,
+    trig: np.ndarray,
+    direction: np.ndarray,
+    lim: KernelLimits,
+    local_target: np.ndarray,
+    formed: np.ndarray,
+) -> bool:
+    """The wingmen's local target points G_i = P_0 + A_vf(ψ₀) B_vf(θ₀) s_i (Eq. 6–8) into
+    ``local_target[N,3]``, whether each wingman is formed (within the target accuracy of
+    G_i) into ``formed[N]``, and whether the leader must wait (s3, Eq. 24).
+
+    The leader waits while a wingman is out of formation and has to catch up: its local
+    target point is not behind it, or it does not yet fly the leader's way.  A wingman
+    that flies the leader's way ahead of its slot cannot fall back while the leader flies
+    at v_min: then the leader leads on (s1) and the slot comes to it.
     """
-    return min(lim.max_climb_angle, lim.max_dive_angle) < MAX_AVOID_PITCH
+    lcp, lsp, lcy, lsy = trig[0, 0], trig[0, 1], trig[0, 2], trig[0, 3]
+    leader_waits = False
+    for i in range(pos.shape[0]):
+        formed[i] = False
+        gx, gy, gz = slot_to_ics(slot[i, 0], slot[i, 1], slot[i, 2], lcp, lsp, lcy, lsy)
+        local_target[i, 0] = pos[0, 0] + gx
+        local_target[i, 1] = pos[0, 1] + gy
+        local_target[i, 2] = pos[0, 2] + gz
+        if i == 0 or not active[i]:
+            continue
+        gx = local_target[i, 0] - pos[i, 0]
+        gy = local_target[i, 1] - pos[i, 1]
+        gz = local_target[i, 2] - pos[i, 2]
+        formed[i] = gx * gx + gy * gy + gz * gz <= lim.target_accuracy**2
+        along = gx * direction[0, 0] + gy * direction[0, 1] + gz * direction[0, 2]
+        same_way = (
+            direction[i, 0] * direction[0, 0]
+            + direction[i, 1] * direction[0, 1]
+            + direction[i, 2] * direction[0, 2]
+        ) > 0.0
+        leader_waits = leader_waits or (not formed[i] and (along >= 0.0 or not same_way))
+    return leader_waits
 
 
-@njit(cache=True)
-def influence_radius(speed: float, turn_rate: float, keep_out: float) -> float:
-    """Distance from an obstacle's centre at which avoidance must begin (Eq. 10–11, erratum 4).
-
-    A vehicle flying straight at the centre turns at full rate ω on a circle of radius
-    ρ = v/ω (Fig. 2).  The circle's centre is ρ to the side of the vehicle, so its closest
-    approach to the obstacle centre is √(d² + ρ²) − ρ.  Clearing the keep-out sphere
-    (``keep_out`` = R_o + safe distance) needs √(d² + ρ²) − ρ ≥ keep_out, hence
-
-        R = √((keep_out + ρ)² − ρ²).
-
-    The printed Eq. 10, √((R_o + R_v)² − R_o²), swaps the roles of R_o and ρ and gives
-    R < R_o for Table 3's 650 m and 850 m obstacles at 100 m/s.
+@njit(cache=True, inline="always")
+def obstacle_repulsion(
+    i: int,
+    pos: np.ndarray,
+    speed: np.ndarray,
+    obs_center: np.ndarray,
+    obs_radius: np.ndarray,
+    obs_velocity: np.ndarray,
+    near_start: np.ndarray,
+    near_obstacles: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+) -> tuple[float, float, float, bool]:
+    """Repulsion on vehicle i from the obstacles (Eq. 10–13): ε₁ along the outward normal
+    from every obstacle whose influence radius R_j (Eq. 10–11, erratum 4: see
+    ``influence_radius``) the vehicle is in.  R_j grows by a few steps of travel, by the
+    obstacle's closing speed times a quarter-turn time, and for an ``airframe_limited``
+    vehicle by one turn radius.  Only ``near_obstacles[near_start[i]:near_start[i+1]]``
+    are looked at.  Returns (F_r, whether a repelling obstacle moves).
     """
-    rho = speed / turn_rate
-    return math.sqrt((keep_out + rho) ** 2 - rho**2)
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    vi = speed[i]
+    px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
+    rx, ry, rz = 0.0, 0.0, 0.0
+    moving_threat = False
+    rho = vi / omega
+    half_turn = rho if airframe_limited(lim) else 0.0
+    for c in range(near_start[i], near_start[i + 1]):
+        j = near_obstacles[c]
+        dx = px - obs_center[j, 0]
+        dy = py - obs_center[j, 1]
+        dz = pz - obs_center[j, 2]
+        d2 = dx * dx + dy * dy + dz * dz
+        keep_out = obs_radius[j] + lim.safe_distance_obstacle
+        u_max = math.sqrt(
+            obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2
+        )
+        reach = (
+            keep_out
+            + rho
+            + INFLUENCE_STEPS * vi * dt
+            + u_max * AVOIDANCE_TURN_ANGLE / omega
+            + half_turn
+        )
+        if d2 > reach * reach:  # cheap rejection: R ≤ keep_out + ρ
+            continue
+        d = math.sqrt(d2)
+        closing = closing_speed(
+            dx, dy, dz, d, obs_velocity[j, 0], obs_velocity[j, 1], obs_velocity[j, 2]
+        )
+        radius = influence_radius(vi, omega, keep_out) + INFLUENCE_STEPS * vi * dt
+        radius += closing * AVOIDANCE_TURN_ANGLE / omega + half_turn
+        if d <= radius and d > 0.0:
+            rx += EPSILON_1 * dx / d
+            ry += EPSILON_1 * dy / d
+            rz += EPSILON_1 * dz / d
+            moving_threat = moving_threat or u_max > 0.0
+    return rx, ry, rz, moving_threat
 
 
-@njit(cache=True)
-def to_vcs(
-    fx: float, fy: float, fz: float, cp: float, sp: float, cy: float, sy: float
-) -> tuple[float, float, float]:
-    """ICS vector → VCS of a vehicle with cos/sin of pitch (cp, sp) and yaw (cy, sy):
-    A_fv(θ) · B_fv(ψ) · F (Eq. 16–18)."""
-    bx = cy * fx + sy * fy  # B_fv(ψ), Eq. 18
-    by = -sy * fx + cy * fy
-    return cp * bx + sp * fz, by, -sp * bx + cp * fz  # A_fv(θ), Eq. 17
-
-
-@njit(cache=True)
-def slot_to_ics(
-    sx: float, sy_: float, sz: float, cp: float, sp: float, cy: float, sy: float
-) -> tuple[float, float, float]:
-    """Leader-VCS vector → ICS: A_vf(ψ₀) · B_vf(θ₀) · s (Eq. 6–8, erratum 1)."""
-    px = cp * sx - sp * sz  # corrected B_vf(θ), erratum 1
-    pz = sp * sx + cp * sz
-    return cy * px - sy * sy_, sy * px + cy * sy_, pz  # A_vf(ψ), Eq. 7
-
-
-@njit(cache=True)
-def trend(angle: float, max_rate: float, dt: float) -> float:
-    """One entry of the trend matrix f (Eq. 19), saturated: ``sign(angle)`` when the turn
-    needed is at least one full step ω·Δt, proportional below it.
-
-    A pure sign law turns by ±ω·Δt every step and chatters about the wanted direction;
-    turning exactly the remaining angle keeps |Δ| ≤ ω·Δt (Table 1) without the chatter.
-    """
-    step = max_rate * dt
-    if angle >= step:
-        return 1.0
-    if angle <= -step:
-        return -1.0
-    return angle / step
-
-
-@njit(cache=True)
-def braking_speed(leader_speed: float, distance: float, accel: float) -> float:
-    """Speed from which a wingman can just match the leader's speed within ``distance``.
-
-    Eq. 21–22 give the distance needed to slow from v_i to v_0 at a_i:
-    Δt' = (v_i − v_0)/a_i and Δd' = v_i Δt' − a_i Δt'²/2, i.e. v_i² − v_0² = 2 a_i Δd'.
-    Eq. 23 brakes (s3) once d_i ≤ Δd'; so the wingman's speed limit at distance d_i is
-    √(v_0² + 2 a_i d_i).  A negative distance (slot behind) asks for the speed that gives
-    the lost ground back at ``accel``.
-    """
-    v2 = leader_speed * leader_speed + 2.0 * accel * distance
-    return math.sqrt(v2) if v2 > 0.0 else 0.0
-
-
-@njit(cache=True)
-def from_vcs(
-    vx: float, vy: float, vz: float, cp: float, sp: float, cy: float, sy: float
-) -> tuple[float, float, float]:
-    """VCS vector → ICS: the transpose of ``to_vcs`` (Eq. 6–8, erratum 1)."""
-    return slot_to_ics(vx, vy, vz, cp, sp, cy, sy)
-
-
-@njit(cache=True)
-def lowest_climb(height: float, speed: float, lim: KernelLimits) -> float:
-    """sin of the steepest descent allowed ``height`` metres above the ground's keep-out.
-
-    Pulling up at the full pitch rate ω from a flight-path angle γ < 0 traces an arc of
-    radius ρ = v/ω and loses ρ(1 − cos γ) of height, so a vehicle still levels out above
-    the keep-out if cos γ ≥ 1 − height/ρ.  ρ is taken at the speed the vehicle could reach
-    while pulling up (a quarter turn at full acceleration).  Inside the keep-out (height
-    < 0) the vehicle must climb, the steeper the deeper, up to ``MAX_FOLLOW_PITCH``.
-    """
-    omega = lim.max_pitch_rate
-    v = min(speed + lim.accel * AVOIDANCE_TURN_ANGLE / omega, lim.v_max)
-    rho = v / omega
-    if height >= rho:  # even straight down levels out in time
-        return -1.0
-    if height >= 0.0:
-        c = 1.0 - height / rho
-        return -math.sqrt(1.0 - c * c)
-    return min(-height / rho, math.sin(MAX_FOLLOW_PITCH))
-
-
-@njit(cache=True)
-def limit_climb(
+@njit(cache=True, inline="always")
+def teammate_conflict(
     dx: float,
     dy: float,
     dz: float,
-    nx: float,
-    ny: float,
-    nz: float,
-    in_plane: bool,
-    cy: float,
-    sy: float,
-    lowest: float,
-    lim: KernelLimits,
-) -> tuple[float, float, float]:
-    """The wanted ICS direction d, no steeper than ``MAX_AVOID_PITCH`` nor than the
-    airframe's flight-path limits (``lim.max_climb_angle``, ``lim.max_dive_angle``), and
-    descending no more steeply than ``lowest`` (the sine of the lowest flight-path angle
-    allowed, see ``lowest_climb``; −1 for no ground).  A plan steeper than the airframe
-    flies is a plan it cannot follow: flown closed loop, a wingman planned to climb over an
-    obstacle at up to 60° and climbing at ArduPlane's 20° came within 6 m of it.
-
-    Pitch stops at ±π/2 (Eq. 1) and near it yaw no longer turns the flight direction, so
-    a vehicle asked to steepen past the vertical would hang there, unable to turn.  When d
-    slides along a static obstacle (``in_plane``: d lies in the plane normal to the
-    repulsion n), the limited direction is the nearest one in that plane, so it still does
-    not close on the obstacle; otherwise (or when no direction in the plane is allowed)
-    d keeps its heading and takes the limit angle.
-    """
-    norm = math.sqrt(dx * dx + dy * dy + dz * dz)
-    if norm == 0.0:
-        return dx, dy, dz
-    dx, dy, dz = dx / norm, dy / norm, dz / norm
-    steepest = min(MAX_AVOID_PITCH, lim.max_climb_angle)
-    deepest = min(MAX_AVOID_PITCH, lim.max_dive_angle)
-    top = math.sin(steepest)
-    low = min(max(lowest, -math.sin(deepest)), top)
-    if low <= dz <= top:
-        return dx, dy, dz
-    z_new = min(max(dz, low), top)
-    n = math.sqrt(nx * nx + ny * ny + nz * nz)
-    e1n = math.sqrt(nx * nx + ny * ny)
-    if in_plane and n > 0.0 and e1n > 1e-9 * n:
-        nx, ny, nz = nx / n, ny / n, nz / n
-        e1x, e1y = -ny / e1n * n, nx / e1n * n  # horizontal, in the plane
-        e2x, e2y, e2z = -nz * e1y, nz * e1x, nx * e1y - ny * e1x  # n × e1: steepest
-        if e2z < 0.0:
-            e2x, e2y, e2z = -e2x, -e2y, -e2z
-        b_new = z_new / e2z
-        if -1.0 <= b_new <= 1.0:
-            a = dx * e1x + dy * e1y
-            a_new = math.copysign(math.sqrt(max(1.0 - b_new * b_new, 0.0)), a if a != 0.0 else 1.0)
-            return (a_new * e1x + b_new * e2x, a_new * e1y + b_new * e2y, b_new * e2z)
-    h = math.sqrt(dx * dx + dy * dy)
-    hx, hy = (dx / h, dy / h) if h > 0.0 else (cy, sy)
-    if z_new == top:
-        c = math.cos(steepest)
-    elif z_new == -math.sin(deepest):
-        c = math.cos(deepest)
-    else:
-        c = math.sqrt(1.0 - z_new * z_new)
-    return c * hx, c * hy, z_new
-
-
-@njit(cache=True)
-def follow_direction(
-    gx: float, gy: float, gz: float, cy: float, sy: float
-) -> tuple[float, float, float]:
-    """Unit attraction towards (gx, gy, gz) (Eq. 14), no steeper than ``MAX_FOLLOW_PITCH``.
-
-    Near the vertical the yaw of Eq. 5 no longer turns the flight direction, and the pitch
-    of Eq. 1 stops at ±π/2: a vehicle sent straight up at a target above and behind it
-    would stay vertical until its yaw came round.  A fixed wing climbs to a high target
-    in a spiral instead, so target following asks for at most this flight-path angle
-    (obstacle avoidance may still use the whole range).  With no horizontal component
-    the current heading (cos ψ, sin ψ) is kept.
-    """
-    h = math.sqrt(gx * gx + gy * gy)
-    if h == 0.0 and gz == 0.0:
-        return cy, sy, 0.0
-    cx_, cy_ = (gx / h, gy / h) if h > 0.0 else (cy, sy)
-    elevation = min(max(math.atan2(gz, h), -MAX_FOLLOW_PITCH), MAX_FOLLOW_PITCH)
-    ce = math.cos(elevation)
-    return ce * cx_, ce * cy_, math.sin(elevation)
-
-
-@njit(cache=True)
-def away_from_obstacles(
-    pitch: float,
-    yaw: float,
-    f_pitch: float,
-    f_yaw: float,
-    ox: float,
-    oy: float,
-    oz: float,
+    wx: float,
+    wy: float,
+    wz: float,
+    vi: float,
+    vk: float,
     lim: KernelLimits,
     dt: float,
-) -> float:
-    """The yaw trend, reversed if it would turn a vehicle closing on the obstacles that
-    repel it (repulsion (ox, oy, oz)) further towards them while the other sense would not.
+) -> tuple[int, float, float, float]:
+    """One teammate k of higher priority as a moving obstacle (Eq. 12–13, formation model).
 
-    Eq. 19 turns by the sense of F_v^y.  With a teammate's repulsion added to an obstacle's
-    the sum can point behind the vehicle, and the short way round can pass through the
-    obstacle (the vehicle sandwiched between the two).  The obstacle is the certain danger:
-    the turn never makes the closing on it worse when the other way does not.
+    (dx, dy, dz) is vehicle i's offset from k, (wx, wy, wz) k's velocity relative to i.
+    The mate repels (``CONFLICT``) only while the two close on each other and, within a
+    quarter turn's time, would come nearer than the safe distance plus what turning at
+    full rate could take off it (closest point of approach); mates flying alongside do
+    not (``NO_CONFLICT``).  A moving obstacle repels from where it will be at the closest
+    approach: along the miss vector, which is what widens the miss; radially when the two
+    would meet head-on (then s2 decides the way out).  Within one more safe distance of a
+    conflict it is ``JUST_CLEAR``: hold course rather than turn back into it (otherwise the
+    turn flips every step along the conflict's edge).  Returns (kind, unit miss vector).
     """
-    o = math.sqrt(ox * ox + oy * oy + oz * oz)
-    if o == 0.0 or f_yaw == 0.0:
-        return f_yaw
-    cp = math.cos(pitch)
-    now = cp * (math.cos(yaw) * ox + math.sin(yaw) * oy) + math.sin(pitch) * oz
-    if now >= 0.0:  # not closing
-        return f_yaw
-    th = pitch + f_pitch * lim.max_pitch_rate * dt
-    ct, st = math.cos(th), math.sin(th)
-    turn = f_yaw * lim.max_yaw_rate * dt
-    after = ct * (math.cos(yaw + turn) * ox + math.sin(yaw + turn) * oy) + st * oz
-    other = ct * (math.cos(yaw - turn) * ox + math.sin(yaw - turn) * oy) + st * oz
-    return -f_yaw if after < now and other > after else f_yaw
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    approach = wx * dx + wy * dy + wz * dz  # > 0: the gap is shrinking
+    w2 = wx * wx + wy * wy + wz * wz
+    if approach <= 0.0 or w2 == 0.0:  # (w2 can underflow while approach does not)
+        return NO_CONFLICT, 0.0, 0.0, 0.0
+    d2 = dx * dx + dy * dy + dz * dz
+    # Closest approach within the horizon (straight flight), and its time.
+    t_cpa = min(approach / w2, CONFLICT_HORIZON_TURNS * AVOIDANCE_TURN_ANGLE / omega)
+    miss2 = d2 - 2.0 * approach * t_cpa + w2 * t_cpa * t_cpa
+    # Either vehicle may be turning at full rate meanwhile (½ v ω t² each, at most one
+    # more safe distance).
+    turning = min(0.5 * (vi + vk) * omega * t_cpa * t_cpa, lim.safe_distance_uav)
+    threshold = lim.safe_distance_uav + (2.0 * vi * dt + turning)
+    if miss2 >= (threshold + lim.safe_distance_uav) ** 2:
+        return NO_CONFLICT, 0.0, 0.0, 0.0
+    d = math.sqrt(d2)
+    radius = influence_radius(vi, omega, lim.safe_distance_uav) + vi * dt
+    radius += vk * AVOIDANCE_TURN_ANGLE / omega
+    if d > radius or d == 0.0:
+        return NO_CONFLICT, 0.0, 0.0, 0.0
+    mx, my, mz = dx - wx * t_cpa, dy - wy * t_cpa, dz - wz * t_cpa
+    miss = math.sqrt(mx * mx + my * my + mz * mz)
+    if miss > 1e-6 * d:
+        mx, my, mz = mx / miss, my / miss, mz / miss
+    else:
+        mx, my, mz = dx / d, dy / d, dz / d
+    return (JUST_CLEAR if miss2 >= threshold * threshold else CONFLICT), mx, my, mz
 
 
-@njit(cache=True)
-def obstacles_first(
-    rx: float, ry: float, rz: float, ox: float, oy: float, oz: float
+@njit(cache=True, inline="always")
+def teammate_conflicts(
+    i: int,
+    rx: float,
+    ry: float,
+    rz: float,
+    pos: np.ndarray,
+    speed: np.ndarray,
+    trig: np.ndarray,
+    mate_start: np.ndarray,
+    mates: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+) -> tuple[float, float, float, bool, bool, float, float, float]:
+    """The repulsion (rx, ry, rz) on vehicle i with that of its teammates of higher
+    priority (lower rank) added (Eq. 12–13; each one by ``teammate_conflict``).  Only
+    ``mates[mate_start[i]:mate_start[i+1]]`` are looked at (see ``nearby_teammates``);
+    ``trig[:, 4:7]`` are the velocities (``unit_velocities``).
+
+    Returns (F_r, whether a mate repels, whether a conflict was only just avoided, the sum
+    of those conflicts' miss vectors).
+    """
+    vi = speed[i]
+    px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
+    repelled_by_mate = False
+    hold_course = False
+    hx, hy, hz = 0.0, 0.0, 0.0
+    for c in range(mate_start[i], mate_start[i + 1]):
+        k = mates[c]
+        kind, mx, my, mz = teammate_conflict(
+            px - pos[k, 0],
+            py - pos[k, 1],
+            pz - pos[k, 2],
+            trig[k, 4] - trig[i, 4],
+            trig[k, 5] - trig[i, 5],
+            trig[k, 6] - trig[i, 6],
+            vi,
+            speed[k],
+            lim,
+            dt,
+        )
+        if kind == JUST_CLEAR:
+            hold_course = True
+            hx, hy, hz = hx + mx, hy + my, hz + mz
+        elif kind == CONFLICT:
+            rx, ry, rz = rx + EPSILON_1 * mx, ry + EPSILON_1 * my, rz + EPSILON_1 * mz
+            repelled_by_mate = True
+    return rx, ry, rz, repelled_by_mate, hold_course, hx, hy, hz
+
+
+@njit(cache=True, inline="always")
+def attraction(
+    i: int,
+    pos: np.ndarray,
+    target: np.ndarray,
+    local_target: np.ndarray,
+    direction: np.ndarray,
+    lead: float,
+    hold_course: bool,
+    hx: float,
+    hy: float,
+    hz: float,
+    cy: float,
+    sy: float,
 ) -> tuple[float, float, float]:
-    """The total repulsion (rx, ry, rz) with the teammates' part (total minus the
-    obstacles' (ox, oy, oz)) stripped of any component against the obstacles' repulsion.
+    """The field on a vehicle nothing repels (Eq. 15 with F_r = 0): the unit attraction F_g
+    (Eq. 14, ``follow_direction``) towards its target point.
 
-    Flown closed loop, a wingman sliding round an obstacle at ArduPlane's 20° climb limit
-    was pushed into it by a teammate's repulsion (replayed from telemetry: 12.6 m into it;
-    the same state without teammates cleared it by 99 m).  With the paper's free pitch the
-    plan from that state comes to 40.9 m of the surface with the push, 74.3 m without it.
+    The leader's target point is the mission's target.  A wingman aims where its local
+    target point G_i will be ``lead`` seconds (one turn time 1/ω) ahead: its estimate of
+    the leader's motion.  Just clear of a teammate conflict (miss vectors summed in
+    (hx, hy, hz)) the vehicle holds its course, but only if following would take off more
+    of the miss than flying on would (a wingman whose slot lies away from the conflict
+    turns for it at once).
     """
-    o2 = ox * ox + oy * oy + oz * oz
-    if o2 == 0.0:
-        return rx, ry, rz
-    tx, ty, tz = rx - ox, ry - oy, rz - oz
-    into = (tx * ox + ty * oy + tz * oz) / o2
-    if into >= 0.0:
-        return rx, ry, rz
-    return rx - into * ox, ry - into * oy, rz - into * oz
+    px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
+    if i == 0:
+        gx, gy, gz = target[0] - px, target[1] - py, target[2] - pz
+    else:
+        gx = local_target[i, 0] + lead * direction[0, 0] - px
+        gy = local_target[i, 1] + lead * direction[0, 1] - py
+        gz = local_target[i, 2] + lead * direction[0, 2] - pz
+    fx, fy, fz = follow_direction(gx, gy, gz, cy, sy)
+    ux, uy, uz = direction[i, 0], direction[i, 1], direction[i, 2]
+    if hold_course and fx * hx + fy * hy + fz * hz < ux * hx + uy * hy + uz * hz:
+        return ux, uy, uz
+    return fx, fy, fz
+
+
+@njit(cache=True, inline="always")
+def escape_local_minimum(fvx: float, fvy: float, fvz: float, repelled: bool) -> tuple[float, int]:
+    """Local minimum (Eq. 20): a repulsion within ``LOCAL_MINIMUM_ANGLE`` of antiparallel to
+    the velocity leaves no turn to take, so F_add = ε₁ along +z_v makes the vehicle pull up
+    (state s2).  Takes the field F_v in the VCS; returns (F_v^z, state s1 or s2)."""
+    f_norm = math.sqrt(fvx * fvx + fvy * fvy + fvz * fvz)
+    lateral = math.sqrt(fvy * fvy + fvz * fvz)
+    if repelled and fvx < 0.0 and lateral <= f_norm * math.sin(LOCAL_MINIMUM_ANGLE):
+        return fvz + EPSILON_1, S2_LOCAL_MINIMUM
+    return fvz, S1_FOLLOW
+
+
+@njit(cache=True, inline="always")
+def slide_along_obstacles(fvx: float, fvy: float, fvz: float) -> tuple[float, float, float]:
+    """The wanted direction (VCS) around static obstacles, for Eq. 19 to turn towards.
+
+    Eq. 19 turns towards F_v; around static obstacles the turn is needed only until the
+    vehicle no longer closes on them.  So the wanted direction is the velocity projected
+    onto the plane normal to the repulsion, x − (x·F̂)F̂, while F_v^x < 0, and straight
+    ahead once F_v^x ≥ 0.  The turn's sense is still that of F_v^y and F_v^z; a full turn
+    towards F_v would end flying straight away from the obstacle and then zigzag along its
+    influence sphere.  (Moving threats keep the full turn.)
+    """
+    if fvx >= 0.0:
+        return 1.0, 0.0, 0.0
+    f_norm = math.sqrt(fvx * fvx + fvy * fvy + fvz * fvz)
+    k_proj = fvx / (f_norm * f_norm)
+    return 1.0 - k_proj * fvx, -k_proj * fvy, -k_proj * fvz
+
+
+@njit(cache=True, inline="always")
+def flight_path_limited(
+    fvx: float,
+    fvy: float,
+    fvz: float,
+    rx: float,
+    ry: float,
+    rz: float,
+    tangent: bool,
+    pz: float,
+    vi: float,
+    cp: float,
+    sp: float,
+    cy: float,
+    sy: float,
+    lim: KernelLimits,
+    dt: float,
+) -> tuple[float, float, float, float, float, float, float]:
+    """The wanted direction F_v (VCS) no steeper than ``MAX_AVOID_PITCH`` or the airframe,
+    and descending no more steeply than a full-rate pull-up can level out of above the
+    ground (``limit_climb``, ``lowest_climb``; where the paper is silent).
+
+    (rx, ry, rz) is the repulsion and ``tangent`` whether F_v slides along a static
+    obstacle.  Returns (F_v in the VCS, the same direction d in the ICS, the sine of the
+    lowest flight-path angle allowed).
+    """
+    height = pz - lim.ground - lim.safe_distance_obstacle - INFLUENCE_STEPS * vi * dt
+    lowest = lowest_climb(height, vi, lim)
+    dx, dy, dz = from_vcs(fvx, fvy, fvz, cp, sp, cy, sy)
+    dx, dy, dz = limit_climb(dx, dy, dz, rx, ry, rz, tangent, cy, sy, lowest, lim)
+    fvx, fvy, fvz = to_vcs(dx, dy, dz, cp, sp, cy, sy)
+    return fvx, fvy, fvz, dx, dy, dz, lowest
+
+
+@njit(cache=True, inline="always")
+def trend_matrix(
+    fvx: float,
+    fvy: float,
+    fvz: float,
+    dx: float,
+    dy: float,
+    dz: float,
+    pitch: float,
+    lowest: float,
+    lim: KernelLimits,
+    dt: float,
+) -> tuple[float, float]:
+    """The pitch and yaw entries of the trend matrix f (Eq. 19, erratum 2): pitch follows
+    F_v^z, yaw follows F_v^y, each a saturated sign (``trend``).  (dx, dy, dz) is the
+    wanted direction in the ICS and ``lowest`` the ground's limit (``flight_path_limited``).
+
+    With the wanted direction behind, or a steep vehicle, the sign of F_v^z would pitch the
+    nose on through the vertical (a loop; and a steep vehicle that yaws keeps steepening,
+    its z_v tilted away from the wanted direction's vertical plane), which Eq. 1's pitch
+    range [−π/2, π/2] rules out and where yaw loses its hold.  Then the vehicle goes for the
+    wanted elevation in the ICS and turns round by yaw (to the left when straight behind).
+    Near the ground too: while the vehicle yaws, F_v^z is not the flight-path angle still
+    to climb, and the ground's limit is on the flight-path angle.  So are an airframe's
+    limits (a leader climbing at 20° while it turned kept pitching up to 45° on F_v^z).
+    """
+    elevation = math.atan2(fvz, math.sqrt(fvx * fvx + fvy * fvy))
+    wanted = math.sqrt(fvx * fvx + fvy * fvy + fvz * fvz)
+    azimuth = math.atan2(fvy, fvx) if abs(fvy) > SIDEWAYS_EPS * wanted else 0.0
+    if fvx < 0.0 or abs(pitch) > MAX_FOLLOW_PITCH or lowest > -1.0 or airframe_limited(lim):
+        elevation = math.atan2(dz, math.sqrt(dx * dx + dy * dy)) - pitch
+        if fvx < 0.0 and azimuth == 0.0:
+            azimuth = math.pi
+    return trend(elevation, lim.max_pitch_rate, dt), trend(azimuth, lim.max_yaw_rate, dt)
+
+
+@njit(cache=True, inline="always")
+def speed_trend(
+    i: int,
+    along_field: float,
+    repelled: bool,
+    leader_waits: bool,
+    pos: np.ndarray,
+    speed: np.ndarray,
+    local_target: np.ndarray,
+    direction: np.ndarray,
+    formed: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+    state: int,
+) -> tuple[float, int]:
+    """The speed entry f_l of the trend matrix (Eq. 19): the sign of F_v^x (``along_field``),
+    except that the leader waits at low speed while the formation forms (s3, Eq. 24), and
+    a wingman that nothing repels brakes so as to arrive at the leader's speed (Eq. 21–23,
+    ``braking_speed``; s3 once d_i ≤ Δd'_i) or, with its slot behind it, gives the lost
+    ground back.  Returns (f_l, the vehicle's state: ``state`` or s3).
+    """
+    f_speed = 1.0 if along_field > 0.0 else (-1.0 if along_field < 0.0 else 0.0)
+    if i == 0:
+        if leader_waits:
+            return -1.0, S3_FORMATION
+        return f_speed, state
+    if repelled or not along_field > 0.0:
+        return f_speed, state
+    vi, v0 = speed[i], speed[0]
+    ex = local_target[i, 0] - pos[i, 0]
+    ey = local_target[i, 1] - pos[i, 1]
+    ez = local_target[i, 2] - pos[i, 2]
+    along = ex * direction[0, 0] + ey * direction[0, 1] + ez * direction[0, 2]
+    if along >= 0.0:
+        v_cmd = braking_speed(v0, math.sqrt(ex * ex + ey * ey + ez * ez), lim.decel)
+        if not formed[i] and vi >= v_cmd:
+            state = S3_FORMATION  # Eq. 23: d_i ≤ Δd'_i
+    else:
+        v_cmd = braking_speed(v0, along, lim.accel)
+    a_cmd = lim.accel if v_cmd >= vi else lim.decel
+    return trend(v_cmd - vi, a_cmd, dt), state
+
+
+@njit(cache=True, inline="always")
+def kinematics(
+    speed: float,
+    pitch: float,
+    yaw: float,
+    f_speed: float,
+    f_pitch: float,
+    f_yaw: float,
+    lim: KernelLimits,
+    dt: float,
+) -> tuple[float, float, float]:
+    """The new (speed, pitch, yaw) from the trend matrix f (Eq. 3–5):
+    V(t) = V(t′) + f·Δt·a, speed within [v_min, v_max], pitch within [−π/2, π/2] (Eq. 1),
+    yaw wrapped to (−π, π]."""
+    a_l = lim.accel if f_speed > 0.0 else lim.decel
+    v_new = min(max(speed + f_speed * a_l * dt, lim.v_min), lim.v_max)
+    th = pitch + f_pitch * lim.max_pitch_rate * dt
+    th = min(max(th, -0.5 * math.pi), 0.5 * math.pi)
+    ps = yaw + f_yaw * lim.max_yaw_rate * dt
+    if ps > math.pi:
+        ps -= 2.0 * math.pi
+    elif ps <= -math.pi:
+        ps += 2.0 * math.pi
+    return v_new, th, ps
+
+
+@njit(cache=True, inline="always")
+def fly(
+    i: int,
+    pos: np.ndarray,
+    pitch: np.ndarray,
+    yaw: np.ndarray,
+    speed: np.ndarray,
+    next_motion: np.ndarray,
+    dt: float,
+) -> tuple[float, float, float, float]:
+    """Vehicle i takes the new (speed, pitch, yaw) of ``next_motion`` and flies one step
+    (Eq. 5); returns cos θ, sin θ, cos ψ, sin ψ of its new attitude."""
+    speed[i] = next_motion[i, 0]
+    pitch[i] = next_motion[i, 1]
+    yaw[i] = next_motion[i, 2]
+    cp, sp = math.cos(pitch[i]), math.sin(pitch[i])
+    cy, sy = math.cos(yaw[i]), math.sin(yaw[i])
+    pos[i, 0] += speed[i] * cp * cy * dt
+    pos[i, 1] += speed[i] * cp * sy * dt
+    pos[i, 2] += speed[i] * sp * dt
+    return cp, sp, cy, sy
 
 
 @njit(cache=True)
-def _closing_speed(
-    dx: float, dy: float, dz: float, d: float, ux: float, uy: float, uz: float
-) -> float:
-    """Speed at which a point moving at u approaches a vehicle at offset (dx, dy, dz)."""
-    if d <= 0.0:
-        return 0.0
-    c = (ux * dx + uy * dy + uz * dz) / d
-    return c if c > 0.0 else 0.0
+def move_obstacles(obs_center: np.ndarray, obs_velocity: np.ndarray, dt: float) -> None:
+    """Every obstacle moves one step at its constant velocity."""
+    for j in range(obs_center.shape[0]):
+        for c in range(3):
+            obs_center[j, c] += obs_velocity[j, c] * dt
 
 
 @njit(cache=True)
@@ -346,59 +601,9 @@ def move(
     """Take the new (speed, pitch, yaw) of ``next_motion`` and fly one step (Eq. 5);
     move the obstacles at their constant velocity."""
     for i in range(pos.shape[0]):
-        if not active[i]:
-            continue
-        speed[i] = next_motion[i, 0]
-        pitch[i] = next_motion[i, 1]
-        yaw[i] = next_motion[i, 2]
-        cp = math.cos(pitch[i])
-        pos[i, 0] += speed[i] * cp * math.cos(yaw[i]) * dt
-        pos[i, 1] += speed[i] * cp * math.sin(yaw[i]) * dt
-        pos[i, 2] += speed[i] * math.sin(pitch[i]) * dt
-    for j in range(obs_center.shape[0]):
-        for c in range(3):
-            obs_center[j, c] += obs_velocity[j, c] * dt
-
-
-@njit(cache=True)
-def nearby_obstacles(
-    pos: np.ndarray,
-    obs_center: np.ndarray,
-    obs_radius: np.ndarray,
-    obs_velocity: np.ndarray,
-    lim: KernelLimits,
-    dt: float,
-    horizon_steps: int,
-    near_start: np.ndarray,
-    near_obstacles: np.ndarray,
-) -> None:
-    """The obstacles each vehicle could come under the influence of within the next
-    ``horizon_steps`` steps (a neighbour list, so that a step need not look at all M).
-
-    A vehicle is influenced from at most keep_out + v_max/ω + v_max·Δt + u·T (the cheap
-    bound in ``fleet_step``; one v_max/ω more for an ``airframe_limited`` one); over the
-    horizon the two close by at most (v_max + u)·steps·Δt.
-    Fills ``near_obstacles`` in CSR form: vehicle i's are ``near_start[i]:near_start[i+1]``.
-    """
-    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
-    turns = 2.0 if airframe_limited(lim) else 1.0  # the half turn of fleet_step
-    count = 0
-    for i in range(pos.shape[0]):
-        near_start[i] = count
-        for j in range(obs_center.shape[0]):
-            u = math.sqrt(
-                obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2
-            )
-            reach = obs_radius[j] + lim.safe_distance_obstacle + turns * lim.v_max / omega
-            reach += INFLUENCE_STEPS * lim.v_max * dt + u * AVOIDANCE_TURN_ANGLE / omega
-            reach += (lim.v_max + u) * horizon_steps * dt
-            dx = pos[i, 0] - obs_center[j, 0]
-            dy = pos[i, 1] - obs_center[j, 1]
-            dz = pos[i, 2] - obs_center[j, 2]
-            if dx * dx + dy * dy + dz * dz <= reach * reach:
-                near_obstacles[count] = j
-                count += 1
-    near_start[pos.shape[0]] = count
+        if active[i]:
+            fly(i, pos, pitch, yaw, speed, next_motion, dt)
+    move_obstacles(obs_center, obs_velocity, dt)
 
 
 @njit(cache=True)
@@ -424,295 +629,75 @@ def fleet_step(
     next_motion: np.ndarray,
     near_start: np.ndarray,
     near_obstacles: np.ndarray,
+    mate_start: np.ndarray,
+    mates: np.ndarray,
+    trig: np.ndarray,
 ) -> None:
-    """Advance the fleet one step Δt in place (Eq. 3–5, 9–24).
+    """Advance the fleet one step Δt in place: the paper's algorithm (Eq. 3–24).
 
     ``state[N]`` receives each vehicle's PPF state (1, 2, 3), ``avoiding[N]`` whether an
     obstacle or teammate repels it, ``formed[N]`` whether a wingman is within the target
     accuracy of its local target point, ``local_target[N,3]`` the wingmen's local target
     points G_i (Eq. 6).  ``direction[N,3]`` and ``next_motion[N,3]`` are scratch space.
     Vehicle i considers only the obstacles ``near_obstacles[near_start[i]:near_start[i+1]]``
-    (see ``nearby_obstacles``).
+    (see ``nearby_obstacles``), and only the teammates ``mates[mate_start[i]:mate_start[i+1]]``
+    (see ``nearby_teammates``; every active teammate of higher priority for all pairs).
+    ``trig[N,7]`` holds cos θ, sin θ, cos ψ, sin ψ of every vehicle on entry
+    (``attitude_trig``) and of its new attitude on return; its last columns are scratch.
     Every vehicle decides from the fleet's state at the start of the step.
     Obstacles are moved by their velocity at the end of the step.
     """
     n = pos.shape[0]
-    m = obs_center.shape[0]
-    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
-    limited = airframe_limited(lim)
-
-    # Unit velocity directions at the start of the step (Eq. 5 divided by v), the cosines
-    # and sines of pitch and yaw, and the obstacles' speeds.
-    trig = np.empty((n, 4))
-    for i in range(n):
-        cp, sp = math.cos(pitch[i]), math.sin(pitch[i])
-        cy, sy = math.cos(yaw[i]), math.sin(yaw[i])
-        trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3] = cp, sp, cy, sy
-        direction[i, 0] = cp * cy
-        direction[i, 1] = cp * sy
-        direction[i, 2] = sp
-    obs_speed = np.empty(m)
-    for j in range(m):
-        obs_speed[j] = math.sqrt(
-            obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2
-        )
-
-    # Local target points of the wingmen (Eq. 6) and whether the formation is formed.
-    lcp, lsp, lcy, lsy = trig[0, 0], trig[0, 1], trig[0, 2], trig[0, 3]
-    v0 = speed[0]
-    lead = v0 / omega  # horizon of the wingman's estimate of its moving target point
-    # The leader waits (s3) while a wingman is out of formation and has to catch up: its
-    # local target point is not behind it, or it does not yet fly the leader's way.  A
-    # wingman that flies the leader's way ahead of its slot cannot fall back while the
-    # leader flies at v_min: then the leader leads on (s1) and the slot comes to it.
-    leader_waits = False
-    for i in range(n):
-        formed[i] = False
-        gx, gy, gz = slot_to_ics(slot[i, 0], slot[i, 1], slot[i, 2], lcp, lsp, lcy, lsy)
-        local_target[i, 0] = pos[0, 0] + gx
-        local_target[i, 1] = pos[0, 1] + gy
-        local_target[i, 2] = pos[0, 2] + gz
-        if i == 0 or not active[i]:
-            continue
-        gx = local_target[i, 0] - pos[i, 0]
-        gy = local_target[i, 1] - pos[i, 1]
-        gz = local_target[i, 2] - pos[i, 2]
-        formed[i] = gx * gx + gy * gy + gz * gz <= lim.target_accuracy**2
-        along = gx * direction[0, 0] + gy * direction[0, 1] + gz * direction[0, 2]
-        same_way = (
-            direction[i, 0] * direction[0, 0]
-            + direction[i, 1] * direction[0, 1]
-            + direction[i, 2] * direction[0, 2]
-        ) > 0.0
-        leader_waits = leader_waits or (not formed[i] and (along >= 0.0 or not same_way))
-
+    unit_velocities(speed, trig, direction)  # Eq. 5
+    leader_waits = formation_targets(pos, slot, active, trig, direction, lim, local_target, formed)
+    lead = speed[0] / min(lim.max_pitch_rate, lim.max_yaw_rate)  # one turn time ahead
     for i in range(n):
         if not active[i]:
             continue
-        vi = speed[i]
-        px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
         cp, sp, cy, sy = trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3]
-
-        # Repulsion (Eq. 12–13): ε₁ from every obstacle whose influence radius we are in.
-        rx = 0.0
-        ry = 0.0
-        rz = 0.0
-        moving_threat = False  # a repelling obstacle or teammate that moves
-        hold_course = False  # a teammate conflict was only just avoided …
-        hx, hy, hz = 0.0, 0.0, 0.0  # … and the miss vectors of those conflicts
-        rho = vi / omega
-        half_turn = rho if limited else 0.0
-        for c in range(near_start[i], near_start[i + 1]):
-            j = near_obstacles[c]
-            dx = px - obs_center[j, 0]
-            dy = py - obs_center[j, 1]
-            dz = pz - obs_center[j, 2]
-            d2 = dx * dx + dy * dy + dz * dz
-            keep_out = obs_radius[j] + lim.safe_distance_obstacle
-            u_max = obs_speed[j]
-            reach = (
-                keep_out
-                + rho
-                + INFLUENCE_STEPS * vi * dt
-                + u_max * AVOIDANCE_TURN_ANGLE / omega
-                + half_turn
-            )
-            if d2 > reach * reach:  # cheap rejection: R ≤ keep_out + ρ
-                continue
-            d = math.sqrt(d2)
-            closing = _closing_speed(
-                dx, dy, dz, d, obs_velocity[j, 0], obs_velocity[j, 1], obs_velocity[j, 2]
-            )
-            radius = influence_radius(vi, omega, keep_out) + INFLUENCE_STEPS * vi * dt
-            radius += closing * AVOIDANCE_TURN_ANGLE / omega + half_turn
-            if d <= radius and d > 0.0:
-                rx += EPSILON_1 * dx / d
-                ry += EPSILON_1 * dy / d
-                rz += EPSILON_1 * dz / d
-                moving_threat = moving_threat or u_max > 0.0
-
-        # Teammates of higher priority are moving obstacles (formation model): a mate
-        # repels only while the two close on each other and, within a quarter turn's time,
-        # would come nearer than the safe distance plus what turning at full rate could
-        # take off it (closest point of approach); mates flying alongside do not.
-        ox, oy, oz = rx, ry, rz  # the obstacles' repulsion alone (see away_from_obstacles)
-        for k in range(n):
-            if k == i or not active[k] or rank[k] >= rank[i]:
-                continue
-            dx = px - pos[k, 0]
-            dy = py - pos[k, 1]
-            dz = pz - pos[k, 2]
-            wx = speed[k] * direction[k, 0] - vi * direction[i, 0]  # mate relative to us
-            wy = speed[k] * direction[k, 1] - vi * direction[i, 1]
-            wz = speed[k] * direction[k, 2] - vi * direction[i, 2]
-            approach = wx * dx + wy * dy + wz * dz  # > 0: the gap is shrinking
-            w2 = wx * wx + wy * wy + wz * wz
-            if approach <= 0.0 or w2 == 0.0:  # (w2 can underflow while approach does not)
-                continue
-            d2 = dx * dx + dy * dy + dz * dz
-            # Closest approach within the horizon (straight flight), and its time.
-            t_cpa = min(approach / w2, CONFLICT_HORIZON_TURNS * AVOIDANCE_TURN_ANGLE / omega)
-            miss2 = d2 - 2.0 * approach * t_cpa + w2 * t_cpa * t_cpa
-            # Either vehicle may be turning at full rate meanwhile (½ v ω t² each, at most
-            # one more safe distance).
-            turning = min(0.5 * (vi + speed[k]) * omega * t_cpa * t_cpa, lim.safe_distance_uav)
-            margin = 2.0 * vi * dt + turning
-            threshold = lim.safe_distance_uav + margin
-            if miss2 >= (threshold + lim.safe_distance_uav) ** 2:
-                continue
-            d = math.sqrt(d2)
-            radius = influence_radius(vi, omega, lim.safe_distance_uav) + vi * dt
-            radius += speed[k] * AVOIDANCE_TURN_ANGLE / omega
-            if d > radius or d == 0.0:
-                continue
-            # A moving obstacle repels from where it will be at the closest approach:
-            # along the miss vector, which is what widens the miss; radially when the
-            # two would meet head-on (then s2 decides the way out).
-            mx = dx - wx * t_cpa
-            my = dy - wy * t_cpa
-            mz = dz - wz * t_cpa
-            miss = math.sqrt(mx * mx + my * my + mz * mz)
-            if miss > 1e-6 * d:
-                mx, my, mz = mx / miss, my / miss, mz / miss
-            else:
-                mx, my, mz = dx / d, dy / d, dz / d
-            if miss2 >= threshold * threshold:
-                # Just clear of a conflict: hold course rather than turn back into it
-                # (otherwise the turn flips every step along the conflict's edge).
-                hold_course = True
-                hx += mx
-                hy += my
-                hz += mz
-            else:
-                rx += EPSILON_1 * mx
-                ry += EPSILON_1 * my
-                rz += EPSILON_1 * mz
-                moving_threat = True
-
-        # A teammate never pushes a vehicle into a static obstacle: the part of the
-        # teammates' repulsion against the obstacles' is dropped (obstacles come first).
+        # Repulsion (Eq. 12–13): the obstacles', then the teammates' of higher priority,
+        # never pushing the vehicle into an obstacle (``obstacles_first``).
+        ox, oy, oz, moving_obstacle = obstacle_repulsion(
+            i, pos, speed, obs_center, obs_radius, obs_velocity, near_start, near_obstacles,
+            lim, dt,
+        )  # fmt: skip
+        rx, ry, rz, mate, hold_course, hx, hy, hz = teammate_conflicts(
+            i, ox, oy, oz, pos, speed, trig, mate_start, mates, lim, dt
+        )
         rx, ry, rz = obstacles_first(rx, ry, rz, ox, oy, oz)
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0
+        moving_threat = moving_obstacle or mate
         avoiding[i] = repelled
-
-        # Attraction (Eq. 14): unit vector to the target point, zero while repelled.
+        # The field (Eq. 14–15): the repulsion alone while repelled, else the attraction.
         if repelled:
-            fx, fy, fz = rx, ry, rz  # Eq. 15 with |F_g| = 0
+            fx, fy, fz = rx, ry, rz
         else:
-            if i == 0:
-                gx = target[0] - px
-                gy = target[1] - py
-                gz = target[2] - pz
-            else:
-                # The wingman aims where its local target point will be one turn time
-                # (1/ω) ahead: its estimate of the leader's motion.
-                gx = local_target[i, 0] + lead * direction[0, 0] - px
-                gy = local_target[i, 1] + lead * direction[0, 1] - py
-                gz = local_target[i, 2] + lead * direction[0, 2] - pz
-            fx, fy, fz = follow_direction(gx, gy, gz, cy, sy)
-            # Hold course only if following would turn back into the conflict: take off
-            # more of the miss than flying on would (a wingman whose slot lies away from
-            # the conflict turns for it at once).
-            ux, uy, uz = direction[i, 0], direction[i, 1], direction[i, 2]
-            if hold_course and fx * hx + fy * hy + fz * hz < ux * hx + uy * hy + uz * hz:
-                fx, fy, fz = ux, uy, uz
-
-        # Into the VCS (Eq. 16–18).
-        fvx, fvy, fvz = to_vcs(fx, fy, fz, cp, sp, cy, sy)
-        along_field = fvx  # F_v^x, which sets the speed trend f_l
-        s = S1_FOLLOW
-
-        # s2: repulsion (anti)parallel to the velocity leaves no turn to take; add F_add
-        # along +z_v so the vehicle pulls up (Eq. 20).
-        f_norm = math.sqrt(fvx * fvx + fvy * fvy + fvz * fvz)
-        lateral = math.sqrt(fvy * fvy + fvz * fvz)
-        if repelled and fvx < 0.0 and lateral <= f_norm * math.sin(LOCAL_MINIMUM_ANGLE):
-            fvz += EPSILON_1
-            s = S2_LOCAL_MINIMUM
-            f_norm = math.sqrt(fvx * fvx + fvy * fvy + fvz * fvz)
-
-        # Eq. 19 turns towards F_v; around static obstacles the turn is needed only until
-        # the vehicle no longer closes on them.  So the wanted direction is the velocity
-        # projected onto the plane normal to the repulsion, x − (x·F̂)F̂, while F_v^x < 0,
-        # and straight ahead once F_v^x ≥ 0.  The turn's sense is still that of F_v^y and
-        # F_v^z; a full turn towards F_v would end flying straight away from the obstacle
-        # and then zigzag along its influence sphere.  Moving threats keep the full turn.
+            fx, fy, fz = attraction(
+                i, pos, target, local_target, direction, lead, hold_course, hx, hy, hz, cy, sy
+            )
+        fvx, fvy, fvz = to_vcs(fx, fy, fz, cp, sp, cy, sy)  # into the VCS (Eq. 16–18)
+        along_field = fvx  # F_v^x sets the speed trend f_l
+        fvz, s = escape_local_minimum(fvx, fvy, fvz, repelled)  # s2 (Eq. 20)
         tangent = repelled and not moving_threat and fvx < 0.0
         if repelled and not moving_threat:
-            if fvx >= 0.0:
-                fvx, fvy, fvz = 1.0, 0.0, 0.0
-            else:
-                k_proj = fvx / (f_norm * f_norm)
-                fvx, fvy, fvz = 1.0 - k_proj * fvx, -k_proj * fvy, -k_proj * fvz
-
-        # No steeper than MAX_AVOID_PITCH or the airframe, no descent it could not level
-        # out of above the ground (see ``limit_climb``, ``lowest_climb``), then back into the VCS.
-        height = pz - lim.ground - lim.safe_distance_obstacle - INFLUENCE_STEPS * vi * dt
-        lowest = lowest_climb(height, vi, lim)
-        dx, dy, dz = from_vcs(fvx, fvy, fvz, cp, sp, cy, sy)
-        dx, dy, dz = limit_climb(dx, dy, dz, rx, ry, rz, tangent, cy, sy, lowest, lim)
-        fvx, fvy, fvz = to_vcs(dx, dy, dz, cp, sp, cy, sy)
-
-        # Trend matrix f (Eq. 19, erratum 2): pitch follows F_v^z, yaw follows F_v^y.
-        elevation = math.atan2(fvz, math.sqrt(fvx * fvx + fvy * fvy))
-        wanted = math.sqrt(fvx * fvx + fvy * fvy + fvz * fvz)
-        azimuth = math.atan2(fvy, fvx) if abs(fvy) > SIDEWAYS_EPS * wanted else 0.0
-        if fvx < 0.0 or abs(pitch[i]) > MAX_FOLLOW_PITCH or lowest > -1.0 or limited:
-            # Wanted direction behind, or a steep vehicle: the sign of F_v^z would pitch
-            # the nose on through the vertical (a loop; and a steep vehicle that yaws keeps
-            # steepening, its z_v tilted away from the wanted direction's vertical plane),
-            # which Eq. 1's pitch range [−π/2, π/2] rules out and where yaw loses its hold.
-            # Go for the wanted elevation in the ICS instead and turn round by yaw (to the
-            # left when straight behind).  Near the ground too: while the vehicle yaws,
-            # F_v^z is not the flight-path angle still to climb, and the ground's limit
-            # (``lowest_climb``) is on the flight-path angle.  So are an airframe's limits
-            # (a leader climbing at 20° while it turned kept pitching up to 45° on F_v^z).
-            elevation = math.atan2(dz, math.sqrt(dx * dx + dy * dy)) - pitch[i]
-            if fvx < 0.0 and azimuth == 0.0:
-                azimuth = math.pi
-        f_pitch = trend(elevation, lim.max_pitch_rate, dt)
-        f_yaw = trend(azimuth, lim.max_yaw_rate, dt)
+            fvx, fvy, fvz = slide_along_obstacles(fvx, fvy, fvz)
+        fvx, fvy, fvz, dx, dy, dz, lowest = flight_path_limited(
+            fvx, fvy, fvz, rx, ry, rz, tangent, pos[i, 2], speed[i], cp, sp, cy, sy, lim, dt
+        )
+        # Trend matrix f (Eq. 19): pitch, yaw (never further into a repelling obstacle
+        # when the other way is not), speed (Eq. 21–24); then the kinematics (Eq. 3–5).
+        f_pitch, f_yaw = trend_matrix(fvx, fvy, fvz, dx, dy, dz, pitch[i], lowest, lim, dt)
         f_yaw = away_from_obstacles(pitch[i], yaw[i], f_pitch, f_yaw, ox, oy, oz, lim, dt)
-
-        # Speed trend f_l (Eq. 19).
-        if along_field > 0.0:
-            f_speed = 1.0
-        elif along_field < 0.0:
-            f_speed = -1.0
-        else:
-            f_speed = 0.0
-        if i == 0:
-            if leader_waits:  # Eq. 24: the leader waits at low speed (s3)
-                f_speed = -1.0
-                s = S3_FORMATION
-        elif not repelled and along_field > 0.0:
-            # Eq. 21–23: the wingman brakes so as to arrive at the leader's speed.
-            ex = local_target[i, 0] - px
-            ey = local_target[i, 1] - py
-            ez = local_target[i, 2] - pz
-            along = ex * direction[0, 0] + ey * direction[0, 1] + ez * direction[0, 2]
-            if along >= 0.0:
-                v_cmd = braking_speed(v0, math.sqrt(ex * ex + ey * ey + ez * ez), lim.decel)
-                if not formed[i] and vi >= v_cmd:
-                    s = S3_FORMATION  # Eq. 23: d_i ≤ Δd'_i
-            else:
-                v_cmd = braking_speed(v0, along, lim.accel)
-            a_cmd = lim.accel if v_cmd >= vi else lim.decel
-            f_speed = trend(v_cmd - vi, a_cmd, dt)
-        state[i] = s
-
-        # Kinematics (Eq. 3–5): V(t) = V(t') + f · Δt · a, within the limits.
-        a_l = lim.accel if f_speed > 0.0 else lim.decel
-        v_new = min(max(vi + f_speed * a_l * dt, lim.v_min), lim.v_max)
-        th = pitch[i] + f_pitch * lim.max_pitch_rate * dt
-        th = min(max(th, -0.5 * math.pi), 0.5 * math.pi)
-        ps = yaw[i] + f_yaw * lim.max_yaw_rate * dt
-        if ps > math.pi:
-            ps -= 2.0 * math.pi
-        elif ps <= -math.pi:
-            ps += 2.0 * math.pi
-        next_motion[i, 0] = v_new
-        next_motion[i, 1] = th
-        next_motion[i, 2] = ps
-
-    move(pos, pitch, yaw, speed, active, next_motion, obs_center, obs_velocity, dt)
+        f_speed, state[i] = speed_trend(
+            i, along_field, repelled, leader_waits, pos, speed, local_target, direction,
+            formed, lim, dt, s,
+        )  # fmt: skip
+        next_motion[i, 0], next_motion[i, 1], next_motion[i, 2] = kinematics(
+            speed[i], pitch[i], yaw[i], f_speed, f_pitch, f_yaw, lim, dt
+        )
+    for i in range(n):  # Eq. 5: every vehicle flies its new motion
+        if active[i]:
+            trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3] = fly(
+                i, pos, pitch, yaw, speed, next_motion, dt
+            )
+    move_obstacles(obs_center, obs_velocity, dt)

@@ -10,7 +10,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as hs
 
 from gcs_ppf.guidance.airframe import TURN_EFFICIENCY
-from gcs_ppf.guidance.holding import holding_circle, path_clearance, ring_clearance
+from gcs_ppf.guidance.assurance import Motion
+from gcs_ppf.guidance.holding import (
+    Hold,
+    approach_path,
+    holding_circle,
+    path_clearance,
+    points_clearance,
+    ring_clearance,
+)
 from gcs_ppf.planning.scene import Obstacles
 
 
@@ -59,3 +67,24 @@ def test_whenever_a_clear_circle_exists_nearby_the_one_chosen_is_clear(
         return
     hold = holding_circle(pos, yaw, 300.0, 120.0, 800.0, obs, 50.0)
     assert hold.clearance_m >= 50.0
+
+
+def test_the_hold_is_chosen_on_the_approach_the_vehicle_flies_not_a_straight_line() -> None:
+    """At 210 m/s turning at 0.5 rad/s (420 m wide): checked as a straight line, the circle
+    chosen here is reached through the sphere (flown: 143 m inside its surface); checked on
+    the flown approach, the circle chosen and the way there keep the keep-out."""
+    sphere = Obstacles(np.array([[305.0, -637.0, 400.0]]), np.array([424.0]), np.zeros((1, 3)))
+    yaw, radius, keep_out = -1.563, 630.0, 50.0
+    m = Motion((0.0, 0.0, 400.0), yaw, 210.0, 0.5, 10.0, 10.0, 1.0)
+    pos = np.array(m.pos_m)
+
+    def flown(h: Hold) -> float:
+        path = approach_path(m, h.x_m, h.y_m, h.z_m, radius / TURN_EFFICIENCY)
+        return points_clearance(path, sphere)
+
+    straight = holding_circle(pos, yaw, 400.0, radius, 800.0, sphere, keep_out)
+    assert straight.clearance_m >= keep_out
+    assert flown(straight) < 0.0
+    hold = holding_circle(pos, yaw, 400.0, radius, 800.0, sphere, keep_out, motion=m)
+    assert hold.clearance_m >= keep_out
+    assert flown(hold) >= keep_out

@@ -52,3 +52,29 @@ def test_uncontrolled_vehicles_become_spheres_flying_as_they_fly() -> None:
     both = with_obstacles(Obstacles(np.zeros((1, 3)), np.ones(1), np.zeros((1, 3))), obs)
     assert both.radius.tolist() == [1.0, 25.0]
     assert as_obstacles(states, set(), 25.0).radius.shape == (0,)
+
+
+def test_a_vehicle_stuck_on_its_last_course_is_flagged_though_it_acks_everything() -> None:
+    """The SITL's ``ignore`` fault: GUIDED, every command ACCEPTED, but it flies on at 40°
+    off the course it is sent without turning: flagged after the bound."""
+    ob = Obedience(bound_s=3.0)
+    stuck = Report(4, True, ACCEPTED, course_error_rad=math.radians(40.0), turn_rate_rad_s=0.0)
+    assert ob.update(0.0, [stuck]) == ([], [])
+    assert ob.update(3.0, [stuck]) == ([4], [])
+
+
+@pytest.mark.parametrize(
+    ("error_deg", "turn_rate"),
+    [(10.0, 0.0), (90.0, 0.2), (-90.0, -0.2), (-170.0, -0.05)],
+)  # fmt: skip
+def test_a_vehicle_on_its_course_or_turning_towards_it_obeys(
+    error_deg: float, turn_rate: float
+) -> None:
+    r = Report(4, True, ACCEPTED, course_error_rad=math.radians(error_deg),
+               turn_rate_rad_s=turn_rate)  # fmt: skip
+    assert Obedience.obeys(r)
+
+
+def test_a_vehicle_turning_away_from_its_course_does_not_obey() -> None:
+    r = Report(4, True, ACCEPTED, course_error_rad=math.radians(60.0), turn_rate_rad_s=-0.2)
+    assert not Obedience.obeys(r)

@@ -36,6 +36,17 @@ def test_a_position_is_carried_on_along_its_velocity_by_its_age() -> None:
     assert s.speed_m_s == pytest.approx(math.sqrt(100.0**2 + 50.0**2 + 10.0**2))
 
 
+def test_a_turning_vehicle_is_carried_on_along_its_arc() -> None:
+    """Heading north at 100 m/s, turning right (clockwise) at 0.1 rad/s: a quarter of the
+    circle later it is heading east, one radius east and one radius north of where it was."""
+    turn = -0.1
+    r = 100.0 / abs(turn)
+    quarter = (math.pi / 2) / abs(turn)
+    s = state_from_velocity((0.0, 0.0, 0.0), 100.0, 0.0, 0.0, age_s=quarter, turn_rate_rad_s=turn)
+    assert s.pos_m == pytest.approx((r, r, 0.0))
+    assert s.yaw_rad == pytest.approx(0.0, abs=1e-9)
+
+
 def _states_at_start(mission: Mission) -> dict[int, VehicleState]:
     out = {}
     for v in mission.vehicles:

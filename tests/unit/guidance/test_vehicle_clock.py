@@ -34,3 +34,14 @@ def test_a_reboot_restarts_the_measurement() -> None:
     for k in range(1, 21):
         clock.observe(2.1 + 0.1 * k, 50 + 100 * k)
     assert clock.rate == pytest.approx(1.0)
+
+
+def test_one_late_read_does_not_move_the_rate() -> None:
+    """×10, read every 0.1 s of ours, 0.4 s late once (a busy ground station): the median
+    keeps 10."""
+    clock = VehicleClock()
+    for k in range(80):
+        now = 0.1 * k
+        late = 0.4 if k == 45 else 0.0
+        clock.observe(now + late, round(1000 * 10 * now))
+    assert clock.rate == pytest.approx(10.0, rel=0.02)

@@ -174,3 +174,26 @@ def test_airframe_parameters_are_kept_with_when_they_arrived() -> None:
     limit = tel.param("PTCH_LIM_MAX_DEG")
     assert limit is not None
     assert limit.value == 25.0
+
+
+def _position(boot_ms: int, course_deg: float, speed_m_s: float = 200.0) -> MAVLinkMessage:
+    c = math.radians(course_deg)
+    vn, ve = speed_m_s * math.cos(c), speed_m_s * math.sin(c)
+    return _wire(mavlink2.MAVLink_global_position_int_message(
+        boot_ms, 473977420, 85455940, 788500, 300250, round(vn * 100), round(ve * 100), 0, 0
+    ))  # fmt: skip
+
+
+def test_the_course_rate_is_measured_from_successive_velocities_in_vehicle_time() -> None:
+    """Turning right (clockwise) at 0.3 rad/s, a position every 100 ms of vehicle time: the
+    smoothed rate converges on +0.3; a straight course brings it back to 0; positions
+    more than 1 s apart (a gap) measure nothing."""
+    tel = apply(None, _heartbeat(), 0.0)
+    for k in range(30):
+        tel = apply(tel, _position(1000 + 100 * k, math.degrees(0.03 * k)), 0.01 * k)
+    assert tel.course_rate_rad_s == pytest.approx(0.3, rel=0.02)
+    for k in range(30, 60):
+        tel = apply(tel, _position(1000 + 100 * k, math.degrees(0.03 * 29)), 0.01 * k)
+    assert tel.course_rate_rad_s == pytest.approx(0.0, abs=1e-3)
+    tel = apply(tel, _position(20_000, 120.0), 1.0)
+    assert tel.course_rate_rad_s == 0.0

@@ -9,10 +9,10 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_ppf.mavlink import enums
+from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage
-from gcs_ppf.mavlink.telemetry import AIRFRAME_PARAMS
-from gcs_ppf.service.fleet import STREAMED, Fleet
+from gcs_ppf.mavlink.telemetry import AIRFRAME_PARAMS, VehicleTelemetry
+from gcs_ppf.service.fleet import ALL_SILENT_FACTOR, STREAMED, Fleet, Vehicle, silent_vehicles
 from gcs_ppf.service.settings import Settings
 
 
@@ -46,7 +46,7 @@ def test_streams_by_message_interval_only_and_every_airframe_parameter(tmp_path:
     kinds = [m.get_type() for _, m in fleet.sent]
     assert "REQUEST_DATA_STREAM" not in kinds
     intervals = [m for _, m in fleet.sent if m.get_type() == "COMMAND_LONG"]
-    assert all(m.command == enums.MAV_CMD_SET_MESSAGE_INTERVAL for m in intervals)
+    assert all(m.command == commands.MAV_CMD_SET_MESSAGE_INTERVAL for m in intervals)
     assert sorted(int(m.param1) for m in intervals) == sorted(STREAMED)
     asked = [m.param_id for _, m in fleet.sent if m.get_type() == "PARAM_REQUEST_READ"]
     assert sorted(asked) == sorted(AIRFRAME_PARAMS)
@@ -67,3 +67,31 @@ def test_missing_parameters_are_asked_again_and_the_airframe_is_shown(tmp_path: 
     assert shown["airframe"]["climb_max_m_s"] == 5.0
     assert shown["airframe"]["guided_p"] == 5000.0
     assert shown["airframe"]["roll_limit_deg"] is None
+
+
+def _heard(sysid: int, last_heard_s: float, rate: float = 1.0) -> Vehicle:
+    v = Vehicle(sysid, 0, VehicleTelemetry(sysid, 1), last_heard_s)
+    v.clock.rate = rate
+    return v
+
+
+def test_a_vehicle_silent_while_the_others_are_heard_is_lost_after_the_timeout() -> None:
+    fleet = [_heard(1, 100.0, rate=10.0), _heard(2, 100.6, rate=10.0), _heard(3, 100.6, 10.0)]
+    assert silent_vehicles(fleet, 100.45, timeout_s=5.0) == []  # 4.5 vehicle s
+    assert [v.system_id for v in silent_vehicles(fleet, 100.61, timeout_s=5.0)] == [1]
+
+
+def test_a_ground_station_starved_of_cpu_does_not_lose_every_vehicle_at_once() -> None:
+    """Every link read 1 s late (10 vehicle s at ×10): nobody is behind anybody, so nobody is
+    lost until every vehicle has been silent for three timeouts."""
+    fleet = [_heard(i, 100.0 + 0.01 * i, rate=10.0) for i in (1, 2, 3, 4, 5)]
+    assert silent_vehicles(fleet, 101.0, timeout_s=5.0) == []
+    late = 100.05 + ALL_SILENT_FACTOR * 0.5 + 0.01
+    assert len(silent_vehicles(fleet, late, timeout_s=5.0)) == 5
+
+
+def test_a_single_vehicle_is_lost_after_the_timeout() -> None:
+    assert len(silent_vehicles([_heard(1, 100.0)], 105.1, timeout_s=5.0)) == 1
+    lost = _heard(2, 0.0)
+    lost.lost = True
+    assert silent_vehicles([lost], 105.1, timeout_s=5.0) == []

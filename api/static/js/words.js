@@ -1,0 +1,51 @@
+// Events of a run (GET /missions/{id}/events, the view frames) in words.
+
+const v = (e) => (e.vehicle_id ? `Vehicle ${e.vehicle_id}` : "A vehicle");
+const d = (e) => e.detail || {};
+
+const WORDS = {
+  run_started: () => "Run started: launching the vehicles",
+  run_running: () => "Every vehicle in GUIDED: flying the plan",
+  run_completed: (e) => `Run completed: ${d(e).outcome || "the leader reached the target"}`,
+  run_completed_unsafe: (e) => `Run completed UNSAFELY: ${d(e).outcome || ""}`,
+  run_aborted: (e) => `Run aborted: ${d(e).outcome || "by the operator"}`,
+  run_failed: (e) => `Run FAILED: ${d(e).outcome || ""}`,
+  formation_formed: () => "Formation formed: every wingman at its slot",
+  formation_broken: () => "Formation broken",
+  avoidance_entered: (e) => `${v(e)} avoiding (inside an influence sphere)`,
+  avoidance_left: (e) => `${v(e)} clear again`,
+  conflict_resolution_began: (e) => `${v(e)}: conflict with a teammate, vertical resolution`,
+  conflict_resolution_ended: (e) => `${v(e)}: conflict resolved`,
+  local_minimum_escape: (e) => `${v(e)} escaping a local minimum (s2, pulls up)`,
+  vehicle_lost: (e) => `${v(e)} LOST: silent for 5 s of its own time`,
+  vehicle_not_responding: (e) => `${v(e)} NOT RESPONDING (mode ${d(e).mode ?? "?"}, last answer ${d(e).last_ack ?? "none"})`,
+  vehicle_responding: (e) => `${v(e)} responding again`,
+  safety_violation: (e) => `${v(e)} inside the keep-out of ${d(e).keep_out === "teammate" ? "vehicle" : d(e).keep_out || ""} ${d(e).other ?? ""} by ${d(e).depth_m ?? "?"} m`,
+  takeoff: (e) => `${v(e)} taking off to ${d(e).takeoff_alt_m ?? "?"} m`,
+  takeoff_failed: (e) => `${v(e)} takeoff FAILED (height ${d(e).height_m ?? "?"} m)`,
+  hold_not_clear: (e) => `${v(e)}: holding circle only ${d(e).clearance_m ?? "?"} m clear of an obstacle`,
+  parameter_not_set: (e) => `${v(e)}: parameter ${d(e).name} reads ${d(e).read}, not ${d(e).sent}`,
+  parameter_unanswered: (e) => `${v(e)}: parameter ${d(e).name} not answered`,
+  lag_over_budget: (e) => `Lag over budget: telemetry ${d(e).telemetry_age_s} s + commands ${d(e).command_delay_s} s = ${d(e).total_s} s (budget ${d(e).budget_s} s)`,
+  lag_within_budget: (e) => `Lag within budget again (${d(e).total_s} s of ${d(e).budget_s} s)`,
+};
+
+const LEVEL = {
+  run_completed: "ok", formation_formed: "ok", vehicle_responding: "ok",
+  run_completed_unsafe: "bad", run_aborted: "warn", run_failed: "bad", vehicle_lost: "bad",
+  vehicle_not_responding: "bad", safety_violation: "bad", takeoff_failed: "bad",
+  formation_broken: "warn", avoidance_entered: "warn", conflict_resolution_began: "warn",
+  local_minimum_escape: "warn", hold_not_clear: "warn", parameter_not_set: "warn",
+  parameter_unanswered: "warn", lag_over_budget: "warn",
+};
+
+export function eventWords(e) {
+  const f = WORDS[e.kind];
+  if (f) return f(e);
+  const detail = e.detail ? ` (${Object.entries(e.detail).map(([k, x]) => `${k} ${x}`).join(", ")})` : "";
+  return `${e.vehicle_id ? `Vehicle ${e.vehicle_id}: ` : ""}${e.kind.replaceAll("_", " ")}${detail}`;
+}
+
+export function eventLevel(kind) {
+  return LEVEL[kind] || "info";
+}

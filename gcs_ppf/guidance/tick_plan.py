@@ -1,0 +1,115 @@
+"""One tick's plan, pure: the envelope the fleet flies in now, the online scene, the PPF
+guidance and the separation guard's resolutions, with margins for the lag the tick measured.
+
+The service (``gcs_ppf.service.runs``) gathers the states and sends the commands; this is what
+it decides in between, with no I/O and no clock.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+from typing import Any
+
+import numpy as np
+
+from gcs_ppf.guidance import separation_guard
+from gcs_ppf.guidance.airframe import Airframe, guard_tuning, tick_envelope
+from gcs_ppf.guidance.online import Guidance, VehicleState, guidance, scene_now
+from gcs_ppf.mission import Mission
+from gcs_ppf.planning.scene import Obstacles
+
+
+def formation_tolerance(mission: Mission) -> float:
+    """``separation_guard.formation_tolerance_m`` of the mission's slots."""
+    slots = np.array([v.slot for v in mission.vehicles if v.slot is not None], dtype=float)
+    return separation_guard.formation_tolerance_m(slots, mission.limits.safe_distance_uav)
+
+
+def in_formation(g: Guidance, tolerance_m: float) -> list[bool]:
+    """The leader, and each wingman within ``tolerance_m`` of its local target point."""
+    return [i == 0 or (d is not None and d <= tolerance_m)
+            for i, d in enumerate(g.local_target_distance_m)]  # fmt: skip
+
+
+def traffic_radius_m(mission: Mission) -> float:
+    """The radius of a sphere standing for an uncontrolled vehicle: its keep-out (radius +
+    safe_distance_obstacle) is then the teammates' safe distance (at least the vehicle)."""
+    lim = mission.limits
+    return max(lim.safe_distance_uav - lim.safe_distance_obstacle, lim.collision_radius)
+
+
+def passes_within(start: Any, end: Any, point: Any, radius: float) -> bool:
+    """Whether the segment start → end (or the point ``end`` alone when ``start`` is None)
+    comes within ``radius`` of ``point``: telemetry at 10 Hz can step over a 10 m sphere."""
+    if start is None:
+        return bool(np.linalg.norm(end - point) <= radius)
+    seg = end - start
+    length2 = float(seg @ seg)
+    s = 0.0 if length2 == 0.0 else min(max(float((point - start) @ seg) / length2, 0.0), 1.0)
+    return bool(np.linalg.norm(start + s * seg - point) <= radius)
+
+
+@dataclass(frozen=True)
+class Tuning:
+    """The service settings the plan depends on (``gcs_ppf.service.settings.Settings``)."""
+
+    lookahead_s: float
+    planner_dt_s: float
+    carrot_m: float
+    planning_margin_m: float | None
+    guard_horizon_s: float | None
+    guard_margin_m: float | None
+    guard_resolution_m: float | None
+
+    @classmethod
+    def of(cls, settings: Any) -> Tuning:
+        return cls(**{f.name: getattr(settings, f.name) for f in fields(cls)})
+
+
+def plan(
+    mission: Mission,
+    states: dict[int, VehicleState],
+    active: set[int],
+    obstacles: Obstacles,
+    ground_z_m: float | None,
+    airframes: dict[int, Airframe],
+    tuning: Tuning,
+    lagging_s: float,
+    previous: Guidance | None,
+) -> tuple[Guidance, list[Airframe]]:
+    """The guidance for the ``active`` vehicles, and their airframes in its order.
+
+    ``lagging_s`` (the telemetry interval and the measured lag, vehicle seconds) is what the
+    planning margin and the guard's margins must cover (``gcs_ppf.guidance.airframe``)."""
+    lim = mission.limits
+    envelope = tick_envelope(
+        list(airframes.values()), [states[i].speed_m_s for i in active], lim.v_min,
+        lim.v_max, lim.accel, tuning.lookahead_s, lagging_s, tuning.planning_margin_m,
+    )  # fmt: skip
+    scene = scene_now(
+        mission, states, active, obstacles, envelope.planning_margin_m, ground_z_m,
+        envelope=envelope.limits,
+    )  # fmt: skip
+    g = guidance(
+        scene, lookahead_s=tuning.lookahead_s, dt=tuning.planner_dt_s, carrot_m=tuning.carrot_m
+    )
+    ordered = [airframes.get(vid, Airframe()) for vid in g.ids]
+    if tuning.guard_horizon_s == 0.0:
+        return g, ordered
+    guard = guard_tuning(
+        ordered, scene.fleet.speed.tolist(), lim.safe_distance_uav, lagging_s,
+        horizon_s=tuning.guard_horizon_s, margin_m=tuning.guard_margin_m,
+        resolution_m=tuning.guard_resolution_m,
+    )  # fmt: skip
+    points, resolving = separation_guard.resolve(
+        scene,
+        g.guided_point_m,
+        distance_m=lim.safe_distance_uav + guard.margin_m,
+        horizon_s=guard.horizon_s,
+        resolution_m=guard.resolution_up_m,
+        resolution_down_m=guard.resolution_down_m,
+        release_m=guard.margin_m,
+        previous=previous.resolving if previous is not None else None,
+        in_formation=in_formation(g, formation_tolerance(mission)),
+    )
+    return replace(g, guided_point_m=points, resolving=resolving), ordered

@@ -1,0 +1,321 @@
+"""The small formulas the PPF step is built from: frames, the influence radius, the
+saturated trend, the braking speed, and the flight-path limits.
+
+* ``influence_radius``      Eq. 10–11, corrected (CONVENTIONS §2 erratum 4)
+* ``to_vcs``                Eq. 16–18 (ICS → VCS)
+* ``slot_to_ics``           Eq. 6–8 (VCS → ICS, erratum 1: the pitch matrix transposed)
+* ``trend``                 Eq. 19 (one entry of the trend matrix f, erratum 2)
+* ``braking_speed``         Eq. 21–23 (wingman deceleration ahead of its local target)
+* ``lowest_climb``, ``limit_climb``, ``follow_direction``, ``away_from_obstacles``,
+  ``obstacles_first``: choices where the paper is silent (see their docstrings)
+
+The equation groups that use them, and the step itself, are in ``gcs_ppf.planning.ppf.kernel``.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from numba import njit
+
+S1_FOLLOW = 1  # target following and obstacle avoidance
+S2_LOCAL_MINIMUM = 2  # local-minimum escape (Eq. 20)
+S3_FORMATION = 3  # formation forming: leader waits, wingman brakes (Eq. 21–24)
+
+EPSILON_1 = 1.0e6  # |F_j| inside an influence radius, ε₁ ≫ 1 (Eq. 13)
+EPSILON_3 = 1.0e9  # braking vector of s3, ε₃ ≫ |F_v^sx| (Eq. 24)
+LOCAL_MINIMUM_ANGLE = math.radians(1.0)  # repulsion this close to antiparallel → s2
+AVOIDANCE_TURN_ANGLE = math.pi / 2  # a moving obstacle is out-turned in a quarter turn
+MAX_FOLLOW_PITCH = math.pi / 4  # steepest flight path target following asks for
+MAX_AVOID_PITCH = math.pi / 3  # steepest flight path any wanted direction may have
+INFLUENCE_STEPS = 3.0  # steps of travel added to the influence radius (discrete turning)
+SIDEWAYS_EPS = 1e-9  # |F_v^y| below this fraction of |F_v| counts as 0 in Eq. 19 (round-off)
+CONFLICT_HORIZON_TURNS = 1.0  # teammate conflicts are looked for this many quarter turns ahead
+
+
+class KernelLimits(NamedTuple):
+    """The performance envelope and safety distances the kernel needs (SI units)."""
+
+    v_min: float
+    v_max: float
+    accel: float
+    decel: float
+    max_pitch_rate: float
+    max_yaw_rate: float
+    target_accuracy: float
+    safe_distance_uav: float
+    safe_distance_obstacle: float
+    ground: float
+    """ICS z of the ground (flat), kept ``safe_distance_obstacle`` below every vehicle;
+    −∞ for the paper's free space."""
+    max_climb_angle: float = math.pi / 2
+    """Steepest flight-path angle up the airframe flies (rad; ArduPlane PTCH_LIM_MAX_DEG);
+    π/2 for the paper's vehicles, whose pitch is limited by Eq. 1 only."""
+    max_dive_angle: float = math.pi / 2
+    """Steepest flight-path angle down, as a positive angle (ArduPlane −PTCH_LIM_MIN_DEG)."""
+
+
+@njit(cache=True)
+def airframe_limited(lim: KernelLimits) -> bool:
+    """Whether the airframe's flight-path limits bind before ``MAX_AVOID_PITCH`` does.
+
+    Such a vehicle cannot climb over an obstacle in a quarter turn as the paper's can, and
+    two obstacles whose keep-outs overlap make a wall it must turn back from: it starts
+    avoiding one turn radius further out (room for a half turn), and its pitch follows the
+    flight-path angle (see ``fleet_step``).  Flown closed loop at ArduPlane's +20°/−25°,
+    Table 3's wall of 650 m spheres was entered by 3.5 m in 1 of 9 runs without the half
+    turn; with it the closest any vehicle came to an obstacle in 5 runs was 240 m.
+    """
+    return min(lim.max_climb_angle, lim.max_dive_angle) < MAX_AVOID_PITCH
+
+
+@njit(cache=True)
+def influence_radius(speed: float, turn_rate: float, keep_out: float) -> float:
+    """Distance from an obstacle's centre at which avoidance must begin (Eq. 10–11, erratum 4).
+
+    A vehicle flying straight at the centre turns at full rate ω on a circle of radius
+    ρ = v/ω (Fig. 2).  The circle's centre is ρ to the side of the vehicle, so its closest
+    approach to the obstacle centre is √(d² + ρ²) − ρ.  Clearing the keep-out sphere
+    (``keep_out`` = R_o + safe distance) needs √(d² + ρ²) − ρ ≥ keep_out, hence
+
+        R = √((keep_out + ρ)² − ρ²).
+
+    The printed Eq. 10, √((R_o + R_v)² − R_o²), swaps the roles of R_o and ρ and gives
+    R < R_o for Table 3's 650 m and 850 m obstacles at 100 m/s.
+    """
+    rho = speed / turn_rate
+    return math.sqrt((keep_out + rho) ** 2 - rho**2)
+
+
+@njit(cache=True)
+def to_vcs(
+    fx: float, fy: float, fz: float, cp: float, sp: float, cy: float, sy: float
+) -> tuple[float, float, float]:
+    """ICS vector → VCS of a vehicle with cos/sin of pitch (cp, sp) and yaw (cy, sy):
+    A_fv(θ) · B_fv(ψ) · F (Eq. 16–18)."""
+    bx = cy * fx + sy * fy  # B_fv(ψ), Eq. 18
+    by = -sy * fx + cy * fy
+    return cp * bx + sp * fz, by, -sp * bx + cp * fz  # A_fv(θ), Eq. 17
+
+
+@njit(cache=True)
+def slot_to_ics(
+    sx: float, sy_: float, sz: float, cp: float, sp: float, cy: float, sy: float
+) -> tuple[float, float, float]:
+    """Leader-VCS vector → ICS: A_vf(ψ₀) · B_vf(θ₀) · s (Eq. 6–8, erratum 1)."""
+    px = cp * sx - sp * sz  # corrected B_vf(θ), erratum 1
+    pz = sp * sx + cp * sz
+    return cy * px - sy * sy_, sy * px + cy * sy_, pz  # A_vf(ψ), Eq. 7
+
+
+@njit(cache=True)
+def trend(angle: float, max_rate: float, dt: float) -> float:
+    """One entry of the trend matrix f (Eq. 19), saturated: ``sign(angle)`` when the turn
+    needed is at least one full step ω·Δt, proportional below it.
+
+    A pure sign law turns by ±ω·Δt every step and chatters about the wanted direction;
+    turning exactly the remaining angle keeps |Δ| ≤ ω·Δt (Table 1) without the chatter.
+    """
+    step = max_rate * dt
+    if angle >= step:
+        return 1.0
+    if angle <= -step:
+        return -1.0
+    return angle / step
+
+
+@njit(cache=True)
+def braking_speed(leader_speed: float, distance: float, accel: float) -> float:
+    """Speed from which a wingman can just match the leader's speed within ``distance``.
+
+    Eq. 21–22 give the distance needed to slow from v_i to v_0 at a_i:
+    Δt' = (v_i − v_0)/a_i and Δd' = v_i Δt' − a_i Δt'²/2, i.e. v_i² − v_0² = 2 a_i Δd'.
+    Eq. 23 brakes (s3) once d_i ≤ Δd'; so the wingman's speed limit at distance d_i is
+    √(v_0² + 2 a_i d_i).  A negative distance (slot behind) asks for the speed that gives
+    the lost ground back at ``accel``.
+    """
+    v2 = leader_speed * leader_speed + 2.0 * accel * distance
+    return math.sqrt(v2) if v2 > 0.0 else 0.0
+
+
+@njit(cache=True)
+def from_vcs(
+    vx: float, vy: float, vz: float, cp: float, sp: float, cy: float, sy: float
+) -> tuple[float, float, float]:
+    """VCS vector → ICS: the transpose of ``to_vcs`` (Eq. 6–8, erratum 1)."""
+    return slot_to_ics(vx, vy, vz, cp, sp, cy, sy)
+
+
+@njit(cache=True)
+def lowest_climb(height: float, speed: float, lim: KernelLimits) -> float:
+    """sin of the steepest descent allowed ``height`` metres above the ground's keep-out.
+
+    Pulling up at the full pitch rate ω from a flight-path angle γ < 0 traces an arc of
+    radius ρ = v/ω and loses ρ(1 − cos γ) of height, so a vehicle still levels out above
+    the keep-out if cos γ ≥ 1 − height/ρ.  ρ is taken at the speed the vehicle could reach
+    while pulling up (a quarter turn at full acceleration).  Inside the keep-out (height
+    < 0) the vehicle must climb, the steeper the deeper, up to ``MAX_FOLLOW_PITCH``.
+    """
+    omega = lim.max_pitch_rate
+    v = min(speed + lim.accel * AVOIDANCE_TURN_ANGLE / omega, lim.v_max)
+    rho = v / omega
+    if height >= rho:  # even straight down levels out in time
+        return -1.0
+    if height >= 0.0:
+        c = 1.0 - height / rho
+        return -math.sqrt(1.0 - c * c)
+    return min(-height / rho, math.sin(MAX_FOLLOW_PITCH))
+
+
+@njit(cache=True)
+def limit_climb(
+    dx: float,
+    dy: float,
+    dz: float,
+    nx: float,
+    ny: float,
+    nz: float,
+    in_plane: bool,
+    cy: float,
+    sy: float,
+    lowest: float,
+    lim: KernelLimits,
+) -> tuple[float, float, float]:
+    """The wanted ICS direction d, no steeper than ``MAX_AVOID_PITCH`` nor than the
+    airframe's flight-path limits (``lim.max_climb_angle``, ``lim.max_dive_angle``), and
+    descending no more steeply than ``lowest`` (the sine of the lowest flight-path angle
+    allowed, see ``lowest_climb``; −1 for no ground).  A plan steeper than the airframe
+    flies is a plan it cannot follow: flown closed loop, a wingman planned to climb over an
+    obstacle at up to 60° and climbing at ArduPlane's 20° came within 6 m of it.
+
+    Pitch stops at ±π/2 (Eq. 1) and near it yaw no longer turns the flight direction, so
+    a vehicle asked to steepen past the vertical would hang there, unable to turn.  When d
+    slides along a static obstacle (``in_plane``: d lies in the plane normal to the
+    repulsion n), the limited direction is the nearest one in that plane, so it still does
+    not close on the obstacle; otherwise (or when no direction in the plane is allowed)
+    d keeps its heading and takes the limit angle.
+    """
+    norm = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if norm == 0.0:
+        return dx, dy, dz
+    dx, dy, dz = dx / norm, dy / norm, dz / norm
+    steepest = min(MAX_AVOID_PITCH, lim.max_climb_angle)
+    deepest = min(MAX_AVOID_PITCH, lim.max_dive_angle)
+    top = math.sin(steepest)
+    low = min(max(lowest, -math.sin(deepest)), top)
+    if low <= dz <= top:
+        return dx, dy, dz
+    z_new = min(max(dz, low), top)
+    n = math.sqrt(nx * nx + ny * ny + nz * nz)
+    e1n = math.sqrt(nx * nx + ny * ny)
+    if in_plane and n > 0.0 and e1n > 1e-9 * n:
+        nx, ny, nz = nx / n, ny / n, nz / n
+        e1x, e1y = -ny / e1n * n, nx / e1n * n  # horizontal, in the plane
+        e2x, e2y, e2z = -nz * e1y, nz * e1x, nx * e1y - ny * e1x  # n × e1: steepest
+        if e2z < 0.0:
+            e2x, e2y, e2z = -e2x, -e2y, -e2z
+        b_new = z_new / e2z
+        if -1.0 <= b_new <= 1.0:
+            a = dx * e1x + dy * e1y
+            a_new = math.copysign(math.sqrt(max(1.0 - b_new * b_new, 0.0)), a if a != 0.0 else 1.0)
+            return (a_new * e1x + b_new * e2x, a_new * e1y + b_new * e2y, b_new * e2z)
+    h = math.sqrt(dx * dx + dy * dy)
+    hx, hy = (dx / h, dy / h) if h > 0.0 else (cy, sy)
+    if z_new == top:
+        c = math.cos(steepest)
+    elif z_new == -math.sin(deepest):
+        c = math.cos(deepest)
+    else:
+        c = math.sqrt(1.0 - z_new * z_new)
+    return c * hx, c * hy, z_new
+
+
+@njit(cache=True)
+def follow_direction(
+    gx: float, gy: float, gz: float, cy: float, sy: float
+) -> tuple[float, float, float]:
+    """Unit attraction towards (gx, gy, gz) (Eq. 14), no steeper than ``MAX_FOLLOW_PITCH``.
+
+    Near the vertical the yaw of Eq. 5 no longer turns the flight direction, and the pitch
+    of Eq. 1 stops at ±π/2: a vehicle sent straight up at a target above and behind it
+    would stay vertical until its yaw came round.  A fixed wing climbs to a high target
+    in a spiral instead, so target following asks for at most this flight-path angle
+    (obstacle avoidance may still use the whole range).  With no horizontal component
+    the current heading (cos ψ, sin ψ) is kept.
+    """
+    h = math.sqrt(gx * gx + gy * gy)
+    if h == 0.0 and gz == 0.0:
+        return cy, sy, 0.0
+    cx_, cy_ = (gx / h, gy / h) if h > 0.0 else (cy, sy)
+    elevation = min(max(math.atan2(gz, h), -MAX_FOLLOW_PITCH), MAX_FOLLOW_PITCH)
+    ce = math.cos(elevation)
+    return ce * cx_, ce * cy_, math.sin(elevation)
+
+
+@njit(cache=True)
+def away_from_obstacles(
+    pitch: float,
+    yaw: float,
+    f_pitch: float,
+    f_yaw: float,
+    ox: float,
+    oy: float,
+    oz: float,
+    lim: KernelLimits,
+    dt: float,
+) -> float:
+    """The yaw trend, reversed if it would turn a vehicle closing on the obstacles that
+    repel it (repulsion (ox, oy, oz)) further towards them while the other sense would not.
+
+    Eq. 19 turns by the sense of F_v^y.  With a teammate's repulsion added to an obstacle's
+    the sum can point behind the vehicle, and the short way round can pass through the
+    obstacle (the vehicle sandwiched between the two).  The obstacle is the certain danger:
+    the turn never makes the closing on it worse when the other way does not.
+    """
+    o = math.sqrt(ox * ox + oy * oy + oz * oz)
+    if o == 0.0 or f_yaw == 0.0:
+        return f_yaw
+    cp = math.cos(pitch)
+    now = cp * (math.cos(yaw) * ox + math.sin(yaw) * oy) + math.sin(pitch) * oz
+    if now >= 0.0:  # not closing
+        return f_yaw
+    th = pitch + f_pitch * lim.max_pitch_rate * dt
+    ct, st = math.cos(th), math.sin(th)
+    turn = f_yaw * lim.max_yaw_rate * dt
+    after = ct * (math.cos(yaw + turn) * ox + math.sin(yaw + turn) * oy) + st * oz
+    other = ct * (math.cos(yaw - turn) * ox + math.sin(yaw - turn) * oy) + st * oz
+    return -f_yaw if after < now and other > after else f_yaw
+
+
+@njit(cache=True)
+def obstacles_first(
+    rx: float, ry: float, rz: float, ox: float, oy: float, oz: float
+) -> tuple[float, float, float]:
+    """The total repulsion (rx, ry, rz) with the teammates' part (total minus the
+    obstacles' (ox, oy, oz)) stripped of any component against the obstacles' repulsion.
+
+    Flown closed loop, a wingman sliding round an obstacle at ArduPlane's 20° climb limit
+    was pushed into it by a teammate's repulsion (replayed from telemetry: 12.6 m into it;
+    the same state without teammates cleared it by 99 m).  With the paper's free pitch the
+    plan from that state comes to 40.9 m of the surface with the push, 74.3 m without it.
+    """
+    o2 = ox * ox + oy * oy + oz * oz
+    if o2 == 0.0:
+        return rx, ry, rz
+    tx, ty, tz = rx - ox, ry - oy, rz - oz
+    into = (tx * ox + ty * oy + tz * oz) / o2
+    if into >= 0.0:
+        return rx, ry, rz
+    return rx - into * ox, ry - into * oy, rz - into * oz
+
+
+@njit(cache=True)
+def closing_speed(
+    dx: float, dy: float, dz: float, d: float, ux: float, uy: float, uz: float
+) -> float:
+    """Speed at which a point moving at u approaches a vehicle at offset (dx, dy, dz)."""
+    if d <= 0.0:
+        return 0.0
+    c = (ux * dx + uy * dy + uz * dz) / d
+    return c if c > 0.0 else 0.0

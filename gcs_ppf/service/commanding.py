@@ -1,0 +1,227 @@
+"""From one tick's guidance to each vehicle's MAVLink commands (course or guided point,
+altitude, speed), every one through run-time assurance (``gcs_ppf.guidance.assurance``) first.
+
+The shell between the pure planner and the fleet: what the commands carry is
+``gcs_ppf.guidance.slew``; a command the assurance replaces is sent as its escape instead, with an
+``assurance_override`` event (vehicle, keep-out, how deep the planned one would have gone).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from functools import partial
+from typing import Any, Protocol
+
+import numpy as np
+
+from gcs_ppf.geodesy import enu_to_geodetic
+from gcs_ppf.guidance import assurance, holding, slew
+from gcs_ppf.guidance.airframe import Airframe
+from gcs_ppf.guidance.online import Guidance, VehicleState
+from gcs_ppf.mavlink import commands
+from gcs_ppf.mavlink.ardupilot import PlaneMode
+from gcs_ppf.mavlink.telemetry import VehicleTelemetry
+from gcs_ppf.mission import Mission
+from gcs_ppf.planning.scene import obstacles_from_mission
+from gcs_ppf.service import confirmation
+
+LOITER_AHEAD_M = 800.0
+"""After the mission each vehicle circles a point this far ahead (or further, to clear)…"""
+LOITER_STACK_M = 100.0
+"""… vehicle k of the mission this much above the target (after completion)."""
+HOLD_TURN_RADII = 1.5
+"""A holding circle is this many of the vehicle's tightest turns wide …"""
+HOLD_MIN_RADIUS_M = 80.0
+"""… and at least ArduPlane's WP_LOITER_RAD."""
+HOLD_RETRY = confirmation.Retry(attempts=10)
+"""A hold is sent until it is ACCEPTED …"""
+HOLD_ACK_VEHICLE_S = 2.0
+"""… again when unanswered for this long (vehicle seconds; within 0.2–1.5 of ours)."""
+
+#: Without TECS limits, climb and sink are taken as this fraction of the speed (~24°).
+DEFAULT_PATH_SLOPE = 0.4
+#: A guided point for an escape is put this far along its course (point guidance).
+ESCAPE_POINT_M = 1500.0
+
+
+class Sender(Protocol):
+    """What commanding needs of the fleet."""
+
+    def telemetry(self, system_id: int) -> VehicleTelemetry | None: ...
+
+    async def send(self, system_id: int, msg: Any) -> None: ...
+
+
+@dataclass(frozen=True)
+class Orders:
+    """How this run commands its vehicles (fixed for the run)."""
+
+    mission: Mission
+    guidance_mode: str
+    """``course`` (GUIDED_CHANGE_HEADING + ALTITUDE) or ``point`` (DO_REPOSITION)."""
+    lookahead_s: float
+
+
+def motion(state: VehicleState, airframe: Airframe, mission: Mission) -> assurance.Motion:
+    """A vehicle's response model for the assurance, from its airframe's parameters (the
+    mission's limits where it reports none)."""
+    v = state.speed_m_s
+    turn = min(airframe.max_turn_rate(v) or math.inf, mission.limits.max_yaw_rate)
+    climb = airframe.climb_max_m_s or DEFAULT_PATH_SLOPE * v
+    sink = airframe.sink_max_m_s or DEFAULT_PATH_SLOPE * v
+    tau = airframe.heading_time_constant_s(v) or 1.0
+    return assurance.Motion(state.pos_m, state.yaw_rad, v, turn, climb, sink, tau)
+
+
+def planned_commands(
+    g: Guidance, states: dict[int, VehicleState], airframes: list[Airframe], orders: Orders,
+    turn_accel_m_s2: float,
+) -> list[slew.SlewCommand]:  # fmt: skip
+    """Each vehicle's course and altitude as the plan asks (in ``g``'s order); in point
+    guidance the course is the bearing to the guided point."""
+    out = []
+    for i, vid in enumerate(g.ids):
+        if orders.guidance_mode == "point":
+            x, y, z = (float(c) for c in g.guided_point_m[i])
+            px, py, _ = states[vid].pos_m
+            out.append(slew.SlewCommand(math.atan2(y - py, x - px), 0.0, z, 0.0))
+            continue
+        out.append(slew.slew_command(g, i, airframes[i], states[vid].pos_m[2], turn_accel_m_s2,
+                                     orders.lookahead_s))  # fmt: skip
+    return out
+
+
+async def command_fleet(
+    fleet: Sender,
+    g: Guidance,
+    active: set[int],
+    states: dict[int, VehicleState],
+    airframes: list[Airframe],
+    orders: Orders,
+    keep: assurance.KeepOut,
+    hold_s: float,
+    commanded_speed: dict[int, float],
+    event: Callable[..., None],
+) -> dict[int, assurance.Verdict]:
+    """Send every active vehicle its commands for this tick, each assured first; returns
+    each one's verdict (the command it was sent)."""
+    mission = orders.mission
+    turn_accel = mission.limits.v_max * mission.limits.max_yaw_rate  # the plan limits turns
+    planned = planned_commands(g, states, airframes, orders, turn_accel)
+    idx = [i for i, vid in enumerate(g.ids) if vid in active]
+    motions = [motion(states[g.ids[i]], airframes[i], mission) for i in idx]
+    wanted = [assurance.Command(planned[i].course_rad, planned[i].z_m) for i in idx]
+    verdicts = assurance.assure(motions, wanted, hold_s, keep)
+    for i, m, v in zip(idx, motions, verdicts, strict=True):
+        vid = g.ids[i]
+        if v.replaced:
+            event("assurance_override", vid, keep_out=v.reason,
+                  planned_margin_m=round(v.margin_m, 1), sent_margin_m=round(v.chosen_margin_m, 1),
+                  course_deg=round(90.0 - math.degrees(v.command.course_rad), 1))  # fmt: skip
+        await _send_course(fleet, vid, planned[i], v, m, orders, g.guided_point_m[i])
+        await _send_speed(fleet, vid, g, i, airframes[i], commanded_speed)
+    return {g.ids[i]: v for i, v in zip(idx, verdicts, strict=True)}
+
+
+async def _send_course(
+    fleet: Sender, vid: int, cmd: slew.SlewCommand, v: assurance.Verdict, m: assurance.Motion,
+    orders: Orders, guided_point: np.ndarray,
+) -> None:  # fmt: skip
+    origin = orders.mission.origin
+    if orders.guidance_mode == "point":
+        x, y, z = (float(c) for c in guided_point)
+        if v.replaced:
+            x = m.pos_m[0] + ESCAPE_POINT_M * math.cos(v.command.course_rad)
+            y = m.pos_m[1] + ESCAPE_POINT_M * math.sin(v.command.course_rad)
+            z = v.command.z_m
+        lat, lon, alt = enu_to_geodetic(x, y, z, origin)
+        await fleet.send(vid, commands.reposition(vid, lat, lon, alt))
+        return
+    accel = cmd.lateral_accel_m_s2
+    if v.replaced:  # an escape turns as hard as the airframe can
+        accel = max(accel, m.speed_m_s * m.turn_rate_rad_s)
+    _, _, alt = enu_to_geodetic(m.pos_m[0], m.pos_m[1], v.command.z_m, origin)
+    course_deg = 90.0 - math.degrees(v.command.course_rad)  # ENU yaw → compass
+    await fleet.send(vid, commands.guided_change_heading(vid, course_deg, accel))
+    rate = 0.0 if v.replaced else cmd.rate_m_s
+    await fleet.send(vid, commands.guided_change_altitude(vid, slew.sendable_altitude(alt), rate))
+
+
+async def _send_speed(
+    fleet: Sender, vid: int, g: Guidance, i: int, airframe: Airframe,
+    commanded_speed: dict[int, float],
+) -> None:  # fmt: skip
+    """DO_CHANGE_SPEED when the airspeed to fly changes by half a metre per second."""
+    t = fleet.telemetry(vid)
+    if t is None:
+        return
+    ahead = g.speed_m_s if g.speed_ahead_m_s is None else g.speed_ahead_m_s
+    speed = slew.airspeed_command(float(ahead[i]), t.airspeed_m_s, t.groundspeed_m_s, airframe)
+    if abs(commanded_speed.get(vid, -1.0) - speed) >= 0.5:
+        commanded_speed[vid] = speed
+        await fleet.send(vid, commands.change_speed(vid, speed))
+
+
+def hold_retry(clock_rate: float) -> confirmation.Retry:
+    """``HOLD_RETRY`` with its ACK wait in the vehicles' time (``clock_rate``: theirs per
+    ours)."""
+    wait = min(1.5, max(0.2, HOLD_ACK_VEHICLE_S / clock_rate))
+    return replace(HOLD_RETRY, ack_timeout_s=wait)
+
+
+def hold_orders(
+    orders: Orders, states: dict[int, VehicleState], airframes: dict[int, Airframe],
+    mission_time_s: float, stacked: bool, event: Callable[..., None], heard: set[int],
+) -> list[confirmation.Order]:  # fmt: skip
+    """Each vehicle to a holding circle that cuts no obstacle's keep-out (twice the safe
+    distance) at the radius it flies (``HOLD_TURN_RADII`` turn radii at its speed,
+    ``gcs_ppf.guidance.holding``): after completion (``stacked``) vehicle k of the mission
+    ``LOITER_STACK_M``·k above the target, so the circles of a formation flying close
+    together do not cross at one height; after an abort or a failure at its own height.  A
+    vehicle without a state is put in LOITER; one not ``heard`` (lost) is not commanded.  A
+    ``hold_not_clear`` event when no circle keeps the keep-out."""
+    mission = orders.mission
+    obstacles = obstacles_from_mission(mission).at(mission_time_s)
+    keep_out = 2.0 * mission.limits.safe_distance_obstacle
+    out: list[confirmation.Order] = []
+    for k, v in enumerate(mission.vehicles):
+        if v.id not in heard:
+            continue
+        s = states.get(v.id)
+        if s is None or v.id not in airframes:
+            out.append(confirmation.Order(
+                v.id, partial(commands.set_mode, v.id, PlaneMode.LOITER),
+                commands.MAV_CMD_DO_SET_MODE, "hold: mode LOITER",
+                lambda t: t.custom_mode == PlaneMode.LOITER,
+            ))  # fmt: skip
+            continue
+        airframe_omega = airframes[v.id].max_turn_rate(s.speed_m_s)
+        omega = min(airframe_omega or math.inf, mission.limits.max_yaw_rate)
+        radius = max(HOLD_MIN_RADIUS_M, HOLD_TURN_RADII * s.speed_m_s / omega)
+        z = mission.target[2] + LOITER_STACK_M * k if stacked else s.pos_m[2]
+        hold = holding.holding_circle(
+            np.array(s.pos_m),
+            s.yaw_rad,
+            z,
+            radius,
+            LOITER_AHEAD_M,
+            obstacles,
+            keep_out,
+            motion(s, airframes[v.id], mission),
+        )
+        if hold.clearance_m < keep_out:
+            event("hold_not_clear", v.id, clearance_m=round(hold.clearance_m, 1))
+        lat, lon, alt = enu_to_geodetic(hold.x_m, hold.y_m, hold.z_m, mission.origin)
+        out.append(confirmation.Order(
+            v.id, partial(commands.reposition, v.id, lat, lon, alt, radius),
+            commands.MAV_CMD_DO_REPOSITION, "hold: guided loiter",
+        ))  # fmt: skip
+        if orders.guidance_mode == "course":  # the guided altitude outlives the course
+            altitude = slew.sendable_altitude(alt)
+            out.append(confirmation.Order(
+                v.id, partial(commands.guided_change_altitude, v.id, altitude, 0.0),
+                commands.MAV_CMD_GUIDED_CHANGE_ALTITUDE, "hold: altitude",
+            ))  # fmt: skip
+    return out

@@ -1,0 +1,164 @@
+"""A mission run in flight: its states, what it keeps between ticks, and how it reads in
+the API's status; with the small geometric rules the service's tick applies."""
+
+from __future__ import annotations
+
+import asyncio
+from collections import deque
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any
+
+import numpy as np
+
+from gcs_ppf.guidance import lag, obedience, safety_monitor
+from gcs_ppf.guidance.online import Guidance
+from gcs_ppf.mission import Mission
+from gcs_ppf.service import commanding
+from gcs_ppf.service.store import StoredRun
+
+NOT_RESPONDING_S = 3.0
+"""Vehicle seconds out of GUIDED or refusing the course: not responding."""
+
+
+class RunState(StrEnum):
+    """Life of a mission run."""
+
+    PENDING = "pending"
+    """Uploaded, never started (or not since its last run ended)."""
+    STARTING = "starting"
+    """Vehicles being launched or switched to GUIDED."""
+    RUNNING = "running"
+    """Planning and commanding every tick."""
+    COMPLETED = "completed"
+    """The leader reached the target; every vehicle loiters."""
+    COMPLETED_UNSAFE = "completed_unsafe"
+    """The leader reached the target, but a vehicle entered a keep-out on the way
+    (``safety_violation`` events): never a plain ``completed``."""
+    ABORTED = "aborted"
+    """Stopped by the operator; every vehicle loiters."""
+    FAILED = "failed"
+    """The leader was lost (or the run could not go on); every vehicle loiters."""
+
+
+FINISHED = {RunState.COMPLETED, RunState.COMPLETED_UNSAFE, RunState.ABORTED, RunState.FAILED}
+
+
+@dataclass
+class Run:
+    """A mission run in flight (its lasting record is in the store)."""
+
+    record: StoredRun
+    mission_id: int
+    mission: Mission
+    orders: commanding.Orders
+    state: RunState = RunState.STARTING
+    outcome: str | None = None  # why it ended
+    start_vehicle_time_s: float | None = None
+    mission_time_s: float = 0.0
+    last: Guidance | None = None
+    min_separation_m: float | None = None
+    min_clearance_m: float | None = None
+    formed: bool = False
+    abort: asyncio.Event = field(default_factory=asyncio.Event)
+    lost_ids: set[int] = field(default_factory=set)
+    commanded_speed: dict[int, float] = field(default_factory=dict)
+    ended_vehicle_s: float | None = None
+    """The fleet's vehicle time when the run ended (``FormationService._fleet_time_s``)."""
+    sent_course: dict[int, float] = field(default_factory=dict)
+    """The course (ICS yaw, rad) each vehicle was last sent."""
+    leader_pos: Any = None  # ICS position at the last tick
+    tick_latency_s: deque[float] = field(default_factory=lambda: deque(maxlen=10_000))
+    task: asyncio.Task[None] | None = None
+    safety: safety_monitor.Monitor = field(default_factory=safety_monitor.Monitor)
+    obedience: obedience.Obedience = field(
+        default_factory=lambda: obedience.Obedience(NOT_RESPONDING_S)
+    )
+    fleet_lag: lag.Lag = field(default_factory=lambda: lag.Lag(0.0, 0.0))
+    """The fleet's lag at the last tick (``gcs_ppf.guidance.lag``), vehicle seconds."""
+    lag_budget: lag.Budget = field(default_factory=lambda: lag.Budget(LAG_BUDGET_S))
+    recent_work_s: deque[float] = field(default_factory=lambda: deque(maxlen=20))
+    """Our seconds from telemetry to commands sent, of the last ticks."""
+
+
+LAG_BUDGET_S = 1.0
+"""Telemetry age + command delay (vehicle seconds) beyond which a ``lag_over_budget`` event
+is raised."""
+
+
+def min_of(a: float | None, b: float | None) -> float | None:
+    if a is None:
+        return b
+    if b is None:
+        return a
+    return min(a, b)
+
+
+def latency_ms(run: Run) -> dict[str, float] | None:
+    """Tick latency (telemetry received → commands sent) percentiles, ms."""
+    if not run.tick_latency_s:
+        return None
+    ms = np.array(run.tick_latency_s) * 1e3
+    return {
+        "p50": round(float(np.percentile(ms, 50)), 3),
+        "p99": round(float(np.percentile(ms, 99)), 3),
+        "ticks": int(ms.size),
+    }
+
+
+def status(run: Run) -> dict[str, Any]:
+    """The API's status of a run in flight (``GET /missions/{id}/status``)."""
+    g = run.last
+    per_vehicle = []
+    if g is not None:
+        for i, vid in enumerate(g.ids):
+            per_vehicle.append(
+                {
+                    "id": vid,
+                    "ppf_state": g.state[i],
+                    "avoiding": g.avoiding[i],
+                    "formed": g.formed[i] if i else None,
+                    "local_target_distance_m": g.local_target_distance_m[i],
+                    "lost": vid in run.lost_ids,
+                }
+            )
+    return {
+        "mission_id": run.mission_id,
+        "run_id": run.record.id,
+        "state": run.state,
+        "outcome": run.outcome,
+        "mission_time_s": round(run.mission_time_s, 3),
+        "formation_formed": run.formed,
+        "min_separation_m": run.min_separation_m,
+        "min_obstacle_clearance_m": run.min_clearance_m,
+        "safety_violations": run.safety.count,
+        "tick_latency_ms": latency_ms(run),
+        "lag_s": {
+            **run.fleet_lag.as_dict(),
+            "budget_s": run.lag_budget.budget_s,
+            "worst_s": round(run.lag_budget.worst_s, 3),
+            "over_budget": run.lag_budget.over,
+        },
+        "vehicles": per_vehicle,
+    }
+
+
+def changes(run: Run, g: Guidance) -> list[tuple[str, int | None]]:
+    """The events of what changed since the run's last tick (``run.last``), as (kind,
+    vehicle id); updates ``run.formed``."""
+    out: list[tuple[str, int | None]] = []
+    before = run.last
+    wingmen_formed = all(f for i, f in enumerate(g.formed) if i and g.ids[i] not in run.lost_ids)
+    if wingmen_formed != run.formed:
+        run.formed = wingmen_formed
+        out.append(("formation_formed" if wingmen_formed else "formation_broken", None))
+    if before is None:
+        return out
+    for i, vid in enumerate(g.ids):
+        if g.avoiding[i] != before.avoiding[i]:
+            out.append(("avoidance_entered" if g.avoiding[i] else "avoidance_left", vid))
+        if g.resolving and before.resolving and g.resolving[i] != before.resolving[i]:
+            out.append(("conflict_resolution_" + ("began" if g.resolving[i] else "ended"), vid))
+        if g.state[i] == "s2" and before.state[i] != "s2":
+            out.append(("local_minimum_escape", vid))
+    return out

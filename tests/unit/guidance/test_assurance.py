@@ -1,0 +1,108 @@
+"""Run-time assurance: a command that would take a vehicle into a keep-out before it can
+escape is replaced by the nearest one that cannot, the rest pass untouched, and a naive
+guidance (straight at a target behind an obstacle, like a final approach) flown under
+assurance never enters the keep-out."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from gcs_ppf.guidance.assurance import Command, KeepOut, Motion, assure, hold_path, score
+from gcs_ppf.planning.scene import Obstacles
+
+SPEED, OMEGA = 25.0, 0.3  # ArduPlane-like: 25 m/s, ~40° of bank
+
+
+def sphere(x: float, y: float, z: float, r: float) -> Obstacles:
+    return Obstacles(np.array([[x, y, z]]), np.array([r]), np.zeros((1, 3)))
+
+
+def keep(obstacles: Obstacles, ground: float | None = 0.0) -> KeepOut:
+    return KeepOut(obstacles, ground, safe_distance_obstacle=25.0, safe_distance_uav=50.0)
+
+
+def plane(x: float, y: float, z: float, yaw: float) -> Motion:
+    return Motion((x, y, z), yaw, SPEED, OMEGA, climb_m_s=5.0, sink_m_s=5.0, heading_tau_s=1.5)
+
+
+def test_a_course_into_an_obstacle_close_ahead_is_replaced_by_one_that_escapes() -> None:
+    walls = sphere(200.0, 0.0, 150.0, 100.0)  # its keep-out 75 m ahead, the turn radius 83 m
+    m = plane(0.0, 0.0, 150.0, 0.0)
+    [v] = assure([m], [Command(0.0, 150.0)], hold_s=1.0, keep=keep(walls))
+    assert v.replaced
+    assert v.reason == "obstacle"
+    assert v.margin_m < 0.0 <= v.chosen_margin_m
+    assert v.command.course_rad != 0.0
+    s, _, _ = score(m, v.command, 1.0, keep(walls), [])
+    assert s >= 0.0
+
+
+def test_a_course_past_an_obstacle_with_room_to_turn_away_is_kept() -> None:
+    walls = sphere(300.0, 250.0, 150.0, 150.0)  # 75 m of keep-out margin abeam, to the left
+    m = plane(0.0, 0.0, 150.0, 0.0)
+    [v] = assure([m], [Command(0.0, 150.0)], hold_s=1.0, keep=keep(walls))
+    assert not v.replaced
+    assert v.reason is None
+    assert v.command == Command(0.0, 150.0)
+
+
+def test_a_far_obstacle_straight_ahead_does_not_replace_the_command() -> None:
+    """Far enough that the vehicle can still turn back after the hold: the planner's turn
+    is still to come, the command stands."""
+    walls = sphere(2000.0, 0.0, 150.0, 150.0)
+    [v] = assure([plane(0.0, 0.0, 150.0, 0.0)], [Command(0.0, 150.0)], 1.0, keep(walls))
+    assert not v.replaced
+
+
+def test_a_descent_into_the_ground_is_replaced_with_a_safe_altitude() -> None:
+    m = plane(0.0, 0.0, 30.0, 0.0)
+    [v] = assure([m], [Command(0.0, -100.0)], hold_s=2.0, keep=keep(sphere(1e5, 0, 0, 1)))
+    assert v.replaced
+    assert v.reason == "ground"
+    assert v.command.z_m >= 50.0
+
+
+def test_the_wingman_yields_to_the_leader_head_on() -> None:
+    leader = plane(0.0, 0.0, 150.0, 0.0)
+    wingman = plane(160.0, 0.0, 150.0, math.pi)
+    verdicts = assure([leader, wingman], [Command(0.0, 150.0), Command(math.pi, 150.0)],
+                      hold_s=1.0, keep=keep(sphere(1e5, 0, 0, 1)))  # fmt: skip
+    assert not verdicts[0].replaced
+    assert verdicts[1].replaced
+    assert verdicts[1].reason == "teammate"
+
+
+def fly_straight_at(target: np.ndarray, start: Motion, k: KeepOut, steps: int) -> np.ndarray:
+    """Line-of-sight guidance at 10 Hz, every command through ``assure``; the flight is the
+    assurance's own response model (``hold_path``) for one tick at a time."""
+    m, flown = start, [start.pos_m]
+    for _ in range(steps):
+        x, y, _ = m.pos_m
+        course = math.atan2(target[1] - y, target[0] - x)
+        [v] = assure([m], [Command(course, float(target[2]))], hold_s=0.6, keep=k)
+        path, yaw = hold_path(m, v.command, 0.1)
+        m = Motion(tuple(path[-1]), yaw, m.speed_m_s, m.turn_rate_rad_s, m.climb_m_s,
+                   m.sink_m_s, m.heading_tau_s)  # fmt: skip
+        flown.append(m.pos_m)
+    return np.array(flown)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    offset=st.floats(-120.0, 120.0),
+    radius=st.floats(80.0, 300.0),
+    heading=st.floats(-0.6, 0.6),
+)
+def test_a_final_approach_through_an_obstacle_never_enters_its_keep_out(
+    offset: float, radius: float, heading: float
+) -> None:
+    walls = sphere(900.0, offset, 150.0, radius)
+    k = keep(walls)
+    flown = fly_straight_at(np.array([2000.0, 0.0, 150.0]), plane(0.0, 0.0, 150.0, heading),
+                            k, steps=600)  # fmt: skip
+    surface = np.linalg.norm(flown - walls.center[0], axis=1) - walls.radius[0]
+    assert surface.min() >= k.safe_distance_obstacle - 1.0  # 1 m of sampling between ticks

@@ -1,0 +1,97 @@
+"""Neighbour lists: planning with them gives exactly the all-pairs plan."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gcs_ppf.mission import Limits, load_mission_file
+from gcs_ppf.offline.benchmark import synthetic_scene
+from gcs_ppf.planning.planner import MateSearch, Trajectory, advance
+from gcs_ppf.planning.ppf.neighbours import MATES_ALL_PAIRS, MATES_GRID, nearby_teammates
+from gcs_ppf.planning.scene import Fleet, Obstacles, Scene, kernel_limits, scene_from_mission
+from tests.conftest import EXAMPLES
+
+FIELDS = ("t", "pos", "pitch", "yaw", "speed", "state", "avoiding", "formed")
+
+
+def melee(n: int, seed: int, climb_limit: float | None = None) -> Scene:
+    """N vehicles in a 3 km box, every heading and speed, random priorities, a tenth of
+    them inactive, among five spheres: teammate conflicts all the time."""
+    rng = np.random.default_rng(seed)
+    pos = rng.uniform(-1500.0, 1500.0, (n, 3)) * [1.0, 1.0, 0.2]
+    active = rng.random(n) > 0.1
+    active[0] = True
+    fleet = Fleet(
+        ids=np.arange(1, n + 1, dtype=np.int64),
+        pos=pos,
+        pitch=rng.uniform(-0.3, 0.3, n),
+        yaw=rng.uniform(-np.pi, np.pi, n),
+        speed=rng.uniform(100.0, 300.0, n),
+        slot=np.zeros((n, 3)),
+        rank=rng.permutation(n).astype(np.int64),
+        active=active,
+    )
+    obstacles = Obstacles(
+        center=rng.uniform(-2000.0, 2000.0, (5, 3)) * [1.0, 1.0, 0.1],
+        radius=rng.uniform(50.0, 200.0, 5),
+        velocity=np.zeros((5, 3)),
+    )
+    limits = kernel_limits(Limits())
+    if climb_limit is not None:
+        limits = limits._replace(max_climb_angle=climb_limit, max_dive_angle=climb_limit)
+    return Scene(fleet, obstacles, np.array([20_000.0, 0.0, 0.0]), limits)
+
+
+def assert_same_plan(scene: Scene, steps: int, dt: float = 0.01) -> Trajectory:
+    plans: dict[MateSearch, Trajectory] = {
+        mates: advance(scene, dt, steps, mates=mates).trajectory
+        for mates in ("all-pairs", "grid", "auto")
+    }
+    reference = plans["all-pairs"]
+    for mates in ("grid", "auto"):
+        for field in FIELDS:
+            assert np.array_equal(getattr(plans[mates], field), getattr(reference, field)), (
+                mates,
+                field,
+            )
+    return reference
+
+
+@pytest.mark.parametrize("table", [2, 3])
+def test_the_paper_scenes_plan_the_same_with_the_grid(table: int) -> None:
+    scene = scene_from_mission(load_mission_file(EXAMPLES / f"paper_table{table}.json"))
+    plan = assert_same_plan(scene, 30_000)
+    assert plan.t[-1] < 300.0  # the whole plan, to the leader's arrival
+
+
+def test_a_big_formation_plans_the_same_with_the_grid() -> None:
+    assert_same_plan(synthetic_scene(120, 40), 1500)
+
+
+@pytest.mark.parametrize(("seed", "climb_limit"), [(0, None), (1, None), (2, 0.35)])
+def test_a_melee_of_conflicts_plans_the_same_with_the_grid(
+    seed: int, climb_limit: float | None
+) -> None:
+    plan = assert_same_plan(melee(60, seed, climb_limit), 1500)
+    assert plan.avoiding.sum() > 1000  # teammates repelled each other throughout
+
+
+def test_the_grid_keeps_fewer_mates_than_all_pairs() -> None:
+    scene = synthetic_scene(500, 0)
+    f = scene.fleet
+    n = f.pos.shape[0]
+    counts = {}
+    for search in (MATES_ALL_PAIRS, MATES_GRID):
+        start = np.zeros(n + 1, dtype=np.int64)
+        mates = nearby_teammates(
+            f.pos, f.pitch, f.yaw, f.speed, f.rank, f.active, scene.limits, 0.01, 25,
+            search, start, np.empty(4, dtype=np.int64),
+        )  # fmt: skip
+        for i in range(n):  # ascending, active, of higher priority
+            mine = mates[start[i] : start[i + 1]]
+            assert np.all(np.diff(mine) > 0)
+            assert np.all(f.rank[mine] < f.rank[i])
+        counts[search] = start[n]
+    assert counts[MATES_ALL_PAIRS] == n * (n - 1) // 2
+    assert counts[MATES_GRID] < counts[MATES_ALL_PAIRS] / 5

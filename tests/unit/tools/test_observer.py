@@ -1,0 +1,83 @@
+"""The independent observer's judge on synthetic tracks: separation, clearance, silence."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gcs_ppf.mission import Mission
+from gcs_ppf.tools.observer import closest_pass, judge, observed_at
+
+Track = np.ndarray
+
+
+def mission(obstacles: list[dict[str, object]]) -> Mission:
+    return Mission.model_validate({
+        "name": "observer-test",
+        "origin": {"lat": 47.0, "lon": 8.0, "alt": 400.0},
+        "target": [2000.0, 0.0, 300.0],
+        "vehicles": [
+            {"id": 1, "role": "leader", "position": [0, 0, 300], "pitch": 0, "yaw": 0},
+            {"id": 2, "role": "wingman", "position": [0, 200, 300], "pitch": 0, "yaw": 0,
+             "slot": [-100, 100, 0]},
+        ],
+        "obstacles": obstacles,
+    })  # fmt: skip
+
+
+def straight(t: np.ndarray, y: float, z: float = 300.0, v: float = 100.0) -> Track:
+    """[K,5] (t, x, y, z, height) flying east at v."""
+    return np.column_stack([t, v * t, np.full_like(t, y), np.full_like(t, z), np.full_like(t, z)])
+
+
+def test_separation_and_clearance_of_two_parallel_tracks() -> None:
+    t = np.arange(0.0, 20.0, 0.1)
+    m = mission([{"center": [1000.0, 500.0, 300.0], "radius": 200.0}])
+    j = judge(m, {1: straight(t, 0.0), 2: straight(t, 120.0)}, 0.0, 20.0)
+    assert j.min_separation_m == pytest.approx(120.0)
+    assert j.closest_pair == (1, 2)
+    assert j.clearance_m[1] == pytest.approx(300.0, abs=0.1)  # 500 − 200 below its centre
+    assert j.clearance_m[2] == pytest.approx(180.0, abs=0.1)
+    assert j.min_clearance_m() == pytest.approx(180.0, abs=0.1)
+    assert j.min_clearance_m(exclude=[2]) == pytest.approx(300.0, abs=0.1)
+    assert j.lowest_m == {1: 300.0, 2: 300.0}
+    assert j.leader_to_target_m == pytest.approx(10.0)  # its last sample, 1990 m east
+
+
+def test_a_silent_vehicle_counts_only_while_it_was_heard() -> None:
+    """Vehicle 2 falls silent at 5 s on a course that would cross vehicle 1 at 10 s: no
+    position is made up for it after its last sample."""
+    t = np.arange(0.0, 20.0, 0.1)
+    lead = straight(t, 0.0)
+    t2 = t[t <= 5.0]
+    crossing = np.column_stack([t2, 1000.0 + 0 * t2, 500.0 - 50.0 * t2, 300.0 + 0 * t2,
+                                300.0 + 0 * t2])  # fmt: skip
+    j = judge(mission([]), {1: lead, 2: crossing}, 0.0, 19.9)
+    assert j.min_separation_m == pytest.approx(float(np.hypot(500.0, 250.0)), abs=1.0)
+    assert j.clearance_m == {1: None, 2: None}
+
+
+def test_gaps_in_a_track_are_not_interpolated_across() -> None:
+    ts = np.array([0.0, 0.1, 0.2, 5.0, 5.1])
+    mask = observed_at(straight(ts, 0.0), np.array([0.05, 1.0, 5.05, 6.0]))
+    assert mask.tolist() == [True, False, True, False]
+
+
+def test_moving_obstacles_move_from_the_runs_start() -> None:
+    t = np.arange(0.0, 10.0, 0.1)
+    m = mission([{"center": [0.0, 1000.0, 300.0], "radius": 100.0, "velocity": [100, 0, 0]}])
+    # The obstacle keeps pace 1 km north of the vehicle when the run starts at 0 s ...
+    j = judge(m, {1: straight(t, 0.0), 2: straight(t, 2000.0)}, 0.0, 9.9, run_start_s=0.0)
+    assert j.clearance_m[1] == pytest.approx(900.0, abs=0.1)
+    # ... and is 500 m behind it when the run started 5 s later.
+    j = judge(m, {1: straight(t, 0.0), 2: straight(t, 2000.0)}, 0.0, 9.9, run_start_s=5.0)
+    assert j.clearance_m[1] == pytest.approx(float(np.hypot(500.0, 1000.0)) - 100.0, abs=1.0)
+
+
+def test_a_vehicle_that_sinks_after_climbing_shows_its_lowest_height() -> None:
+    t = np.arange(0.0, 10.0, 0.1)
+    climb = straight(t, 500.0)
+    climb[:, 4] = np.where(t < 5.0, 10.0 + 20.0 * t, 110.0 - 20.0 * (t - 5.0))
+    j = judge(mission([]), {1: straight(t, 0.0), 2: climb}, 0.0, 9.9)
+    assert j.lowest_m[2] == pytest.approx(12.0, abs=0.5)  # under the 25 m keep-out
+    assert closest_pass(climb, np.array([0.0, 500.0, 300.0])) == pytest.approx(0.0)

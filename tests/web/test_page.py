@@ -1,0 +1,129 @@
+"""The operator's page in headless chromium against the real service and the built-in SITL.
+
+Screenshots (planning, mid-run, replay) go to ``out/test-artifacts/web/``
+(``GCS_PPF_TEST_ARTIFACTS`` to change it).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+from selenium.webdriver.common.by import By
+from selenium.webdriver.remote.webdriver import WebDriver
+
+from tests.web.harness import (
+    ROOT,
+    browser,
+    free_port,
+    free_port_block,
+    http,
+    page_errors,
+    process,
+    screenshot,
+    serve_args,
+    wait_for,
+    wait_serving,
+)
+
+MISSION = ROOT / "examples" / "paper_table3.json"
+SPEEDUP = 10
+
+
+def text(driver: WebDriver, element_id: str) -> str:
+    return str(driver.find_element(By.ID, element_id).text)
+
+
+def js(driver: WebDriver, script: str) -> Any:
+    return driver.execute_script(f"return {script};")
+
+
+def leader_position(driver: WebDriver) -> list[float] | None:
+    pos = js(driver, "window.gcs.state.frame?.vehicles.find(v => v.role === 'leader')?.pos_m")
+    return None if pos is None else [float(c) for c in pos]
+
+
+@pytest.mark.integration
+def test_upload_preview_fly_and_replay_table3(tmp_path: Path) -> None:
+    """Open the page, upload Table 3 by the file input, preview its plan, start it against
+    the built-in SITL (10x), watch the vehicles move and the run complete, replay it."""
+    doc = json.loads(MISSION.read_text())
+    base = free_port_block(10 * len(doc["vehicles"]))
+    port = free_port()
+    api = f"http://127.0.0.1:{port}"
+    links = [f"tcp:127.0.0.1:{base + 10 * k}" for k in range(len(doc["vehicles"]))]
+    sitl = [sys.executable, "-m", "sitl", str(MISSION), "--speedup", str(SPEEDUP),
+            "--base-port", str(base)]  # fmt: skip
+    env = {"GCS_PPF_TLOG_DIR": str(tmp_path / "tlogs")}
+    with (
+        process(sitl, tmp_path / "sitl.log"),
+        process(serve_args(port, tmp_path / "gcs.db", links), tmp_path / "gcs.log", env) as gcs,
+        browser() as driver,
+    ):
+        wait_serving(api, gcs, tmp_path / "gcs.log")
+        driver.get(f"{api}/")
+        wait_for(lambda: text(driver, "conn") == "connected", 20, "the page's stream")
+        wait_for(lambda: len(http("GET", f"{api}/vehicles")[1]) == 5, 60, "5 vehicles")
+
+        # Planning: upload by the file input; the service validates and stores it.
+        driver.find_element(By.ID, "file-input").send_keys(str(MISSION))
+        wait_for(lambda: "stored as mission #1" in text(driver, "load-message"), 20,
+                 "the mission stored")  # fmt: skip
+        assert text(driver, "mission-errors") == ""
+        # The page's influence radius is the planner's (gcs_ppf/ppf/primitives.py).
+        from gcs_ppf.planning.ppf.primitives import influence_radius
+
+        lim = doc["limits"]
+        keep_out = doc["obstacles"][0]["radius"] + lim["safe_distance_obstacle"]
+        v, w = lim["v_max"], lim["max_yaw_rate"]
+        page_r = js(driver, f"window.gcs.influenceRadius({v}, {w}, {keep_out})")
+        assert page_r == pytest.approx(influence_radius(v, w, keep_out))
+
+        driver.find_element(By.ID, "btn-preview").click()
+        wait_for(lambda: driver.find_elements(By.ID, "metrics-table"), 60, "the plan's metrics")
+        metrics = text(driver, "metrics-table")
+        assert "leader reaches target yes" in metrics
+        assert "collisions 0" in metrics
+        assert js(driver, "Object.keys(window.gcs.state.plan.trajectories).length") == 5
+        screenshot(driver, "planning")
+
+        # Flying: start, see the vehicles move, the run complete.
+        driver.find_element(By.ID, "btn-start").click()
+        wait_for(lambda: "mission 1: running" in text(driver, "run-state"), 90, "the run flying")
+        first = wait_for(lambda: leader_position(driver), 10, "the leader's position")
+        wait_for(lambda: math.dist(leader_position(driver) or first, first) > 1500.0, 60,
+                 "the leader 1.5 km on")  # fmt: skip
+        trails = js(driver, "[...window.gcs.state.trails.values()].map(t => t.length)")
+        assert len(trails) == 5
+        assert min(trails) > 10, trails
+        assert "Every vehicle in GUIDED" in text(driver, "events")
+        screenshot(driver, "mid-run")
+        finished = ("completed", "completed_unsafe", "aborted", "failed")
+        wait_for(lambda: js(driver, "document.getElementById('run-state').dataset.state")
+                 in finished, 180, "the run to end")  # fmt: skip
+        assert js(driver, "document.getElementById('run-state').dataset.state") == "completed", (
+            text(driver, "run-state"), text(driver, "events"))  # fmt: skip
+        assert "mission 1: completed" in text(driver, "run-state")
+        wait_for(lambda: "Run completed" in text(driver, "events"), 5, "the completion event")
+        _, runs = http("GET", f"{api}/runs")
+        assert runs[-1]["state"] == "completed"
+
+        # Replay: History, the run, the view at half its time with its events.
+        driver.find_element(By.CSS_SELECTOR, "[data-tab=history]").click()
+        wait_for(lambda: driver.find_elements(By.CSS_SELECTOR, "#runs li[data-run='1']"), 10,
+                 "the run in the history")  # fmt: skip
+        driver.find_element(By.CSS_SELECTOR, "#runs li[data-run='1']").click()
+        wait_for(lambda: js(driver, "window.gcs.state.mode") == "replay", 10, "replay mode")
+        replayed = js(driver, "Object.keys(window.gcs.state.replay.tracks).length")
+        assert replayed == 5
+        t_half = js(driver, "window.gcs.state.replay.t")
+        assert t_half == pytest.approx(js(driver, "window.gcs.state.replay.T") / 2)
+        assert "REPLAY of run #1 (completed)" in text(driver, "map-mode")
+        future = driver.find_elements(By.CSS_SELECTOR, "#events li.future")
+        assert any("Run completed" in li.text for li in future)  # after half-time
+        screenshot(driver, "replay")
+        assert page_errors(driver) == []
