@@ -437,6 +437,9 @@ class FormationService:
             if vehicle is not None and vehicle.lost and v.id not in run.lost_ids:
                 run.lost_ids.add(v.id)
                 self._event(run, "vehicle_lost", v.id)
+            elif vehicle is not None and not vehicle.lost and v.id in run.lost_ids:
+                run.lost_ids.discard(v.id)  # heard again: planned for and watched again
+                self._event(run, "vehicle_back", v.id)
         if run.mission.leader.id not in run.lost_ids:
             return False
         self._end(run, RunState.FAILED, "leader lost")
