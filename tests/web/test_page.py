@@ -192,4 +192,12 @@ def test_a_wingman_lost_mid_run_is_marked(tmp_path: Path) -> None:
         assert "LOST" not in driver.find_element(By.CSS_SELECTOR, row.format(2)).text
         assert "mission 1: running" in text(driver, "run-state")
         screenshot(driver, "wingman-lost")
+        # Abort: every vehicle holds, the run ends aborted.
+        driver.find_element(By.CSS_SELECTOR, "[data-tab=plan]").click()
+        driver.find_element(By.ID, "btn-abort").click()
+        wait_for(lambda: "mission 1: aborted" in text(driver, "run-state"), 30, "the abort")
+        wait_for(lambda: "Run aborted: aborted by the operator" in text(driver, "events"), 5,
+                 "the abort in words")  # fmt: skip
+        assert "aborted: every vehicle holds" in text(driver, "load-message")
+        assert http("GET", f"{flying.api}/runs")[1][-1]["state"] == "aborted"
         assert page_errors(driver) == []

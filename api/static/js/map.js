@@ -139,6 +139,7 @@ export class TopView {
     for (const v of s.starts || []) add(v.pos[0], v.pos[1], 100);
     for (const v of s.vehicles || []) if (v.pos_m) add(v.pos_m[0], v.pos_m[1], 100);
     for (const id in s.plan || {}) for (const p of s.plan[id].position_m) add(p[0], p[1]);
+    for (const p of s.extent || []) add(p[0], p[1]); // a replayed run's whole tracks
     if (!Number.isFinite(x0)) return;
     const dpr = fitCanvas(this.canvas) * this.col.scale;
     const c = this.canvas;
