@@ -18,6 +18,7 @@ from typing import Any
 import pytest
 from pymavlink import mavutil
 from selenium.webdriver.chrome.webdriver import WebDriver
+from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
 
 from gcs_ppf.ppf.primitives import influence_radius
@@ -183,7 +184,8 @@ def kill(port: int, vehicle_id: int) -> None:
 @pytest.mark.integration
 def test_a_wingman_lost_mid_run_is_marked(tmp_path: Path) -> None:
     """Wingman 3 falls silent 15 s into the run: the page marks it lost (its row, its mark
-    on the map, the event in words) while the others fly on."""
+    on the map, the event in words) while the others fly on; an obstacle added on the map
+    reaches the running mission; Abort ends the run."""
     with sitl_service_and_page(tmp_path) as flying:
         driver = flying.driver
         upload_and_start(driver)
@@ -199,8 +201,24 @@ def test_a_wingman_lost_mid_run_is_marked(tmp_path: Path) -> None:
         assert "LOST" not in driver.find_element(By.CSS_SELECTOR, row.format(2)).text
         assert "mission 1: running" in text(driver, "run-state")
         screenshot(driver, "wingman-lost")
-        # Abort: every vehicle holds, the run ends aborted.
+        # An obstacle added on the map mid-run reaches the running mission by Validate.
         driver.find_element(By.CSS_SELECTOR, "[data-tab=plan]").click()
+        driver.find_element(By.ID, "btn-add-obstacle").click()
+        canvas = driver.find_element(By.ID, "map")
+        sx, sy = js(driver, "window.gcs.top.toScreen(5000, 1500)")
+        dpr = js(driver, "window.devicePixelRatio")
+        offset = (round(sx / dpr - canvas.size["width"] / 2),
+                  round(sy / dpr - canvas.size["height"] / 2))  # fmt: skip
+        ActionChains(driver).move_to_element_with_offset(canvas, *offset).click().perform()
+        assert "press Validate to send the obstacles to the running mission" in text(
+            driver, "load-message")  # fmt: skip
+        driver.find_element(By.ID, "btn-validate").click()
+        wait_for(lambda: "Obstacles of mission #1 replaced (5)" in text(driver, "load-message"),
+                 10, "the obstacles sent")  # fmt: skip
+        wait_for(lambda: len(js(driver, "window.gcs.state.frame.obstacles")) == 5, 5,
+                 "the running mission with the new obstacle")  # fmt: skip
+        assert len(http("GET", f"{flying.api}/missions/1")[1]["mission"]["obstacles"]) == 5
+        # Abort: every vehicle holds, the run ends aborted.
         driver.find_element(By.ID, "btn-abort").click()
         wait_for(lambda: "mission 1: aborted" in text(driver, "run-state"), 30, "the abort")
         wait_for(lambda: "Run aborted: aborted by the operator" in text(driver, "events"), 5,
