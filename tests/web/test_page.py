@@ -86,8 +86,8 @@ def sitl_service_and_page(tmp_path: Path) -> Iterator[Flying]:
         yield Flying(driver, api, ports)
 
 
-def upload_and_start(driver: WebDriver) -> None:
-    driver.find_element(By.ID, "file-input").send_keys(str(MISSION))
+def upload_and_start(driver: WebDriver, mission: Path) -> None:
+    driver.find_element(By.ID, "file-input").send_keys(str(mission))
     wait_for(lambda: "stored as mission #1" in text(driver, "load-message"), 20,
              "the mission stored")  # fmt: skip
     driver.find_element(By.ID, "btn-start").click()
@@ -183,12 +183,18 @@ def kill(port: int, vehicle_id: int) -> None:
 
 @pytest.mark.integration
 def test_a_wingman_lost_mid_run_is_marked(tmp_path: Path) -> None:
-    """Wingman 3 falls silent 15 s into the run: the page marks it lost (its row, its mark
+    """Table 3's fleet towards a target 42 km away.  Wingman 3 falls silent 15 s into the
+    run: the page marks it lost (its row, its mark
     on the map, the event in words) while the others fly on; an obstacle added on the map
     reaches the running mission; Abort ends the run."""
+    doc = json.loads(MISSION.read_text())
+    doc["target"] = [30000.0, 30000.0, 300.0]  # a long flight: at 10x Table 3 lasts 6-8 s
+    doc["planner"]["max_time"] = 900.0
+    far = tmp_path / "far_target.json"
+    far.write_text(json.dumps(doc))
     with sitl_service_and_page(tmp_path) as flying:
         driver = flying.driver
-        upload_and_start(driver)
+        upload_and_start(driver, far)
         wait_for(lambda: (js(driver, "window.gcs.state.frame.run.mission_time_s") or 0) > 15,
                  60, "15 s of the run")  # fmt: skip
         kill(flying.ports[3], 3)
