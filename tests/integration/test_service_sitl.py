@@ -9,12 +9,9 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,6 +20,7 @@ import numpy as np
 import pytest
 from pymavlink import mavutil
 
+from gcs_ppf.campaign import process
 from gcs_ppf.demo import FINISHED
 from gcs_ppf.demo import http_json as http
 from gcs_ppf.mission import Mission
@@ -35,25 +33,10 @@ from gcs_ppf.observer import (
 )
 from gcs_ppf.observer import formation_offsets as observer_formation_offsets
 from gcs_ppf.store import Store
-from tests.conftest import EXAMPLES, ROOT
+from tests.conftest import EXAMPLES
 
 SPEEDUP = 10
 MISSION = EXAMPLES / "paper_table3.json"
-
-
-@contextmanager
-def process(args: list[str], log: Path, env: dict[str, str] | None = None) -> Iterator[None]:
-    with log.open("w") as out:
-        p = subprocess.Popen(args, stdout=out, stderr=subprocess.STDOUT, cwd=ROOT,
-                             env={**os.environ, **(env or {})})  # fmt: skip
-        try:
-            yield
-        finally:
-            p.terminate()
-            try:
-                p.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                p.kill()
 
 
 def wait_for(predicate: Any, timeout_s: float, what: str) -> Any:
