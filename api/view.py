@@ -214,30 +214,27 @@ class FrameSource:
 async def stream_frames(
     websocket: WebSocket,
     next_frame: Callable[[], dict[str, Any]],
-    updated: asyncio.Queue[Any] | None,
+    updated: asyncio.Queue[Any],
 ) -> None:
     """Send ``next_frame()`` when ``updated`` yields (coalesced, at most ``MAX_FRAME_HZ``)
-    or every ``IDLE_FRAME_S``, until the page goes away."""
+    or every ``IDLE_FRAME_S``, until the page goes away.  What the page sends is read and
+    dropped: nothing on this socket changes the service."""
 
     async def until_closed() -> None:
-        with contextlib.suppress(WebSocketDisconnect):
-            while True:
-                await websocket.receive_text()  # the page sends nothing that changes state
+        while (await websocket.receive())["type"] != "websocket.disconnect":
+            pass
 
-    closed = asyncio.create_task(until_closed())
+    closed = asyncio.create_task(until_closed())  # awaited in ``finally``
     try:
         while not closed.done():
             started = time.monotonic()
             await websocket.send_json(next_frame())
-            if updated is not None:
-                with contextlib.suppress(TimeoutError):
-                    async with asyncio.timeout(IDLE_FRAME_S):
-                        await updated.get()
-                while not updated.empty():
-                    updated.get_nowait()
+            with contextlib.suppress(TimeoutError):
+                async with asyncio.timeout(IDLE_FRAME_S):
+                    await updated.get()
+            while not updated.empty():
+                updated.get_nowait()
             wait = 1.0 / MAX_FRAME_HZ - (time.monotonic() - started)
-            if updated is None:
-                wait = max(wait, IDLE_FRAME_S)
             if wait > 0:
                 await asyncio.wait({closed}, timeout=wait)
     except (WebSocketDisconnect, RuntimeError, OSError):

@@ -70,6 +70,8 @@ class Run:
     leader_pos: Any = None  # ICS position at the last tick
     tick_latency_s: deque[float] = field(default_factory=lambda: deque(maxlen=10_000))
     task: asyncio.Task[None] | None = None
+    hold_task: asyncio.Task[None] | None = None
+    """The holds after the end and the watch that follows them."""
     safety: safety_monitor.Monitor = field(default_factory=safety_monitor.Monitor)
     obedience: obedience.Obedience = field(
         default_factory=lambda: obedience.Obedience(NOT_RESPONDING_S)

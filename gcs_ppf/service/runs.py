@@ -95,6 +95,8 @@ class FormationService:
                     if run.task is not None and not run.task.done():
                         run.abort.set()
                         run.task.cancel()
+                    if run.hold_task is not None and not run.hold_task.done():
+                        run.hold_task.cancel()  # the holds and the watch after the end
                 self.fleet.close()
                 for task in background:
                     task.cancel()
@@ -292,7 +294,7 @@ class FormationService:
         stacked = states is not None
         if states is None:
             states, _, _ = planning_states(list(self._located(run)))
-        self._spawn(self._hold(run, states, stacked))
+        run.hold_task = self._spawn(self._hold(run, states, stacked))
 
     async def _hold(self, run: Run, states: dict[int, VehicleState], stacked: bool) -> None:
         """Each vehicle to its holding circle (``commanding.hold_orders``), every command
@@ -437,6 +439,9 @@ class FormationService:
             if vehicle is not None and vehicle.lost and v.id not in run.lost_ids:
                 run.lost_ids.add(v.id)
                 self._event(run, "vehicle_lost", v.id)
+            elif vehicle is not None and not vehicle.lost and v.id in run.lost_ids:
+                run.lost_ids.discard(v.id)  # heard again: planned for and watched again
+                self._event(run, "vehicle_back", v.id)
         if run.mission.leader.id not in run.lost_ids:
             return False
         self._end(run, RunState.FAILED, "leader lost")

@@ -215,15 +215,12 @@ def observed_at(
     return mask
 
 
-def formation_offsets(
-    mission: Mission, tracks: dict[int, FloatArray], start_s: float, duration_s: float
-) -> tuple[dict[int, float], float]:
-    """From the observer's tracks: each wingman's smallest distance to its local target
-    point (Eq. 6, the leader's flight-path attitude from its track) over [start_s,
-    start_s + duration_s], and the smallest over time of the worst wingman's distance
-    (within the target accuracy: formed)."""
+def slot_distances(
+    mission: Mission, tracks: dict[int, FloatArray], t: FloatArray
+) -> dict[int, FloatArray]:
+    """Each wingman's distance to its local target point (Eq. 6, the leader's flight-path
+    attitude from its track) at the times ``t``, from the observer's tracks."""
     ids = sorted(tracks)
-    t = np.arange(start_s, start_s + duration_s, 0.1)
     pos = resample(tracks, t)
     lead = ids.index(mission.leader.id)
     vel = np.gradient(pos[:, lead], t, axis=0)
@@ -236,8 +233,35 @@ def formation_offsets(
         points = np.array([local_target_point(pos[k, lead], float(pitch[k]), float(yaw[k]), slot)
                            for k in range(len(t))])  # fmt: skip
         offsets[w.id] = np.linalg.norm(points - pos[:, ids.index(w.id)], axis=1)
+    return offsets
+
+
+def formation_offsets(
+    mission: Mission, tracks: dict[int, FloatArray], start_s: float, duration_s: float
+) -> tuple[dict[int, float], float]:
+    """From the observer's tracks: each wingman's smallest distance to its local target
+    point over [start_s, start_s + duration_s], and the smallest over time of the worst
+    wingman's distance (within the target accuracy: formed)."""
+    t = np.arange(start_s, start_s + duration_s, 0.1)
+    offsets = slot_distances(mission, tracks, t)
     worst = np.max(np.stack(list(offsets.values())), axis=0)
     return {vid: float(d.min()) for vid, d in offsets.items()}, float(worst.min())
+
+
+def longest_formed_s(
+    mission: Mission, tracks: dict[int, FloatArray], start_s: float, duration_s: float
+) -> float:
+    """The longest time (s) every wingman stayed within the target accuracy of its local
+    target point at once, over [start_s, start_s + duration_s]: how long the formation held."""
+    step = 0.1
+    t = np.arange(start_s, start_s + duration_s, step)
+    offsets = slot_distances(mission, tracks, t)
+    formed = np.max(np.stack(list(offsets.values())), axis=0) <= mission.limits.target_accuracy
+    longest = run = 0
+    for f in formed:
+        run = run + 1 if f else 0
+        longest = max(longest, run)
+    return longest * step
 
 
 # ---- judging -----------------------------------------------------------------------------

@@ -95,7 +95,10 @@ def test_the_view_stream_without_and_with_a_mission(client: TestClient) -> None:
     mid = client.post("/missions", json=table3()).json()["id"]
     with client.websocket_connect(f"/ws/view?mission_id={mid}") as ws:
         frame = ws.receive_json()
+        ws.send_text('{"start": 1}')  # read and dropped: the socket changes nothing
+        ws.send_bytes(b"\x00")
         again = ws.receive_json()  # frames keep coming while nothing flies
+    assert client.get(f"/missions/{mid}/status").json()["state"] == "pending"
     assert again["type"] == "frame"
     assert frame["mission_id"] == mid
     assert frame["run"]["state"] == "pending"

@@ -9,12 +9,9 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import subprocess
 import sys
 import time
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -25,6 +22,7 @@ from pymavlink import mavutil
 
 from gcs_ppf.mission import Mission
 from gcs_ppf.service.store import Store
+from gcs_ppf.tools.campaign import process
 from gcs_ppf.tools.demo import FINISHED
 from gcs_ppf.tools.demo import http_json as http
 from gcs_ppf.tools.observer import (
@@ -35,25 +33,10 @@ from gcs_ppf.tools.observer import (
     tracks_enu,
 )
 from gcs_ppf.tools.observer import formation_offsets as observer_formation_offsets
-from tests.conftest import EXAMPLES, ROOT
+from tests.conftest import EXAMPLES
 
 SPEEDUP = 10
 MISSION = EXAMPLES / "paper_table3.json"
-
-
-@contextmanager
-def process(args: list[str], log: Path, env: dict[str, str] | None = None) -> Iterator[None]:
-    with log.open("w") as out:
-        p = subprocess.Popen(args, stdout=out, stderr=subprocess.STDOUT, cwd=ROOT,
-                             env={**os.environ, **(env or {})})  # fmt: skip
-        try:
-            yield
-        finally:
-            p.terminate()
-            try:
-                p.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                p.kill()
 
 
 def wait_for(predicate: Any, timeout_s: float, what: str) -> Any:
@@ -343,8 +326,8 @@ def test_a_run_that_outlasts_planner_max_time_fails_and_the_vehicles_hold_clear(
     tmp_path: Path,
 ) -> None:
     """Failed at max_time: every vehicle is sent to a holding circle (GUIDED, DO_REPOSITION
-    with its radius) chosen clear of the obstacles (``gcs_ppf.guidance.holding``), not a plain
-    LOITER around wherever it happens to be."""
+    with its radius) chosen clear of the obstacles (``gcs_ppf.guidance.holding``), not a
+    plain LOITER around wherever it happens to be."""
     doc = json.loads(MISSION.read_text())
     doc["planner"]["max_time"] = 10.0  # the leader needs some 90 s
 

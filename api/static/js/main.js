@@ -553,7 +553,7 @@ function updateButtons() {
   $("btn-preview").disabled = !hasDoc || running;
   $("btn-start").disabled = !hasDoc || running;
   $("btn-abort").disabled = !running;
-  $("btn-add-obstacle").disabled = !hasDoc;
+  $("btn-add-obstacle").disabled = !hasDoc || state.mode === "replay";
 }
 
 // Links and vehicles ----------------------------------------------------------------------
@@ -653,11 +653,14 @@ async function startReplay(run) {
   for (const id in tracks) T = Math.max(T, tracks[id].t[tracks[id].t.length - 1] || 0);
   for (const e of runEvents) T = Math.max(T, e.mission_time_s || 0);
   const roles = new Map(mission.mission.vehicles.map((v) => [String(v.id), v.role]));
+  const extent = Object.values(tracks).flatMap((track) => track.position_m);
   state.replay = {
-    run, mission: mission.mission, tracks, events: runEvents, T, t: 0, playing: false,
+    run, mission: mission.mission, tracks, events: runEvents, T, t: 0, playing: false, extent,
     speed: Number($("replay-speed").value), last: null, roles, trails: new Map(), drawnT: -1,
   };
   state.mode = "replay";
+  setPlacing(false);
+  updateButtons();
   $("replay-bar").hidden = false;
   $("btn-live").disabled = false;
   $("map-mode").textContent = `REPLAY of run #${run.id} (${run.state})`;
@@ -679,6 +682,7 @@ async function startReplay(run) {
 function stopReplay() {
   state.mode = "live";
   state.replay = null;
+  updateButtons();
   $("replay-bar").hidden = true;
   $("btn-live").disabled = true;
   $("map-mode").textContent = "";
@@ -781,6 +785,7 @@ function replayScene() {
     selected: null,
     editable: false,
     run: null,
+    extent: r.extent,
   };
 }
 
@@ -846,6 +851,8 @@ function selectTab(name) {
   if (name === "fleet") refreshLinks();
 }
 
+const editing = () => Boolean(state.doc) && state.mode === "live";
+
 function bind() {
   for (const kind of ["pointerdown", "pointermove", "pointerup", "wheel", "keydown", "change", "input", "click"]) {
     document.addEventListener(kind, touch, { capture: true, passive: true });
@@ -907,10 +914,10 @@ function bind() {
     const act = {
       "+": () => top.zoom(1.4), "=": () => top.zoom(1.4), "-": () => top.zoom(1 / 1.4),
       "0": () => top.fit(), f: toggleFollow, F: toggleFollow, " ": togglePause,
-      o: () => state.doc && setPlacing(!top.placing), O: () => state.doc && setPlacing(!top.placing),
+      o: () => editing() && setPlacing(!top.placing), O: () => editing() && setPlacing(!top.placing),
       Escape: () => setPlacing(false),
-      Delete: () => state.selected !== null && deleteObstacle(state.selected),
-      Backspace: () => state.selected !== null && deleteObstacle(state.selected),
+      Delete: () => editing() && state.selected !== null && deleteObstacle(state.selected),
+      Backspace: () => editing() && state.selected !== null && deleteObstacle(state.selected),
       p: () => state.doc && !isRunning() && preview(), P: () => state.doc && !isRunning() && preview(),
       t: () => $("theme").click(), T: () => $("theme").click(),
       "1": () => selectTab("plan"), "2": () => selectTab("fleet"), "3": () => selectTab("history"),

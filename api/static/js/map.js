@@ -70,6 +70,11 @@ export function vehicleColour(col, v) {
   return col[v.ppf_state] || col.fg;
 }
 
+/** Whether rectangle r ({x, y, w, h}) overlaps any of `rects`. */
+function overlaps(rects, r) {
+  return rects.some((p) => r.x < p.x + p.w && p.x < r.x + r.w && r.y < p.y + p.h && p.y < r.y + r.h);
+}
+
 function fitCanvas(canvas) {
   const dpr = window.devicePixelRatio || 1;
   const w = Math.max(1, Math.round(canvas.clientWidth * dpr));
@@ -139,6 +144,7 @@ export class TopView {
     for (const v of s.starts || []) add(v.pos[0], v.pos[1], 100);
     for (const v of s.vehicles || []) if (v.pos_m) add(v.pos_m[0], v.pos_m[1], 100);
     for (const id in s.plan || {}) for (const p of s.plan[id].position_m) add(p[0], p[1]);
+    for (const p of s.extent || []) add(p[0], p[1]); // a replayed run's whole tracks
     if (!Number.isFinite(x0)) return;
     const dpr = fitCanvas(this.canvas) * this.col.scale;
     const c = this.canvas;
@@ -348,6 +354,7 @@ export class TopView {
     // up to 12 wingmen; beyond, the Fleet tab lists them).
     ctx.font = font(11, true);
     const withSlots = (s.vehicles || []).filter((v) => v.local_target_m).length;
+    const slotLabels = [];
     for (const v of s.vehicles || []) {
       if (!v.pos_m || !v.local_target_m || v.lost) continue;
       const [x, y] = this.toScreen(v.pos_m[0], v.pos_m[1]);
@@ -363,12 +370,12 @@ export class TopView {
       ctx.strokeRect(gx - 4 * dpr, gy - 4 * dpr, 8 * dpr, 8 * dpr);
       const d = v.local_target_distance_m ?? Math.hypot(...v.pos_m.map((p, j) => p - v.local_target_m[j]));
       if (withSlots > 12) continue;
-      ctx.fillStyle = d <= (s.accuracy_m || 10) ? col.ok : col.muted;
-      ctx.textAlign = "left";
-      ctx.fillText(`${d.toFixed(0)} m`, (x + gx) / 2 + 4 * dpr, (y + gy) / 2 - 4 * dpr);
+      slotLabels.push({ text: `${d.toFixed(0)} m`, x: (x + gx) / 2, y: (y + gy) / 2,
+                        colour: d <= (s.accuracy_m || 10) ? col.ok : col.muted });
     }
 
     // Vehicles: heading, id, role, PPF state; lost crossed out, not responding ringed.
+    const labels = [];
     for (const v of s.vehicles || []) {
       if (!v.pos_m) continue;
       const [x, y] = this.toScreen(v.pos_m[0], v.pos_m[1]);
@@ -391,16 +398,62 @@ export class TopView {
         ctx.stroke();
         ctx.setLineDash([]);
       }
-      ctx.fillStyle = colour;
-      ctx.font = font(12, true);
-      ctx.textAlign = "left";
-      const tag = v.lost ? "LOST" : v.notResponding ? "NOT RESP." : v.ppf_state || v.mode || "";
-      ctx.fillText(`${v.id} ${v.role === "leader" ? "L" : v.role === "wingman" ? "W" : "?"} ${tag}`, x + size + 3 * dpr, y - 3 * dpr);
-      ctx.fillStyle = col.muted;
-      ctx.font = font(10, true);
-      ctx.fillText(`z ${v.pos_m[2].toFixed(0)}`, x + size + 3 * dpr, y + 10 * dpr);
+      labels.push({ v, x, y, size, colour });
+    }
+    const placed = this.drawLabels(labels, dpr, font);
+    // The distances to the slots, where they overlap no other label.
+    ctx.font = font(11, true);
+    ctx.textAlign = "left";
+    for (const l of slotLabels) {
+      const w = ctx.measureText(l.text).width, h = 13 * dpr;
+      const spot = [[l.x + 4 * dpr, l.y - h], [l.x + 4 * dpr, l.y + 2 * dpr], [l.x - w - 4 * dpr, l.y - h]]
+        .map(([x, y]) => ({ x, y, w, h })).find((r) => !overlaps(placed, r));
+      if (!spot) continue;
+      placed.push(spot);
+      ctx.fillStyle = l.colour;
+      ctx.fillText(l.text, spot.x, spot.y + h - 3 * dpr);
     }
     this.drawScale(dpr, font);
+  }
+
+  /** Each vehicle's label (id, role, state; height below) where it overlaps no label
+   * already placed: right of the mark, else below, above or left of it; else only its id
+   * if that fits. The leader, then lost and not-responding vehicles, are placed first. */
+  drawLabels(labels, dpr, font) {
+    const { ctx, col } = this;
+    const rank = (l) => (l.v.role === "leader" ? 0 : l.v.lost || l.v.notResponding ? 1 : 2);
+    labels.sort((a, b) => rank(a) - rank(b));
+    const placed = [];
+    const free = (r) => !overlaps(placed, r);
+    const line = 13 * dpr;
+    for (const { v, x, y, size, colour } of labels) {
+      const role = v.role === "leader" ? "L" : v.role === "wingman" ? "W" : "?";
+      const tag = v.lost ? "LOST" : v.notResponding ? "NOT RESP." : v.ppf_state || v.mode || "";
+      const main = `${v.id} ${role} ${tag}`;
+      const sub = `z ${v.pos_m[2].toFixed(0)}`;
+      ctx.font = font(12, true);
+      const w = Math.max(ctx.measureText(main).width, ctx.measureText(sub).width * 0.85);
+      const gap = size + 3 * dpr;
+      const spots = [[x + gap, y - line], [x - w / 2, y + gap], [x - w / 2, y - gap - 2 * line], [x - gap - w, y - line]];
+      const spot = spots.map(([sx, sy]) => ({ x: sx, y: sy, w, h: 2 * line })).find(free);
+      ctx.textAlign = "left";
+      if (spot) {
+        placed.push(spot);
+        ctx.fillStyle = colour;
+        ctx.fillText(main, spot.x, spot.y + line - 3 * dpr);
+        ctx.fillStyle = col.muted;
+        ctx.font = font(10, true);
+        ctx.fillText(sub, spot.x, spot.y + 2 * line - 3 * dpr);
+        continue;
+      }
+      const id = { x: x + gap, y: y - line, w: ctx.measureText(String(v.id)).width, h: line };
+      if (free(id)) {
+        placed.push(id);
+        ctx.fillStyle = colour;
+        ctx.fillText(String(v.id), id.x, id.y + line - 3 * dpr);
+      }
+    }
+    return placed;
   }
 
   arrow(x, y, yaw, size, colour, filled) {

@@ -20,7 +20,8 @@ const WORDS = {
   vehicle_lost: (e) => `${v(e)} LOST: silent for 5 s of its own time`,
   vehicle_not_responding: (e) => `${v(e)} NOT RESPONDING (mode ${d(e).mode ?? "?"}, last answer ${d(e).last_ack ?? "none"})`,
   vehicle_responding: (e) => `${v(e)} responding again`,
-  safety_violation: (e) => `${v(e)} inside the keep-out of ${d(e).keep_out === "teammate" ? "vehicle" : d(e).keep_out || ""} ${d(e).other ?? ""} by ${d(e).depth_m ?? "?"} m`,
+  safety_violation: (e) => `${v(e)} inside the keep-out of ${d(e).keep_out === "teammate" ? "vehicle" : d(e).keep_out || ""} ${d(e).other ?? ""} by ${d(e).depth_m ?? "?"} m` +
+    (d(e).after_end_s !== undefined ? ` (${d(e).after_end_s} s after the end)` : ""),
   takeoff: (e) => `${v(e)} taking off to ${d(e).takeoff_alt_m ?? "?"} m`,
   takeoff_failed: (e) => `${v(e)} takeoff FAILED (height ${d(e).height_m ?? "?"} m)`,
   hold_not_clear: (e) => `${v(e)}: holding circle only ${d(e).clearance_m ?? "?"} m clear of an obstacle`,

@@ -8,7 +8,8 @@ the sums of repulsions are bit-identical.
 
 Teammates are found either by looking at every pair (``MATES_ALL_PAIRS``) or in a uniform
 grid of cells at least one bound wide, filled by a counting sort (``MATES_GRID``): a
-vehicle then looks only at the 27 cells around its own.
+vehicle then looks only at the 27 cells around its own.  Obstacles look at every vehicle
+in small scenes, and at the vehicles in the grid cells their reach overlaps in big ones.
 """
 
 from __future__ import annotations
@@ -32,6 +33,35 @@ MATES_ALL_PAIRS = 0  # every active teammate of higher priority, no distance bou
 MATES_GRID = 1  # those within the bound, found in a uniform grid
 GRID_MIN_VEHICLES = 16  # measured: equal at 10-16 vehicles, the grid 5 % faster at 20
 MAX_GRID_CELLS_PER_VEHICLE = 64  # cells grow until the grid has at most this many per vehicle
+OBSTACLE_GRID_MIN_PAIRS = 400  # pairs from which obstacles use the grid (faster from 20 × 20 on)
+
+
+@njit(cache=True)
+def obstacle_reach2(
+    obs_radius: np.ndarray,
+    obs_velocity: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+    horizon_steps: int,
+) -> np.ndarray:
+    """The square of the farthest a vehicle can be from each obstacle's centre and come
+    under its influence within ``horizon_steps`` steps, ``[M]``.
+
+    A vehicle is influenced from at most keep_out + v_max/ω + v_max·Δt + u·T (the cheap
+    bound in ``obstacle_repulsion``; one v_max/ω more for an ``airframe_limited`` one); over
+    the horizon the two close by at most (v_max + u)·steps·Δt.
+    """
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    turns = 2.0 if airframe_limited(lim) else 1.0  # the half turn of obstacle_repulsion
+    m = obs_radius.shape[0]
+    reach2 = np.empty(m)
+    for j in range(m):
+        u = math.sqrt(obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2)
+        reach = obs_radius[j] + lim.safe_distance_obstacle + turns * lim.v_max / omega
+        reach += INFLUENCE_STEPS * lim.v_max * dt + u * AVOIDANCE_TURN_ANGLE / omega
+        reach += (lim.v_max + u) * horizon_steps * dt
+        reach2[j] = reach * reach
+    return reach2
 
 
 @njit(cache=True)
@@ -47,34 +77,77 @@ def nearby_obstacles(
     near_obstacles: np.ndarray,
 ) -> None:
     """The obstacles each vehicle could come under the influence of within the next
-    ``horizon_steps`` steps (a neighbour list, so that a step need not look at all M).
+    ``horizon_steps`` steps (within ``obstacle_reach2``), so that a step need not look at
+    all M.  Fills ``near_obstacles`` in CSR form: vehicle i's are
+    ``near_obstacles[near_start[i]:near_start[i+1]]``, in ascending index order.  From
+    ``OBSTACLE_GRID_MIN_PAIRS`` vehicle–obstacle pairs on, each obstacle looks only at the
+    vehicles in the cells of a uniform grid that its reach overlaps."""
+    n, m = pos.shape[0], obs_center.shape[0]
+    reach2 = obstacle_reach2(obs_radius, obs_velocity, lim, dt, horizon_steps)
+    if n * m < OBSTACLE_GRID_MIN_PAIRS:
+        count = 0
+        for i in range(n):
+            near_start[i] = count
+            for j in range(m):
+                dx = pos[i, 0] - obs_center[j, 0]
+                dy = pos[i, 1] - obs_center[j, 1]
+                dz = pos[i, 2] - obs_center[j, 2]
+                if dx * dx + dy * dy + dz * dz <= reach2[j]:
+                    near_obstacles[count] = j
+                    count += 1
+        near_start[n] = count
+        return
+    _obstacles_grid(pos, obs_center, reach2, near_start, near_obstacles)
 
-    A vehicle is influenced from at most keep_out + v_max/ω + v_max·Δt + u·T (the cheap
-    bound in ``obstacle_repulsion``; one v_max/ω more for an ``airframe_limited`` one); over
-    the horizon the two close by at most (v_max + u)·steps·Δt.
-    Fills ``near_obstacles`` in CSR form: vehicle i's are ``near_start[i]:near_start[i+1]``.
-    """
-    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
-    turns = 2.0 if airframe_limited(lim) else 1.0  # the half turn of obstacle_repulsion
-    m = obs_center.shape[0]
-    reach2 = np.empty(m)
-    for j in range(m):
-        u = math.sqrt(obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2)
-        reach = obs_radius[j] + lim.safe_distance_obstacle + turns * lim.v_max / omega
-        reach += INFLUENCE_STEPS * lim.v_max * dt + u * AVOIDANCE_TURN_ANGLE / omega
-        reach += (lim.v_max + u) * horizon_steps * dt
-        reach2[j] = reach * reach
-    count = 0
-    for i in range(pos.shape[0]):
-        near_start[i] = count
-        for j in range(m):
-            dx = pos[i, 0] - obs_center[j, 0]
-            dy = pos[i, 1] - obs_center[j, 1]
-            dz = pos[i, 2] - obs_center[j, 2]
-            if dx * dx + dy * dy + dz * dz <= reach2[j]:
-                near_obstacles[count] = j
-                count += 1
-    near_start[pos.shape[0]] = count
+
+@njit(cache=True)
+def _obstacles_grid(
+    pos: np.ndarray,
+    obs_center: np.ndarray,
+    reach2: np.ndarray,
+    near_start: np.ndarray,
+    near_obstacles: np.ndarray,
+) -> None:
+    """``nearby_obstacles`` by a grid of the vehicles: the same lists."""
+    n, m = pos.shape[0], obs_center.shape[0]
+    _, low, shape, size, cell_start, in_cell = _grid(pos, math.sqrt(reach2.max()))
+    pair_vehicle = np.empty(max(4 * n, 16), dtype=np.int64)
+    pair_obstacle = np.empty(max(4 * n, 16), dtype=np.int64)
+    pairs = 0
+    counts = np.zeros(n + 1, dtype=np.int64)
+    box = np.empty((3, 2), dtype=np.int64)
+    for j in range(m):  # in ascending order, so that each vehicle's list is
+        reach = math.sqrt(reach2[j])
+        empty = False
+        for c in range(3):
+            lo = math.floor((obs_center[j, c] - reach - low[c]) / size)
+            hi = math.floor((obs_center[j, c] + reach - low[c]) / size)
+            if hi < 0 or lo >= shape[c]:
+                empty = True
+            box[c, 0], box[c, 1] = max(lo, 0), min(hi, shape[c] - 1)
+        if empty:
+            continue
+        for ax in range(box[0, 0], box[0, 1] + 1):
+            for ay in range(box[1, 0], box[1, 1] + 1):
+                for az in range(box[2, 0], box[2, 1] + 1):
+                    c = (ax * shape[1] + ay) * shape[2] + az
+                    for s in range(cell_start[c], cell_start[c + 1]):
+                        i = in_cell[s]
+                        dx = pos[i, 0] - obs_center[j, 0]
+                        dy = pos[i, 1] - obs_center[j, 1]
+                        dz = pos[i, 2] - obs_center[j, 2]
+                        if dx * dx + dy * dy + dz * dz <= reach2[j]:
+                            pair_vehicle = _grow(pair_vehicle, pairs + 1)
+                            pair_obstacle = _grow(pair_obstacle, pairs + 1)
+                            pair_vehicle[pairs], pair_obstacle[pairs] = i, j
+                            pairs += 1
+                            counts[i + 1] += 1
+    starts = np.cumsum(counts)
+    near_start[:] = starts
+    for p in range(pairs):  # a stable counting sort by vehicle
+        i = pair_vehicle[p]
+        near_obstacles[starts[i]] = pair_obstacle[p]
+        starts[i] += 1
 
 
 @njit(cache=True)
@@ -174,10 +247,14 @@ def _mates_all_pairs(
 
 
 @njit(cache=True)
-def _cells(pos: np.ndarray, size: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Cell coordinates ``[N,3]`` of every vehicle in a grid of ``size``-metre cells (grown
-    until there are at most ``MAX_GRID_CELLS_PER_VEHICLE`` cells a vehicle), the cells' low
-    corner and the grid's shape (cells along x, y, z)."""
+def _grid(
+    pos: np.ndarray, size: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray, np.ndarray]:
+    """A uniform grid of ``size``-metre cells over the vehicles (grown until there are at
+    most ``MAX_GRID_CELLS_PER_VEHICLE`` cells a vehicle).  Returns each vehicle's cell
+    ``[N,3]``, the grid's low corner and shape (cells along x, y, z), the cell size, and the
+    vehicles by cell: cell c's are ``in_cell[cell_start[c]:cell_start[c+1]]``, in ascending
+    index order (a counting sort), c = (cx · shape_y + cy) · shape_z + cz."""
     n = pos.shape[0]
     low = np.empty(3)
     extent = np.empty(3)
@@ -195,7 +272,17 @@ def _cells(pos: np.ndarray, size: float) -> tuple[np.ndarray, np.ndarray, np.nda
     for i in range(n):
         for c in range(3):
             cell[i, c] = min(int((pos[i, c] - low[c]) / size), shape[c] - 1)
-    return cell, low, shape
+    key = (cell[:, 0] * shape[1] + cell[:, 1]) * shape[2] + cell[:, 2]
+    cell_start = np.zeros(shape[0] * shape[1] * shape[2] + 1, dtype=np.int64)
+    for i in range(n):
+        cell_start[key[i] + 1] += 1
+    cell_start = np.cumsum(cell_start)
+    fill = cell_start[:-1].copy()
+    in_cell = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        in_cell[fill[key[i]]] = i
+        fill[key[i]] += 1
+    return cell, low, shape, size, cell_start, in_cell
 
 
 @njit(cache=True)
@@ -233,17 +320,8 @@ def _mates_grid(
         vel[i, 2] = speed[i] * math.sin(pitch[i])
         fastest = max(fastest, bound[i])
     widest = mate_reach_own(fastest, lim, dt, horizon_steps)
-    cell, _, shape = _cells(pos, widest + mate_reach_other(fastest, lim, dt, horizon_steps))
-    key = (cell[:, 0] * shape[1] + cell[:, 1]) * shape[2] + cell[:, 2]
-    cell_start = np.zeros(shape[0] * shape[1] * shape[2] + 1, dtype=np.int64)
-    for i in range(n):
-        cell_start[key[i] + 1] += 1
-    cell_start = np.cumsum(cell_start)
-    fill = cell_start[:-1].copy()
-    in_cell = np.empty(n, dtype=np.int64)
-    for i in range(n):
-        in_cell[fill[key[i]]] = i
-        fill[key[i]] += 1
+    size = widest + mate_reach_other(fastest, lim, dt, horizon_steps)
+    cell, _, shape, _, cell_start, in_cell = _grid(pos, size)
     found = np.empty(n, dtype=np.int64)
     count = 0
     for i in range(n):

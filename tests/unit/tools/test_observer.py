@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from gcs_ppf.frames import local_target_point
 from gcs_ppf.mission import Mission
-from gcs_ppf.tools.observer import closest_pass, judge, observed_at
+from gcs_ppf.tools.observer import closest_pass, judge, longest_formed_s, observed_at
 
 Track = np.ndarray
 
@@ -81,3 +82,19 @@ def test_a_vehicle_that_sinks_after_climbing_shows_its_lowest_height() -> None:
     j = judge(mission([]), {1: straight(t, 0.0), 2: climb}, 0.0, 9.9)
     assert j.lowest_m[2] == pytest.approx(12.0, abs=0.5)  # under the 25 m keep-out
     assert closest_pass(climb, np.array([0.0, 500.0, 300.0])) == pytest.approx(0.0)
+
+
+def test_how_long_the_formation_held_is_the_longest_time_all_were_in_their_slots() -> None:
+    """The wingman on its local target point from 5 s to 12 s, 50 m off it before and
+    after: formed for 7 s, whatever it did outside."""
+    t = np.arange(0.0, 20.0, 0.1)
+    m = mission([])
+    leader = straight(t, 0.0)
+    slot = np.array(m.vehicles[1].slot)
+    on = np.array([local_target_point(leader[k, 1:4], 0.0, 0.0, slot) for k in range(len(t))])
+    off = on + np.array([0.0, 50.0, 0.0])
+    inside = (t >= 5.0) & (t < 12.0)
+    wing = np.where(inside[:, None], on, off)
+    wingman = np.column_stack([t, wing, wing[:, 2]])
+    held = longest_formed_s(m, {1: leader, 2: wingman}, 0.5, 19.0)
+    assert held == pytest.approx(7.0, abs=0.3)

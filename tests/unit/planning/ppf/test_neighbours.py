@@ -8,16 +8,22 @@ import pytest
 from gcs_ppf.mission import Limits, load_mission_file
 from gcs_ppf.offline.benchmark import synthetic_scene
 from gcs_ppf.planning.planner import MateSearch, Trajectory, advance
-from gcs_ppf.planning.ppf.neighbours import MATES_ALL_PAIRS, MATES_GRID, nearby_teammates
+from gcs_ppf.planning.ppf.neighbours import (
+    MATES_ALL_PAIRS,
+    MATES_GRID,
+    OBSTACLE_GRID_MIN_PAIRS,
+    nearby_obstacles,
+    nearby_teammates,
+)
 from gcs_ppf.planning.scene import Fleet, Obstacles, Scene, kernel_limits, scene_from_mission
 from tests.conftest import EXAMPLES
 
 FIELDS = ("t", "pos", "pitch", "yaw", "speed", "state", "avoiding", "formed")
 
 
-def melee(n: int, seed: int, climb_limit: float | None = None) -> Scene:
+def melee(n: int, seed: int, climb_limit: float | None = None, m: int = 5) -> Scene:
     """N vehicles in a 3 km box, every heading and speed, random priorities, a tenth of
-    them inactive, among five spheres: teammate conflicts all the time."""
+    them inactive, among M spheres (one moving): teammate conflicts all the time."""
     rng = np.random.default_rng(seed)
     pos = rng.uniform(-1500.0, 1500.0, (n, 3)) * [1.0, 1.0, 0.2]
     active = rng.random(n) > 0.1
@@ -32,10 +38,12 @@ def melee(n: int, seed: int, climb_limit: float | None = None) -> Scene:
         rank=rng.permutation(n).astype(np.int64),
         active=active,
     )
+    velocity = np.zeros((m, 3))
+    velocity[0] = [30.0, -20.0, 0.0]
     obstacles = Obstacles(
-        center=rng.uniform(-2000.0, 2000.0, (5, 3)) * [1.0, 1.0, 0.1],
-        radius=rng.uniform(50.0, 200.0, 5),
-        velocity=np.zeros((5, 3)),
+        center=rng.uniform(-2000.0, 2000.0, (m, 3)) * [1.0, 1.0, 0.1],
+        radius=rng.uniform(50.0, 200.0, m),
+        velocity=velocity,
     )
     limits = kernel_limits(Limits())
     if climb_limit is not None:
@@ -69,12 +77,35 @@ def test_a_big_formation_plans_the_same_with_the_grid() -> None:
     assert_same_plan(synthetic_scene(120, 40), 1500)
 
 
-@pytest.mark.parametrize(("seed", "climb_limit"), [(0, None), (1, None), (2, 0.35)])
+@pytest.mark.parametrize(("seed", "climb_limit", "m"), [(0, None, 5), (1, None, 40), (2, 0.35, 5)])
 def test_a_melee_of_conflicts_plans_the_same_with_the_grid(
-    seed: int, climb_limit: float | None
+    seed: int, climb_limit: float | None, m: int
 ) -> None:
-    plan = assert_same_plan(melee(60, seed, climb_limit), 1500)
+    plan = assert_same_plan(melee(60, seed, climb_limit, m), 1500)
     assert plan.avoiding.sum() > 1000  # teammates repelled each other throughout
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_obstacle_grid_finds_the_same_obstacles_as_every_pair(seed: int) -> None:
+    scene = melee(300, seed, m=60)
+    f, o = scene.fleet, scene.obstacles
+    n, m = f.pos.shape[0], o.center.shape[0]
+    assert n * m >= OBSTACLE_GRID_MIN_PAIRS
+    start, near = np.zeros(n + 1, dtype=np.int64), np.empty(n * m, dtype=np.int64)
+    nearby_obstacles(f.pos, o.center, o.radius, o.velocity, scene.limits, 0.01, 25, start, near)
+    for i in range(n):  # every pair, by the same bound
+        d2 = ((f.pos[i] - o.center) ** 2).sum(axis=1)
+        reach = (
+            o.radius
+            + 25.0
+            + 300.0 / (np.pi / 6)
+            + 3 * 3.0
+            + np.linalg.norm(o.velocity, axis=1) * 3.0
+        )
+        reach += (300.0 + np.linalg.norm(o.velocity, axis=1)) * 0.25
+        expected = np.flatnonzero(d2 <= reach**2)
+        assert np.array_equal(near[start[i] : start[i + 1]], expected), i
+    assert start[n] > n  # most vehicles have obstacles near
 
 
 def test_the_grid_keeps_fewer_mates_than_all_pairs() -> None:
