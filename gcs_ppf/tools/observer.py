@@ -215,6 +215,10 @@ def observed_at(
     return mask
 
 
+HEADING_WINDOW_S = 1.0
+"""The leader's flight-path attitude is taken over this window of its track (s)."""
+
+
 def slot_distances(
     mission: Mission, tracks: dict[int, FloatArray], t: FloatArray
 ) -> dict[int, FloatArray]:
@@ -223,7 +227,10 @@ def slot_distances(
     ids = sorted(tracks)
     pos = resample(tracks, t)
     lead = ids.index(mission.leader.id)
-    vel = np.gradient(pos[:, lead], t, axis=0)
+    # the leader's flight path over a second: a gradient over 0.1 s of positions dated by
+    # their arrival put its yaw off by degrees (metres at the slots) on a busy machine
+    half = HEADING_WINDOW_S / 2.0
+    vel = (resample(tracks, t + half)[:, lead] - resample(tracks, t - half)[:, lead]) / (2 * half)
     pitch = np.arctan2(vel[:, 2], np.hypot(vel[:, 0], vel[:, 1]))
     yaw = np.arctan2(vel[:, 1], vel[:, 0])
     offsets = {}
