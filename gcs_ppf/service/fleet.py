@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from gcs_ppf.geodesy import geodetic_to_enu
 from gcs_ppf.guidance import lag
 from gcs_ppf.guidance.airframe import Airframe
@@ -41,14 +43,18 @@ WATCHDOG_PERIOD_S = 0.2
 """Vehicle seconds between two checks for silent vehicles."""
 STALL_S = 0.25
 """The watchdog woken this much later than it asked (our seconds): the event loop stalled."""
+STALL_DRAIN_S = 0.05
+"""After a stall, our seconds the links' readers get before anyone is declared lost."""
 ALL_SILENT_FACTOR = 3.0
 """When every vehicle is silent at once, each is lost only after this many timeouts."""
+BOOT_HISTORY_STEP_S = 0.05
+BOOT_HISTORY_KEPT = 400  # 20 s of ours
 ROUND_TRIPS_KEPT = 5
 MAX_ROUND_TRIP_S = 30.0  # a TIMESYNC answer older than this is not ours
 
 STREAMED = {  # message id → rate factor of settings.stream_rate_hz
     33: 1.0,  # GLOBAL_POSITION_INT
-    30: 1.0,  # ATTITUDE
+    30: 0.2,  # ATTITUDE (shown in GET /vehicles only: the tick plans from velocities)
     74: 0.5,  # VFR_HUD
     2: 0.2,  # SYSTEM_TIME
     1: 0.2,  # SYS_STATUS
@@ -67,6 +73,23 @@ class Vehicle:
     clock: VehicleClock = field(default_factory=VehicleClock)
     round_trips_s: deque[float] = field(default_factory=lambda: deque(maxlen=ROUND_TRIPS_KEPT))
     """The link's last round trips (our seconds), from TIMESYNC."""
+    boot_history: deque[tuple[float, int]] = field(
+        default_factory=lambda: deque(maxlen=BOOT_HISTORY_KEPT)
+    )
+    """(our seconds, its time_boot_ms) of its recent messages, one per ``BOOT_HISTORY_STEP_S``:
+    how far its clock went while another vehicle was silent."""
+
+    def clock_advance_s(self, since_s: float) -> float | None:
+        """Its seconds from our ``since_s`` to its last message (its clock as its messages
+        read; not carried on past the last, which a starved ground station reads late);
+        None if its history does not reach back to ``since_s``."""
+        h = self.boot_history
+        if not h or h[0][0] > since_s:
+            return None
+        walls = [w for w, _ in h]
+        boots = [b for _, b in h]
+        then = float(np.interp(since_s, walls, boots)) / 1000.0
+        return h[-1][1] / 1000.0 - then
 
     @property
     def round_trip_s(self) -> float | None:
@@ -174,6 +197,11 @@ class Fleet:
         boot_ms = getattr(msg, "time_boot_ms", None)
         if isinstance(boot_ms, int):
             vehicle.clock.observe(now, boot_ms)
+            h = vehicle.boot_history
+            if h and boot_ms < h[-1][1]:
+                h.clear()  # rebooted
+            if not h or now - h[-1][0] >= BOOT_HISTORY_STEP_S:
+                h.append((now, boot_ms))
         if vehicle.lost and msg.get_type() == "HEARTBEAT":
             vehicle.lost = False
             log.info("vehicle %d is back", sysid)
@@ -234,25 +262,24 @@ class Fleet:
     async def watchdog(self) -> None:
         """Mark vehicles lost after the timeout of silence, in their own seconds
         (``silent_vehicles``), checked every ``WATCHDOG_PERIOD_S`` of vehicle time.  After a
-        stall of the event loop (the watchdog itself woken ``STALL_S`` late) one round is
-        skipped: the links' readers have messages queued that they have not read yet, and
-        the vehicle read last would look silent (measured: four of five vehicles declared
-        lost at once after a 2.5 s stall, while the observer heard all of them)."""
+        stall of the event loop (the watchdog itself woken ``STALL_S`` late) the links'
+        readers first get ``STALL_DRAIN_S`` to read what queued meanwhile: otherwise the
+        vehicle read last looks silent (measured: four of five vehicles declared lost at
+        once after a 2.5 s stall, while the observer heard all of them)."""
         expected = time.monotonic()
         while True:
+            late = time.monotonic() - expected
+            if late > STALL_S:
+                log.warning("event loop stalled %.2f s: reading the links first", late)
+                await asyncio.sleep(STALL_DRAIN_S)
             now = time.monotonic()
-            stalled = now - expected > STALL_S
-            if not stalled:
-                for v in silent_vehicles(
-                    list(self.by_id.values()), now, self.settings.vehicle_timeout_s
-                ):
-                    v.lost = True
-                    ours = now - v.last_heard_s
-                    log.warning("vehicle %d lost (silent %.1f s of its time, %.2f s of ours)",
-                                v.system_id, v.clock.vehicle_seconds(ours), ours)  # fmt: skip
-            else:
-                log.warning("event loop stalled %.2f s: no vehicle declared lost this round",
-                            now - expected)  # fmt: skip
+            for v in silent_vehicles(
+                list(self.by_id.values()), now, self.settings.vehicle_timeout_s
+            ):
+                v.lost = True
+                ours = now - v.last_heard_s
+                log.warning("vehicle %d lost (silent %.1f s of its time, %.2f s of ours)",
+                            v.system_id, v.clock.vehicle_seconds(ours), ours)  # fmt: skip
             rate = max((v.clock.rate for v in self.by_id.values()), default=1.0)
             period = max(0.01, WATCHDOG_PERIOD_S / rate)
             expected = time.monotonic() + period
@@ -327,23 +354,28 @@ def planning_states(
 
 
 def silent_vehicles(vehicles: list[Vehicle], now_s: float, timeout_s: float) -> list[Vehicle]:
-    """The vehicles not lost yet that have been silent for ``timeout_s`` of their own time
-    *while another vehicle was heard*: silent that long, and that far behind the last one
-    heard.  A ground station starved of CPU reads every link late at once (measured: three
-    of five vehicles declared lost together under load, while an independent observer heard
-    all five without a gap over 0.12 s); so when every vehicle is silent together, each is
-    lost only after ``ALL_SILENT_FACTOR`` timeouts (a single vehicle: after the timeout)."""
+    """The vehicles not lost yet that have been silent for ``timeout_s`` of vehicle time
+    *while another vehicle was heard*, that silence counted on the clock of the vehicle heard
+    last (its time_boot_ms since the silent one was last heard: exact for vehicles whose
+    clocks run alike — real time, or one SITL's speed-up — whatever our own clock's hiccups
+    and however well the rates are estimated).  A ground station starved of CPU reads every
+    link late at once (measured: three of five vehicles declared lost together under load,
+    while an independent observer heard all five without a gap over 0.12 s), so when every
+    vehicle is silent together, each is lost only after ``ALL_SILENT_FACTOR`` timeouts of its
+    own rate's seconds (a single vehicle: after the timeout)."""
     alive = [v for v in vehicles if not v.lost]
-    if not alive:
-        return []
-    freshest = max(v.last_heard_s for v in alive)
     out = []
     for v in alive:
-        silent = v.clock.vehicle_seconds(now_s - v.last_heard_s)
-        behind = v.clock.vehicle_seconds(freshest - v.last_heard_s)
-        alone = len(alive) == 1
-        if silent > timeout_s and (
-            alone or behind > timeout_s or silent > ALL_SILENT_FACTOR * timeout_s
-        ):
+        others = [o for o in alive if o is not v and o.last_heard_s > v.last_heard_s]
+        own = v.clock.vehicle_seconds(now_s - v.last_heard_s)
+        if others:
+            ref = max(others, key=lambda o: o.last_heard_s)
+            advance = ref.clock_advance_s(v.last_heard_s)
+            if advance is not None:
+                if advance > timeout_s or own > ALL_SILENT_FACTOR * timeout_s:
+                    out.append(v)
+                continue
+        factor = 1.0 if len(alive) == 1 else ALL_SILENT_FACTOR
+        if own > factor * timeout_s:
             out.append(v)
     return out

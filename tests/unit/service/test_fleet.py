@@ -7,6 +7,7 @@ from collections.abc import Coroutine
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_ppf.mavlink import commands
@@ -69,21 +70,31 @@ def test_missing_parameters_are_asked_again_and_the_airframe_is_shown(tmp_path: 
     assert shown["airframe"]["roll_limit_deg"] is None
 
 
-def _heard(sysid: int, last_heard_s: float, rate: float = 1.0) -> Vehicle:
+def _heard(sysid: int, last_heard_s: float, rate: float = 1.0, since_s: float = 90.0) -> Vehicle:
+    """A vehicle heard every 0.1 s of ours from ``since_s`` to ``last_heard_s``, its clock
+    at ``rate`` (time_boot_ms 0 at ``since_s``)."""
     v = Vehicle(sysid, 0, VehicleTelemetry(sysid, 1), last_heard_s)
     v.clock.rate = rate
+    walls = [*np.arange(since_s, last_heard_s, 0.1), last_heard_s]
+    for w in walls:
+        v.boot_history.append((float(w), round(1000 * rate * (w - since_s))))
     return v
 
 
 def test_a_vehicle_silent_while_the_others_are_heard_is_lost_after_the_timeout() -> None:
-    fleet = [_heard(1, 100.0, rate=10.0), _heard(2, 100.6, rate=10.0), _heard(3, 100.6, 10.0)]
-    assert silent_vehicles(fleet, 100.45, timeout_s=5.0) == []  # 4.5 vehicle s
-    assert [v.system_id for v in silent_vehicles(fleet, 100.61, timeout_s=5.0)] == [1]
+    """Counted on the clock of the vehicle heard last (×10): 4.5 s, then 5.5 s of it."""
+    quiet = _heard(1, 100.0, rate=10.0)
+    assert silent_vehicles([quiet, _heard(2, 100.45, 10.0), _heard(3, 100.45, 10.0)],
+                           100.45, timeout_s=5.0) == []  # fmt: skip
+    late = silent_vehicles([quiet, _heard(2, 100.55, 10.0), _heard(3, 100.55, 10.0)],
+                           100.55, timeout_s=5.0)  # fmt: skip
+    assert [v.system_id for v in late] == [1]
 
 
 def test_a_ground_station_starved_of_cpu_does_not_lose_every_vehicle_at_once() -> None:
-    """Every link read 1 s late (10 vehicle s at ×10): nobody is behind anybody, so nobody is
-    lost until every vehicle has been silent for three timeouts."""
+    """Every link read 1 s late (10 vehicle s at ×10): nobody is behind anybody by the
+    others' clocks, so nobody is lost until every vehicle has been silent for three
+    timeouts of its own."""
     fleet = [_heard(i, 100.0 + 0.01 * i, rate=10.0) for i in (1, 2, 3, 4, 5)]
     assert silent_vehicles(fleet, 101.0, timeout_s=5.0) == []
     late = 100.05 + ALL_SILENT_FACTOR * 0.5 + 0.01
@@ -92,6 +103,17 @@ def test_a_ground_station_starved_of_cpu_does_not_lose_every_vehicle_at_once() -
 
 def test_a_single_vehicle_is_lost_after_the_timeout() -> None:
     assert len(silent_vehicles([_heard(1, 100.0)], 105.1, timeout_s=5.0)) == 1
-    lost = _heard(2, 0.0)
+    lost = _heard(2, 100.0)
     lost.lost = True
     assert silent_vehicles([lost], 105.1, timeout_s=5.0) == []
+
+
+def test_a_clock_not_measured_yet_is_timed_on_a_teammates() -> None:
+    """Wingman 3 silent since 100.0 with no rate of its own (1.0), the others at ×10 and
+    heard: lost after 0.5 s of ours (5 of the others' seconds), not 5 s."""
+    quiet = _heard(3, 100.0)
+    quiet.clock.rate = 1.0
+    fleet = [_heard(1, 100.55, rate=10.0), _heard(2, 100.55, rate=10.0), quiet]
+    assert [v.system_id for v in silent_vehicles(fleet, 100.55, timeout_s=5.0)] == [3]
+    fleet = [_heard(1, 100.45, rate=10.0), _heard(2, 100.45, rate=10.0), quiet]
+    assert silent_vehicles(fleet, 100.45, timeout_s=5.0) == []
