@@ -532,12 +532,15 @@ class FormationService:
         self._account_lag(run, [lags[i] for i in active if i in lags])
         if leader_id not in states:
             return False
-        positions = np.array([states[i].pos_m for i in sorted(active)], dtype=float)
+        # what the vehicles report, not where they are predicted to be when commands act:
+        # the target is reached, and distances kept, by the reported positions
+        reported = {v.system_id: pos for v, pos in located}
+        positions = np.array([reported[i] for i in sorted(active)], dtype=float)
         obstacles = obstacles_from_mission(mission).at(run.mission_time_s)
         run.min_separation_m = min_of(run.min_separation_m, separations(positions))
         run.min_clearance_m = min_of(run.min_clearance_m, clearance(positions, obstacles))
 
-        leader_pos = np.array(states[leader_id].pos_m)
+        leader_pos = np.array(reported[leader_id])
         previous, run.leader_pos = run.leader_pos, leader_pos
         if passes_within(
             previous, leader_pos, np.array(mission.target), mission.limits.target_accuracy
