@@ -177,15 +177,17 @@ def hold_orders(
 ) -> list[confirmation.Order]:  # fmt: skip
     """Each vehicle to a holding circle that cuts no obstacle's keep-out (twice the safe
     distance) at the radius it flies (``HOLD_TURN_RADII`` turn radii at its speed,
-    ``gcs_ppf.guidance.holding``): after completion (``stacked``) vehicle k of the mission
-    ``LOITER_STACK_M``·k above the target, so the circles of a formation flying close
-    together do not cross at one height; after an abort or a failure at its own height.  A
-    vehicle without a state is put in LOITER; one not ``heard`` (lost) is not commanded.  A
+    ``gcs_ppf.guidance.holding``), vehicle k of the mission ``LOITER_STACK_M``·k above the
+    target after completion (``stacked``), above the highest vehicle after an abort or a
+    failure: no two circles at one height (held at their own heights after a failure, a
+    leader and a wingman came to 42.5 m on crossing circles).  A vehicle without a state is
+    put in LOITER; one not ``heard`` (lost) is not commanded.  A
     ``hold_not_clear`` event when no circle keeps the keep-out."""
     mission = orders.mission
     obstacles = obstacles_from_mission(mission).at(mission_time_s)
     keep_out = 2.0 * mission.limits.safe_distance_obstacle
     out: list[confirmation.Order] = []
+    highest = max((st.pos_m[2] for st in states.values()), default=mission.target[2])
     for k, v in enumerate(mission.vehicles):
         if v.id not in heard:
             continue
@@ -200,7 +202,7 @@ def hold_orders(
         airframe_omega = airframes[v.id].max_turn_rate(s.speed_m_s)
         omega = min(airframe_omega or math.inf, mission.limits.max_yaw_rate)
         radius = max(HOLD_MIN_RADIUS_M, HOLD_TURN_RADII * s.speed_m_s / omega)
-        z = mission.target[2] + LOITER_STACK_M * k if stacked else s.pos_m[2]
+        z = (mission.target[2] if stacked else highest) + LOITER_STACK_M * k
         hold = holding.holding_circle(
             np.array(s.pos_m),
             s.yaw_rad,

@@ -288,7 +288,7 @@ class FormationService:
         """The run ends now (its state, at once: a hold that takes long to confirm, or a
         dead vehicle's that never is, does not delay it); every vehicle still heard then
         holds clear of every obstacle, in the background: after completion (``states``
-        given) stacked above the target, otherwise at its height."""
+        given) stacked above the target, otherwise stacked above the highest vehicle."""
         self._finish(run, state, outcome)
         run.ended_vehicle_s = self._fleet_time_s()
         stacked = states is not None
