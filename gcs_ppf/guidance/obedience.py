@@ -65,11 +65,7 @@ class Obedience:
     @staticmethod
     def obeys(report: Report) -> bool:
         ack = report.last_ack_result
-        return (
-            report.guided
-            and (ack is None or ack in (MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS))
-            and report.converging
-        )
+        return report.guided and (ack is None or ack in OBEYED) and report.converging
 
     def update(self, now_s: float, reports: list[Report]) -> tuple[list[int], list[int]]:
         """One tick at vehicle time ``now_s``: the vehicles newly flagged, and those that

@@ -79,8 +79,6 @@ class Run:
     fleet_lag: lag.Lag = field(default_factory=lambda: lag.Lag(0.0, 0.0))
     """The fleet's lag at the last tick (``gcs_ppf.guidance.lag``), vehicle seconds."""
     lag_budget: lag.Budget = field(default_factory=lambda: lag.Budget(LAG_BUDGET_S))
-    recent_work_s: deque[float] = field(default_factory=lambda: deque(maxlen=20))
-    """Our seconds from telemetry to commands sent, of the last ticks."""
 
 
 LAG_BUDGET_S = 1.0

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import itertools
 import logging
 import math
 import statistics
@@ -58,6 +59,7 @@ __all__ = ["FINISHED", "FormationService", "RunState"]
 log = logging.getLogger("gcs_ppf.service.runs")
 
 COURSE_COMMAND = {"course": 43002, "point": 192}  # the command each guidance mode flies by
+RECENT_TICKS = 20  # the tick's own work is the median of this many latest
 WATCH_AFTER_END_S = 60.0  # vehicle seconds the safety monitor goes on after a run ends
 
 
@@ -423,7 +425,6 @@ class FormationService:
             run.mission_time_s = now_v - run.start_vehicle_time_s
             done = await self._tick(run)
             run.tick_latency_s.append(time.perf_counter() - received)
-            run.recent_work_s.append(run.tick_latency_s[-1])
             if run.mission_time_s - last_sample >= sample_period:
                 last_sample = run.mission_time_s
                 self._sample(run)
@@ -527,7 +528,8 @@ class FormationService:
         )  # fmt: skip
         reporting = [(v, p) for v, p in located if v.system_id not in run.lost_ids]
         self._watch_safety(run, reporting, mission.ground if mission.ground is not None else ground)
-        work = statistics.median(run.recent_work_s) if run.recent_work_s else 0.0
+        recent = list(itertools.islice(reversed(run.tick_latency_s), RECENT_TICKS))
+        work = statistics.median(recent) if recent else 0.0
         states, active, lags = planning_states(located, work)
         self._account_lag(run, [lags[i] for i in active if i in lags])
         if leader_id not in states:

@@ -75,22 +75,6 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def free_port_block(span: int) -> int:
-    """A base port P with P, P+10, … P+span free on 127.0.0.1 (best effort)."""
-    for _ in range(50):
-        base = free_port()
-        if base + span >= 65000:
-            continue
-        try:
-            for p in range(base, base + span + 1, 10):
-                with socket.socket() as t:
-                    t.bind(("127.0.0.1", p))
-            return base
-        except OSError:
-            continue
-    raise RuntimeError("no free port block")
-
-
 @contextmanager
 def process(
     args: list[str], log: Path, env: dict[str, str] | None = None

@@ -22,11 +22,11 @@ from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
 
 from gcs_ppf.planning.ppf.primitives import influence_radius
+from gcs_ppf.tools.observer import free_port_block
 from tests.web.harness import (
     ROOT,
     browser,
     free_port,
-    free_port_block,
     http,
     page_errors,
     process,
