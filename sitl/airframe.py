@@ -17,8 +17,9 @@ from __future__ import annotations
 import math
 from typing import Literal
 
+from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from gcs_ppf.mission import Limits
-from sitl.physics import GRAVITY_M_S2, TURN_EFFICIENCY
+from sitl.physics import GRAVITY_M_S2
 
 AirframeName = Literal["auto", "arduplane", "mission"]
 AIRFRAMES: tuple[AirframeName, ...] = ("auto", "arduplane", "mission")

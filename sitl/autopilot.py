@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 from gcs_ppf import geodesy
 from gcs_ppf.mavlink import enums
-from gcs_ppf.mavlink.ardupilot import PlaneMode
+from gcs_ppf.mavlink.ardupilot import ROLL_LAG_PER_TCONST, TURN_EFFICIENCY, PlaneMode
 from gcs_ppf.mavlink.enums import MAV_SEVERITY_CRITICAL, MAV_SEVERITY_INFO, MAV_SEVERITY_WARNING
 from gcs_ppf.mission import Origin
 from sitl import messages as mb
@@ -27,8 +27,6 @@ from sitl.physics import (
     GRAVITY_M_S2,
     HEIGHT_GAIN_TIMES_TIME_CONST,
     ORBIT_MARGIN,
-    ROLL_LAG_PER_TCONST,
-    TURN_EFFICIENCY,
     Envelope,
     Guidance,
     GuidanceKind,

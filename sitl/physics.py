@@ -46,6 +46,8 @@ from enum import IntEnum
 import numpy as np
 from numpy.typing import NDArray
 
+from gcs_ppf.mavlink.ardupilot import ROLL_LAG_PER_TCONST, ROLL_RATE_MAX_RAD_S, TURN_EFFICIENCY
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
@@ -54,15 +56,8 @@ GRAVITY_M_S2 = 9.80665
 #: Physics step of the SITL (50 Hz), seconds.
 DT_S = 0.02
 
-# Fitted to real ArduPlane 4.7 SITL (plane.parm), see tests/sitl/test_arduplane_calibration.py.
-#: Lag of the bank behind its demand, × RLL2SRV_TCONST (0.25 s: 45° of bank within 0.7 s
-#: of a course step of +90°).
-ROLL_LAG_PER_TCONST = 0.8
-#: Fastest roll, rad/s (the same step rolled at ~90°/s).
-ROLL_RATE_MAX_RAD_S = math.radians(90.0)
-#: Turn rate as a fraction of a coordinated turn's g tan φ / v at the same bank (trace 02
-#: turned at ~75 % of it, trace 08 loitered 94 m wide at 40° of bank: 70 %).
-TURN_EFFICIENCY = 0.72
+# Fitted to real ArduPlane 4.7 SITL (plane.parm), see tests/sitl/test_arduplane_calibration.py
+# (the roll loop's lag and rate and the turn efficiency are gcs_ppf.mavlink.ardupilot's).
 #: Lag of the climb rate behind TECS's climb-rate demand, × TECS_TIME_CONST (5 s: a 2 s
 #: lag, +50 m step: 3 m/s after 3 s).
 CLIMB_LAG_PER_TIME_CONST = 0.4

@@ -33,17 +33,12 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.planning.scene import FloatArray
 
 G_M_S2 = 9.80665
 """Standard gravity (ArduPilot's ``GRAVITY_MSS``)."""
-
-TURN_EFFICIENCY = 0.72
-"""The turn a bank gives, as a fraction of a coordinated turn's g·tan(φ)/v: real ArduPlane
-SITL (plane.parm) turned at 72–75 % of it (tests/data/arduplane-traces 02, 08 and 09: a
-6°/s turn at 18.6° of bank where a coordinated one needs 14.1°), so the bank for a
-planned turn is atan(v·ψ̇ / (η·g))."""
 
 DEFAULT_PLANNING_MARGIN_M = 100.0
 """Closed-loop planning margin tuned and measured at the paper's 100–300 m/s: a vehicle

@@ -3,35 +3,42 @@ can take effect, can still escape every keep-out; otherwise it gets the nearest 
 can (the simplex architecture: the planner is the advanced controller, this the safety one).
 
 Pure: arrays in, verdicts out.  The prediction is ArduPlane's response as the built-in SITL
-is calibrated to it (``sitl/calibration.py``): the course converges at most at the airframe's
-turn rate, first order with its heading time constant, the altitude at TECS's climb and
-sink limits, the speed held.  A command is *recoverable* when, from where the vehicle is at
-the end of ``hold_s`` (the lag of the telemetry, the link and the next tick), a turn to
-either side at the full turn rate through 180° (the way back is the way it came) keeps
-out of every keep-out: an obstacle's surface plus ``safe_distance_obstacle``, the ground plus
-the same, a teammate of higher priority (earlier in the order; the leader first) plus
-``safe_distance_uav``.  Teammates are predicted on their own (assured) commands, straight on
-after their hold.  Moving obstacles are taken where they are now (their motion over a few
-seconds is inside the planner's margins).
+is calibrated to it (``sitl/calibration.py``, ``gcs_ppf.mavlink.ardupilot``): the turn is what
+the bank gives, the bank follows GUIDED's P-only demand (the course error over the heading
+time constant, at most the airframe's turn rate) with the roll loop's lag and rate limit,
+from the bank the vehicle flies now (a vehicle turning hard one way first rolls out: at
+100 m/s, 1.5 s and 150 m the other way, measured on a lossy link under load); the altitude
+at TECS's climb and sink limits, the speed held.  A command is *recoverable* when, from
+where the vehicle is at the end of ``hold_s`` (the lag of the telemetry, the link and the
+next tick), a turn to either side at the full bank through 180° (the way back is the way
+it came), rolled into from the bank it then has, keeps out of every keep-out: an
+obstacle's surface plus ``safe_distance_obstacle``, the ground plus the same, a teammate
+of higher priority (earlier in the order; the leader first) plus ``safe_distance_uav``.
+Teammates are predicted on their own (assured) commands, straight on after their hold.
+Moving obstacles are taken where they are now (their motion over a few seconds is inside
+the planner's margins).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from gcs_ppf.planning.scene import FloatArray, Obstacles
+
+G_M_S2 = 9.80665
 
 #: Course offsets tried for an escape, nearest the command first (radians).
 ESCAPE_OFFSETS = tuple(
     math.radians(d) for d in (30, -30, 60, -60, 90, -90, 120, -120, 150, -150, 180)
 )
-#: Seconds between predicted samples.
-STEP_S = 0.25
-#: Samples along an escape half-circle.
-ARC_SAMPLES = 12
+#: Seconds between predicted samples (the roll loop's lag is ~0.2 s: integrated exactly).
+STEP_S = 0.125
+#: An escape's bank this near full (rad) is flown on as a circle.
+ROLLED_IN_RAD = math.radians(0.5)
 #: A replacement that is not safe either must beat the command by this much (m).
 BETTER_BY_M = 1.0
 
@@ -57,6 +64,23 @@ class Motion:
     sink_m_s: float
     heading_tau_s: float = 1.0
     """First-order time constant of the course (ArduPlane's GUIDED P-controller)."""
+    yaw_rate_rad_s: float = 0.0
+    """How fast it turns now (+: left), i.e. the bank it flies: a turn the other way first
+    rolls out of it."""
+    roll_lag_s: float = 0.0
+    """The bank's first-order lag behind its demand (ArduPlane: ``ROLL_LAG_PER_TCONST`` ×
+    RLL2SRV_TCONST); 0: the bank is where it is asked at once."""
+    roll_rate_rad_s: float = math.inf
+    """The fastest roll (rad/s)."""
+
+    def bank_for(self, yaw_rate_rad_s: float) -> float:
+        """The bank (rad, + left) that turns at ``yaw_rate_rad_s``."""
+        v = max(self.speed_m_s, 1e-6)
+        return math.atan(yaw_rate_rad_s * v / (TURN_EFFICIENCY * G_M_S2))
+
+    def yaw_rate_for(self, bank_rad: float) -> float:
+        """The turn (rad/s, + left) that ``bank_rad`` gives."""
+        return TURN_EFFICIENCY * G_M_S2 * math.tan(bank_rad) / max(self.speed_m_s, 1e-6)
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,39 +110,105 @@ def _wrap(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
-def hold_path(m: Motion, c: Command, hold_s: float) -> tuple[FloatArray, float]:
-    """Positions [k,3] (from now, every ``STEP_S``) while the vehicle flies ``c`` for
-    ``hold_s``, and its yaw at the end."""
+@dataclass(slots=True)
+class _Flight:
+    """Where the predicted vehicle is: position, yaw and bank (+ left)."""
+
+    x: float
+    y: float
+    z: float
+    yaw: float
+    bank: float
+
+
+def _step(m: Motion, f: _Flight, bank_demand: float, z_demand: float, dt: float) -> None:
+    """``dt`` seconds of flight: the bank towards its demand (first order, rate limited),
+    the turn it gives, the altitude towards ``z_demand`` within the climb and sink limits."""
+    gap = bank_demand - f.bank
+    if m.roll_lag_s > 0.0:
+        gap *= 1.0 - math.exp(-dt / m.roll_lag_s)
+    limit = m.roll_rate_rad_s * dt
+    bank = f.bank + max(-limit, min(limit, gap))
+    rate = 0.5 * (m.yaw_rate_for(f.bank) + m.yaw_rate_for(bank))
+    f.bank = bank
+    mid = f.yaw + 0.5 * rate * dt
+    f.yaw += rate * dt
+    f.x += m.speed_m_s * math.cos(mid) * dt
+    f.y += m.speed_m_s * math.sin(mid) * dt
+    f.z += max(-m.sink_m_s * dt, min(m.climb_m_s * dt, z_demand - f.z))
+
+
+def _start(m: Motion) -> _Flight:
+    x, y, z = m.pos_m
+    return _Flight(x, y, z, m.yaw_rad, m.bank_for(m.yaw_rate_rad_s))
+
+
+def _fly_hold(m: Motion, c: Command, hold_s: float) -> tuple[FloatArray, _Flight]:
     k = max(1, math.ceil(hold_s / STEP_S))
     dt = hold_s / k
-    x, y, z = m.pos_m
-    yaw = m.yaw_rad
+    f = _start(m)
+    most = m.bank_for(m.turn_rate_rad_s)
     out = np.empty((k + 1, 3))
-    out[0] = (x, y, z)
+    out[0] = (f.x, f.y, f.z)
     for i in range(1, k + 1):
-        err = _wrap(c.course_rad - yaw)
-        rate = max(-m.turn_rate_rad_s, min(m.turn_rate_rad_s, err / max(m.heading_tau_s, dt)))
-        yaw += rate * dt
-        x += m.speed_m_s * math.cos(yaw) * dt
-        y += m.speed_m_s * math.sin(yaw) * dt
-        dz = c.z_m - z
-        z += max(-m.sink_m_s * dt, min(m.climb_m_s * dt, dz))
-        out[i] = (x, y, z)
-    return out, yaw
+        wanted = _wrap(c.course_rad - f.yaw) / max(m.heading_tau_s, dt)  # GUIDED's P demand
+        _step(m, f, max(-most, min(most, m.bank_for(wanted))), c.z_m, dt)
+        out[i] = (f.x, f.y, f.z)
+    return out, f
 
 
-def escape_arcs(end: FloatArray, yaw: float, m: Motion) -> list[FloatArray]:
-    """The two half-circles [ARC_SAMPLES,3] flown from ``end`` heading ``yaw`` at the full
-    turn rate, left and right (level)."""
-    r = m.speed_m_s / max(m.turn_rate_rad_s, 1e-6)
-    phi = np.linspace(0.0, math.pi, ARC_SAMPLES)
+def hold_path(m: Motion, c: Command, hold_s: float) -> tuple[FloatArray, float]:
+    """Positions [k,3] (from now, every ``STEP_S`` or less) while the vehicle flies ``c``
+    for ``hold_s``, and its yaw at the end."""
+    path, f = _fly_hold(m, c, hold_s)
+    return path, f.yaw
+
+
+def advance(m: Motion, c: Command, dt_s: float) -> Motion:
+    """The vehicle ``dt_s`` later, flying ``c`` as predicted (its position, yaw and turn)."""
+    path, f = _fly_hold(m, c, dt_s)
+    x, y, z = (float(v) for v in path[-1])
+    return replace(m, pos_m=(x, y, z), yaw_rad=_wrap(f.yaw), yaw_rate_rad_s=m.yaw_rate_for(f.bank))
+
+
+def escape_s(m: Motion) -> float:
+    """The longest an escape takes: a half turn at the full rate, after rolling from full
+    bank one way to full bank the other."""
+    roll_over = 2.0 * m.bank_for(m.turn_rate_rad_s) / m.roll_rate_rad_s + 3.0 * m.roll_lag_s
+    return math.pi / max(m.turn_rate_rad_s, 1e-6) + roll_over
+
+
+def escape_arcs(m: Motion, end: _Flight) -> list[tuple[FloatArray, FloatArray]]:
+    """The two escapes flown from ``end``: full bank to the left and to the right, rolled
+    into from the bank it has, until the vehicle has turned 180°, level.  Each as positions
+    [k,3] every ``STEP_S`` and their times [k] from the escape's start.  The roll-in is
+    integrated; once the bank is within ``ROLLED_IN_RAD`` of full, the rest is a circle."""
+    most = m.bank_for(m.turn_rate_rad_s)
+    steps = math.ceil(escape_s(m) / STEP_S) + 1
     arcs = []
     for side in (1.0, -1.0):
-        cx = end[0] - side * r * math.sin(yaw)
-        cy = end[1] + side * r * math.cos(yaw)
-        a = yaw - side * math.pi / 2.0 + side * phi
-        arcs.append(np.column_stack([cx + r * np.cos(a), cy + r * np.sin(a),
-                                     np.full(ARC_SAMPLES, end[2])]))  # fmt: skip
+        f = _Flight(end.x, end.y, end.z, end.yaw, end.bank)
+        out = [(f.x, f.y, f.z)]
+        n = 0
+        while n < steps and abs(side * most - f.bank) > ROLLED_IN_RAD:
+            _step(m, f, side * most, end.z, STEP_S)
+            out.append((f.x, f.y, f.z))
+            n += 1
+        left = math.pi - side * (f.yaw - end.yaw)  # still to turn
+        rate = abs(m.yaw_rate_for(f.bank))
+        if left > 0.0 and rate > 1e-9:
+            r = m.speed_m_s / rate
+            turned = rate * STEP_S * np.arange(1, math.ceil(left / (rate * STEP_S)) + 1)
+            turned = np.minimum(turned, left)
+            cx = f.x - side * r * math.sin(f.yaw)
+            cy = f.y + side * r * math.cos(f.yaw)
+            a = f.yaw - side * math.pi / 2.0 + side * turned
+            circle = np.column_stack([cx + r * np.cos(a), cy + r * np.sin(a),
+                                      np.full(turned.shape[0], f.z)])  # fmt: skip
+            path = np.vstack([np.array(out), circle])
+        else:
+            path = np.array(out)
+        arcs.append((path, STEP_S * np.arange(path.shape[0], dtype=float)))
     return arcs
 
 
@@ -157,29 +247,43 @@ def score(
 ) -> tuple[float, str | None, Track]:
     """A command's margin: along its hold, then along the better of its two escapes (the
     teammates carried straight on meanwhile); with the vehicle's predicted track."""
-    path, yaw = hold_path(m, c, hold_s)
-    held_others = np.stack([o.path for o in others]) if others else None
+    path, end = _fly_hold(m, c, hold_s)
+    held_others = _held_others(others, path.shape[0])
     held, reason = margin(path, keep, held_others)
-    ahead = None
-    if others:
-        t = np.linspace(0.0, math.pi / max(m.turn_rate_rad_s, 1e-6), ARC_SAMPLES)[:, None]
-        ends = np.stack([o.path[-1] for o in others])[:, None, :]
-        velocities = np.stack([o.velocity_m_s for o in others])[:, None, :]
-        ahead = ends + velocities * t[None]
-    escapes = [margin(arc, keep, ahead) for arc in escape_arcs(path[-1], yaw, m)]
+    escapes = []
+    for arc, t in escape_arcs(m, end):
+        ahead = None
+        if others:
+            ends = np.stack([o.path[-1] for o in others])[:, None, :]
+            velocities = np.stack([o.velocity_m_s for o in others])[:, None, :]
+            ahead = ends + velocities * t[None, :, None]
+        escapes.append(margin(arc, keep, ahead))
     escape, escape_reason = max(escapes, key=lambda e: e[0])
-    velocity = m.speed_m_s * np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    velocity = m.speed_m_s * np.array([math.cos(end.yaw), math.sin(end.yaw), 0.0])
     track = Track(path, velocity)
     if escape < held:
         return escape, escape_reason, track
     return held, reason, track
 
 
+def _held_others(others: list[Track], k: int) -> FloatArray | None:
+    """The teammates' hold paths [n,k,3] (each padded with its last point, or cut, to k)."""
+    if not others:
+        return None
+    rows = []
+    for o in others:
+        p = o.path[:k]
+        if p.shape[0] < k:
+            p = np.vstack([p, np.repeat(p[-1:], k - p.shape[0], axis=0)])
+        rows.append(p)
+    return np.stack(rows)
+
+
 def within_reach(a: Motion, b: Motion, hold_s: float, keep: KeepOut) -> bool:
     """Whether two vehicles can come within the safe distance of each other during a hold
     and an escape (both at full speed towards each other): the others are not checked (at
     50 vehicles, checking every pair made a tick's p99 224 ms)."""
-    horizon = hold_s + math.pi / max(min(a.turn_rate_rad_s, b.turn_rate_rad_s), 1e-6)
+    horizon = hold_s + max(escape_s(a), escape_s(b))
     gap = math.dist(a.pos_m, b.pos_m)
     return gap < (a.speed_m_s + b.speed_m_s) * horizon + keep.safe_distance_uav
 

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs_ppf.guidance.airframe import TURN_EFFICIENCY
 from gcs_ppf.guidance.assurance import Motion
+from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from gcs_ppf.planning.scene import FloatArray, Obstacles
 
 #: Bearings tried, off the vehicle's heading (radians), nearest first.

@@ -11,6 +11,7 @@ by what that lag can cost.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 RELEASE_FRACTION = 0.8
@@ -46,6 +47,18 @@ def vehicle_lag(
     Without a round trip measured yet, the link counts as instantaneous."""
     half_trip = 0.0 if round_trip_s is None else 0.5 * round_trip_s
     return Lag((age_since_arrival_s + half_trip) * rate, (tick_work_s + half_trip) * rate)
+
+
+def hold_s(
+    tick_gaps_s: Iterable[float], tick_period_s: float, telemetry_interval_s: float, lag: Lag
+) -> float:
+    """How long a vehicle may fly the command it is sent now (vehicle seconds): until the
+    next tick's command acts, the tick coming as late as the latest ticks came
+    (``tick_gaps_s``: a ground station starved of CPU ticked 1.5–3 s of vehicle time apart
+    at 5×, where the period is 0.1 s), from a state as old as a telemetry interval, and
+    that command as late as this one."""
+    gap = max(max(tick_gaps_s, default=0.0), tick_period_s)
+    return gap + telemetry_interval_s + lag.command_delay_s
 
 
 def worst(lags: list[Lag]) -> Lag:

@@ -31,6 +31,8 @@ class VehicleState:
     pitch_rad: float
     yaw_rad: float
     speed_m_s: float
+    yaw_rate_rad_s: float = 0.0
+    """How fast its course turns (+: left), from the velocities it reports."""
 
 
 def state_from_velocity(
@@ -66,6 +68,7 @@ def state_from_velocity(
         pitch_rad=math.atan2(vu, horizontal),
         yaw_rad=math.atan2(math.sin(yaw + turned), math.cos(yaw + turned)),
         speed_m_s=math.sqrt(horizontal**2 + vu**2),
+        yaw_rate_rad_s=turn_rate_rad_s,
     )
 
 

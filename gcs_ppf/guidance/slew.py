@@ -26,8 +26,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from gcs_ppf.guidance.airframe import G_M_S2, TURN_EFFICIENCY, Airframe
+from gcs_ppf.guidance.airframe import G_M_S2, Airframe
 from gcs_ppf.guidance.online import Guidance
+from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 
 LATERAL_ACCEL_MARGIN = 1.5
 """param3 of the heading command allows this many times the planned turn's lateral

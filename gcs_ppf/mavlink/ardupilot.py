@@ -1,4 +1,5 @@
-"""ArduPlane facts a ground station relies on: flight-mode numbers, the armed flag, component ids.
+"""ArduPlane facts a ground station relies on: flight-mode numbers, the armed flag, component
+ids, and how its roll loop and turns answer (measured on real ArduPlane SITL).
 
 The mode numbers are ArduPlane's ``Mode::Number`` (``ArduPlane/mode.h``), which is also the
 ``PLANE_MODE`` enum of the ``ardupilotmega`` MAVLink dialect; ArduPlane reports the number in
@@ -17,6 +18,19 @@ AUTOPILOT_COMPONENT_ID = 1
 
 GCS_SYSTEM_ID = 255
 """The ground station's default system id (CONVENTIONS §5; ArduPilot's ``SYSID_MYGCS`` default)."""
+
+# How ArduPlane answers a bank demand, fitted to real ArduPlane 4.7 SITL (plane.parm;
+# ``tests/sitl/test_arduplane_calibration.py``, ``tests/data/arduplane-traces``): the built-in
+# SITL flies by these, the service predicts with them (``gcs_ppf.guidance.assurance``).
+ROLL_LAG_PER_TCONST = 0.8
+"""Lag of the bank behind its demand, × ``RLL2SRV_TCONST`` (0.25 s: 45° of bank within 0.7 s
+of a course step of +90°)."""
+ROLL_RATE_MAX_RAD_S = 1.5707963267948966
+"""Fastest roll, rad/s (the same step rolled at ~90°/s)."""
+TURN_EFFICIENCY = 0.72
+"""The turn a bank gives, as a fraction of a coordinated turn's g·tan(φ)/v: real ArduPlane
+SITL turned at 72–75 % of it (traces 02, 08 and 09: a 6°/s turn at 18.6° of bank where a
+coordinated one needs 14.1°; trace 08 loitered 94 m wide at 40° of bank: 70 %)."""
 
 GCS_COMPONENT_ID = 190
 """``MAV_COMP_ID_MISSIONPLANNER``: the component id ground stations send from."""

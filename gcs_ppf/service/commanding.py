@@ -21,7 +21,7 @@ from gcs_ppf.guidance import assurance, holding, slew
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import Guidance, VehicleState
 from gcs_ppf.mavlink import commands
-from gcs_ppf.mavlink.ardupilot import PlaneMode
+from gcs_ppf.mavlink.ardupilot import ROLL_LAG_PER_TCONST, ROLL_RATE_MAX_RAD_S, PlaneMode
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.scene import obstacles_from_mission
@@ -72,7 +72,13 @@ def motion(state: VehicleState, airframe: Airframe, mission: Mission) -> assuran
     climb = airframe.climb_max_m_s or DEFAULT_PATH_SLOPE * v
     sink = airframe.sink_max_m_s or DEFAULT_PATH_SLOPE * v
     tau = airframe.heading_time_constant_s(v) or 1.0
-    return assurance.Motion(state.pos_m, state.yaw_rad, v, turn, climb, sink, tau)
+    roll_tconst = airframe.roll_time_constant_s
+    if roll_tconst is None:  # not ArduPlane: the bank where it is asked at once
+        return assurance.Motion(state.pos_m, state.yaw_rad, v, turn, climb, sink, tau,
+                                state.yaw_rate_rad_s)  # fmt: skip
+    return assurance.Motion(state.pos_m, state.yaw_rad, v, turn, climb, sink, tau,
+                            state.yaw_rate_rad_s, ROLL_LAG_PER_TCONST * roll_tconst,
+                            ROLL_RATE_MAX_RAD_S)  # fmt: skip
 
 
 def planned_commands(

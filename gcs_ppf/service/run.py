@@ -69,6 +69,8 @@ class Run:
     """The course (ICS yaw, rad) each vehicle was last sent."""
     leader_pos: Any = None  # ICS position at the last tick
     tick_latency_s: deque[float] = field(default_factory=lambda: deque(maxlen=10_000))
+    tick_gaps_s: deque[float] = field(default_factory=lambda: deque(maxlen=RECENT_GAPS))
+    """Vehicle seconds between the latest ticks: how long a command may have to hold."""
     task: asyncio.Task[None] | None = None
     hold_task: asyncio.Task[None] | None = None
     """The holds after the end and the watch that follows them."""
@@ -81,6 +83,8 @@ class Run:
     lag_budget: lag.Budget = field(default_factory=lambda: lag.Budget(LAG_BUDGET_S))
 
 
+RECENT_GAPS = 50
+"""Ticks whose spacing sets how long a command may hold (5 s of vehicle time at 10 Hz)."""
 LAG_BUDGET_S = 1.0
 """Telemetry age + command delay (vehicle seconds) beyond which a ``lag_over_budget`` event
 is raised."""

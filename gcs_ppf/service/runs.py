@@ -37,6 +37,7 @@ from gcs_ppf.guidance.online import (
 )
 from gcs_ppf.guidance.tick_plan import passes_within, traffic_radius_m
 from gcs_ppf.mavlink.ardupilot import PlaneMode
+from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_HEADING
 from gcs_ppf.mission import Mission, Obstacle
 from gcs_ppf.planning.scene import obstacles_from_mission
 from gcs_ppf.service import commanding, confirmation, launch
@@ -58,7 +59,10 @@ __all__ = ["FINISHED", "FormationService", "RunState"]
 
 log = logging.getLogger("gcs_ppf.service.runs")
 
-COURSE_COMMAND = {"course": 43002, "point": 192}  # the command each guidance mode flies by
+COURSE_COMMAND = {  # the command each guidance mode flies by
+    "course": MAV_CMD_GUIDED_CHANGE_HEADING,
+    "point": MAV_CMD_DO_REPOSITION,
+}
 RECENT_TICKS = 20  # the tick's own work is the median of this many latest
 WATCH_AFTER_END_S = 60.0  # vehicle seconds the safety monitor goes on after a run ends
 
@@ -421,6 +425,8 @@ class FormationService:
                 run.start_vehicle_time_s = now_v
             if last_tick is not None and now_v - last_tick < period * 0.999:
                 continue
+            if last_tick is not None:
+                run.tick_gaps_s.append(now_v - last_tick)
             last_tick = now_v
             run.mission_time_s = now_v - run.start_vehicle_time_s
             done = await self._tick(run)
@@ -577,7 +583,9 @@ class FormationService:
             obstacles, mission.ground if mission.ground is not None else ground,
             lim.safe_distance_obstacle, lim.safe_distance_uav,
         )  # fmt: skip
-        hold_s = 1.0 / self.settings.tick_hz + telemetry_interval_s + run.fleet_lag.command_delay_s
+        hold_s = lag.hold_s(
+            run.tick_gaps_s, 1.0 / self.settings.tick_hz, telemetry_interval_s, run.fleet_lag
+        )
 
         def event(kind: str, vehicle_id: int | None = None, **detail: Any) -> None:
             self._event(run, kind, vehicle_id, **detail)

@@ -10,10 +10,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as hs
 
+from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from sitl.physics import (
     DT_S,
     GRAVITY_M_S2,
-    TURN_EFFICIENCY,
     Envelope,
     FleetState,
     GuidanceKind,

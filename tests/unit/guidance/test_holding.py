@@ -9,7 +9,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as hs
 
-from gcs_ppf.guidance.airframe import TURN_EFFICIENCY
 from gcs_ppf.guidance.assurance import Motion
 from gcs_ppf.guidance.holding import (
     Hold,
@@ -19,6 +18,7 @@ from gcs_ppf.guidance.holding import (
     points_clearance,
     ring_clearance,
 )
+from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from gcs_ppf.planning.scene import Obstacles
 
 

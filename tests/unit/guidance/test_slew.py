@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from gcs_ppf.guidance.airframe import G_M_S2, TURN_EFFICIENCY, Airframe
+from gcs_ppf.guidance.airframe import G_M_S2, Airframe
 from gcs_ppf.guidance.online import Guidance
 from gcs_ppf.guidance.slew import (
     airspeed_command,
@@ -20,6 +20,7 @@ from gcs_ppf.guidance.slew import (
     sendable_altitude,
     slew_command,
 )
+from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 
 GUIDED_P = 5000.0  # ArduPlane's default
 ROLL_LIMIT_DEG = 65.0
