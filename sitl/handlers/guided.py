@@ -11,6 +11,7 @@ from gcs_ppf.mavlink import enums
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.enums import (
     HEADING_TYPE_COURSE_OVER_GROUND,
+    HEADING_TYPE_DEFAULT,
     HEADING_TYPE_HEADING,
     MAV_CMD_GUIDED_CHANGE_ALTITUDE,
     MAV_CMD_GUIDED_CHANGE_HEADING,
@@ -31,7 +32,6 @@ GUIDED_SLEW_COMMANDS = (
     MAV_CMD_GUIDED_CHANGE_ALTITUDE,
     MAV_CMD_GUIDED_CHANGE_HEADING,
 )
-HEADING_TYPE_DEFAULT = 4
 
 
 def guided_item(
