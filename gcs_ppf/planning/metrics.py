@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from gcs_ppf.planning.planner import Trajectory
 from gcs_ppf.planning.scene import FloatArray, Obstacles
@@ -76,30 +77,24 @@ def _none_if_nan(x: float) -> float | None:
     return None if math.isnan(x) else float(x)
 
 
-def compute_metrics(
-    trajectory: Trajectory,
-    context: FlightContext,
-    *,
-    planning_wall_time_s: float | None = None,
-) -> dict[str, Any]:
-    """CONVENTIONS §4 metrics plus smoothness figures, fleet-wide and per vehicle."""
+@dataclass(frozen=True)
+class Safety:
+    """Separation and clearance of each vehicle over the whole flight, [N] each: the
+    nearest teammate (centre to centre), obstacle surface and ground (inf: none), and the
+    contacts counted (a contact is entering the collision distance)."""
+
+    separation: FloatArray
+    clearance: FloatArray
+    ground_clearance: FloatArray
+    pair_contacts: FloatArray  # [N*N], each pair twice
+    vehicle_contacts: FloatArray  # with teammates
+    obstacle_contacts: FloatArray  # with obstacles and the ground
+
+
+def safety(trajectory: Trajectory, context: FlightContext) -> Safety:
+    """Separation between vehicles and clearance to obstacle surfaces and the ground."""
     tr = trajectory
-    t = tr.t
-    n = tr.ids.shape[0]
-    k = t.shape[0]
-    dt = np.diff(t)
-    dt_safe = np.where(dt > 0, dt, np.inf)[:, None]
-
-    # Arrival and formation.
-    leader_gap = float(np.linalg.norm(tr.pos[-1, 0] - context.target))
-    reached = leader_gap <= context.target_accuracy + 1e-6
-    flight_time = float(t[-1]) if reached else None
-    offsets = np.linalg.norm(local_target_points(tr, context.slot) - tr.pos, axis=-1)
-    in_place = offsets <= context.target_accuracy + 1e-9
-    all_in_place = in_place[:, 1:].all(axis=1) if n > 1 else np.ones(k, dtype=bool)
-    formation_time = float(t[np.argmax(all_in_place)]) if all_in_place.any() else None
-
-    # Separation between vehicles (centre to centre) and clearance to obstacle surfaces.
+    k, n = tr.t.shape[0], tr.ids.shape[0]
     gaps = np.linalg.norm(tr.pos[:, :, None, :] - tr.pos[:, None, :, :], axis=-1)
     gaps[:, np.arange(n), np.arange(n)] = np.inf
     pair_contacts = _contacts(gaps.reshape(k, n * n), 2 * context.collision_radius)
@@ -107,7 +102,7 @@ def compute_metrics(
     obs = context.obstacles
     m = obs.radius.shape[0]
     if m:
-        centres = obs.center[None] + t[:, None, None] * obs.velocity[None]  # [K,M,3]
+        centres = obs.center[None] + tr.t[:, None, None] * obs.velocity[None]  # [K,M,3]
         clear = (
             np.linalg.norm(tr.pos[:, :, None, :] - centres[:, None], axis=-1)
             - obs.radius[None, None]
@@ -127,41 +122,94 @@ def compute_metrics(
         ground_clearance = height.min(axis=0)
     else:
         ground_clearance = np.full(n, np.inf)
+    return Safety(
+        separation=separation,
+        clearance=clearance,
+        ground_clearance=ground_clearance,
+        pair_contacts=pair_contacts,
+        vehicle_contacts=vehicle_contacts,
+        obstacle_contacts=obstacle_contacts_per_vehicle,
+    )
 
-    # Kinematics from differences of consecutive records.
+
+def _extreme(values: FloatArray, fn: Any, n: int, empty: float = 0.0) -> FloatArray:
+    """``fn`` over the records of each vehicle; ``empty`` for every vehicle of no records."""
+    out: FloatArray = fn(values, axis=0) if values.shape[0] else np.full(n, empty)
+    return out
+
+
+def kinematics(trajectory: Trajectory) -> dict[str, FloatArray]:
+    """Each vehicle's extreme pitch and yaw rates, speeds, acceleration and deceleration [N],
+    from differences of consecutive records."""
+    tr = trajectory
+    n = tr.ids.shape[0]
+    dt = np.diff(tr.t)
+    dt_safe = np.where(dt > 0, dt, np.inf)[:, None]
     pitch_rate = np.abs(np.diff(tr.pitch, axis=0)) / dt_safe
     yaw_step = np.angle(np.exp(1j * np.diff(tr.yaw, axis=0)))
     yaw_rate = np.abs(yaw_step) / dt_safe
     accel = np.diff(tr.speed, axis=0) / dt_safe
-    u = direction_vectors(tr.pitch, tr.yaw)
-    turn = np.degrees(np.arccos(np.clip((u[1:] * u[:-1]).sum(axis=-1), -1.0, 1.0)))
-    path_km = np.linalg.norm(np.diff(tr.pos, axis=0), axis=-1).sum(axis=0) / 1000.0
-    half = t >= t[-1] / 2
-    offset_rms = np.sqrt((offsets[half] ** 2).mean(axis=0))
+    return {
+        "max_pitch_rate_rad_s": _extreme(pitch_rate, np.max, n),
+        "max_yaw_rate_rad_s": _extreme(yaw_rate, np.max, n),
+        "min_speed_m_s": tr.speed.min(axis=0),
+        "max_speed_m_s": tr.speed.max(axis=0),
+        "max_accel_m_s2": np.maximum(_extreme(accel, np.max, n), 0.0),
+        "max_decel_m_s2": np.maximum(-_extreme(accel, np.min, n), 0.0),
+    }
+
+
+def step_turns_deg(trajectory: Trajectory) -> FloatArray:
+    """[K-1,N] the change of flight direction over each step, degrees."""
+    u = direction_vectors(trajectory.pitch, trajectory.yaw)
+    turn: FloatArray = np.degrees(np.arccos(np.clip((u[1:] * u[:-1]).sum(axis=-1), -1.0, 1.0)))
+    return turn
+
+
+def path_km(trajectory: Trajectory) -> FloatArray:
+    """[N] the length of each vehicle's path, km."""
+    km: FloatArray = np.linalg.norm(np.diff(trajectory.pos, axis=0), axis=-1).sum(axis=0) / 1000.0
+    return km
+
+
+def second_half(t: FloatArray) -> NDArray[np.bool_]:
+    """[K] the records of the second half of the flight, when a formation should be held."""
+    half: NDArray[np.bool_] = t >= t[-1] / 2
+    return half
+
+
+def smoothness(
+    trajectory: Trajectory, turn: FloatArray, km: FloatArray, offsets: FloatArray
+) -> dict[str, float | None]:
+    """The fleet's smoothness figures (see the module's docstring); ``turn`` [K-1,N] from
+    ``step_turns_deg``, ``km`` [N] from ``path_km``, ``offsets`` [K,N] from the local
+    target points."""
+    tr = trajectory
+    n = tr.ids.shape[0]
+    half = second_half(tr.t)
     hold = half[1:] & half[:-1]  # steps within the second half
     hold_turn = turn[hold][:, 1:].sum()
     hold_km = np.linalg.norm(np.diff(tr.pos, axis=0)[hold][:, 1:], axis=-1).sum() / 1000.0
-
-    def extreme(values: FloatArray, fn: Any, empty: float = 0.0) -> FloatArray:
-        return fn(values, axis=0) if values.shape[0] else np.full(n, empty)
-
-    per = {
-        "max_pitch_rate_rad_s": extreme(pitch_rate, np.max),
-        "max_yaw_rate_rad_s": extreme(yaw_rate, np.max),
-        "min_speed_m_s": tr.speed.min(axis=0),
-        "max_speed_m_s": tr.speed.max(axis=0),
-        "max_accel_m_s2": np.maximum(extreme(accel, np.max), 0.0),
-        "max_decel_m_s2": np.maximum(-extreme(accel, np.min), 0.0),
-        "min_separation_m": separation,
-        "min_obstacle_clearance_m": clearance,
-        "min_ground_clearance_m": ground_clearance,
-        "collisions": vehicle_contacts + obstacle_contacts_per_vehicle,
-        "path_length_m": path_km * 1000.0,
-        "heading_change_deg_per_km": turn.sum(axis=0) / np.maximum(path_km, 1e-9),
-        "max_step_turn_deg": extreme(turn, np.max),
-        "local_target_offset_rms_m": offset_rms,
+    return {
+        "heading_change_deg_per_km": float(turn.sum() / max(km.sum(), 1e-9)),
+        "max_step_turn_deg": float(turn.max()) if turn.size else 0.0,
+        "wingman_offset_rms_m": _none_if_nan(
+            float(np.sqrt((offsets[half][:, 1:] ** 2).mean())) if n > 1 else math.nan
+        ),
+        "wingman_hold_heading_change_deg_per_km": _none_if_nan(
+            float(hold_turn / hold_km) if n > 1 and hold_km > 0 else math.nan
+        ),
     }
-    per_vehicle: dict[str, dict[str, Any]] = {}
+
+
+def per_vehicle_rows(
+    trajectory: Trajectory, per: dict[str, FloatArray], in_place: NDArray[np.bool_]
+) -> dict[str, dict[str, Any]]:
+    """Each vehicle's figures by its id: its role, ``per``'s values (None for infinite,
+    collisions as an int; no local target offset for the leader), and for a wingman the
+    first time it was in place (``in_place`` [K,N])."""
+    tr = trajectory
+    rows: dict[str, dict[str, Any]] = {}
     for i, vid in enumerate(tr.ids.tolist()):
         row: dict[str, Any] = {"role": "leader" if i == 0 else "wingman"}
         for key, values in per.items():
@@ -171,23 +219,60 @@ def compute_metrics(
             row[key] = int(v) if key == "collisions" else (None if math.isinf(v) else v)
         if i > 0:
             first = np.argmax(in_place[:, i])
-            row["formation_time_s"] = float(t[first]) if in_place[:, i].any() else None
-        per_vehicle[str(vid)] = row
+            row["formation_time_s"] = float(tr.t[first]) if in_place[:, i].any() else None
+        rows[str(vid)] = row
+    return rows
 
+
+def formation_time(t: FloatArray, in_place: NDArray[np.bool_]) -> float | None:
+    """The first time every wingman is within the target accuracy of its local target
+    point (``in_place`` [K,N]); a leader alone is in formation from the start."""
+    k, n = in_place.shape
+    all_in_place = in_place[:, 1:].all(axis=1) if n > 1 else np.ones(k, dtype=bool)
+    return float(t[np.argmax(all_in_place)]) if all_in_place.any() else None
+
+
+def compute_metrics(
+    trajectory: Trajectory,
+    context: FlightContext,
+    *,
+    planning_wall_time_s: float | None = None,
+) -> dict[str, Any]:
+    """CONVENTIONS §4 metrics plus smoothness figures, fleet-wide and per vehicle."""
+    tr = trajectory
+    t = tr.t
+    n = tr.ids.shape[0]
+    leader_gap = float(np.linalg.norm(tr.pos[-1, 0] - context.target))
+    reached = leader_gap <= context.target_accuracy + 1e-6
+    offsets = np.linalg.norm(local_target_points(tr, context.slot) - tr.pos, axis=-1)
+    in_place = offsets <= context.target_accuracy + 1e-9
+    safe = safety(tr, context)
+    turn = step_turns_deg(tr)
+    km = path_km(tr)
+    per = {
+        **kinematics(tr),
+        "min_separation_m": safe.separation,
+        "min_obstacle_clearance_m": safe.clearance,
+        "min_ground_clearance_m": safe.ground_clearance,
+        "collisions": safe.vehicle_contacts + safe.obstacle_contacts,
+        "path_length_m": km * 1000.0,
+        "heading_change_deg_per_km": turn.sum(axis=0) / np.maximum(km, 1e-9),
+        "max_step_turn_deg": _extreme(turn, np.max, n),
+        "local_target_offset_rms_m": np.sqrt((offsets[second_half(t)] ** 2).mean(axis=0)),
+    }
     flight = float(t[-1] - t[0])
     wall = planning_wall_time_s
-    min_sep = float(separation.min()) if n > 1 else None
-    min_clear = float(clearance.min()) if m else None
+    has_obstacles = context.obstacles.radius.shape[0] > 0
     return {
         "reached": bool(reached),
-        "flight_time_s": flight_time,
-        "formation_time_s": formation_time,
-        "min_separation_m": min_sep,
-        "min_obstacle_clearance_m": min_clear,
+        "flight_time_s": float(t[-1]) if reached else None,
+        "formation_time_s": formation_time(t, in_place),
+        "min_separation_m": float(safe.separation.min()) if n > 1 else None,
+        "min_obstacle_clearance_m": float(safe.clearance.min()) if has_obstacles else None,
         "min_ground_clearance_m": (
-            float(ground_clearance.min()) if context.ground is not None else None
+            float(safe.ground_clearance.min()) if context.ground is not None else None
         ),
-        "collisions": int(pair_contacts.sum() / 2 + obstacle_contacts_per_vehicle.sum()),
+        "collisions": int(safe.pair_contacts.sum() / 2 + safe.obstacle_contacts.sum()),
         "max_pitch_rate_rad_s": float(per["max_pitch_rate_rad_s"].max()),
         "max_yaw_rate_rad_s": float(per["max_yaw_rate_rad_s"].max()),
         "min_speed_m_s": float(per["min_speed_m_s"].min()),
@@ -198,15 +283,6 @@ def compute_metrics(
         "real_time_factor": (flight / wall) if wall else None,
         "simulated_time_s": flight,
         "leader_distance_to_target_m": leader_gap,
-        "smoothness": {
-            "heading_change_deg_per_km": float(turn.sum() / max(path_km.sum(), 1e-9)),
-            "max_step_turn_deg": float(turn.max()) if turn.size else 0.0,
-            "wingman_offset_rms_m": _none_if_nan(
-                float(np.sqrt((offsets[half][:, 1:] ** 2).mean())) if n > 1 else math.nan
-            ),
-            "wingman_hold_heading_change_deg_per_km": _none_if_nan(
-                float(hold_turn / hold_km) if n > 1 and hold_km > 0 else math.nan
-            ),
-        },
-        "per_vehicle": per_vehicle,
+        "smoothness": smoothness(tr, turn, km, offsets),
+        "per_vehicle": per_vehicle_rows(tr, per, in_place),
     }

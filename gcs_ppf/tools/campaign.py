@@ -149,79 +149,133 @@ def fly_once(
     workdir.mkdir(parents=True, exist_ok=True)
     doc = json.loads(mission_path.read_text())
     mission = Mission.model_validate(doc)
-    n = len(mission.vehicles)
-    base = free_port_block(10 * n)
+    base = free_port_block(10 * len(mission.vehicles))
     api_port = free_port_block(1)
     ports = {v.id: base + 10 * k for k, v in enumerate(mission.vehicles)}
-    url = f"http://127.0.0.1:{api_port}"
     rec: dict[str, Any] = {"mission": mission.name, "condition": cond.key, "dir": str(workdir)}
     sitl = [sys.executable, "-m", "sitl", str(mission_path), "--speedup", f"{cond.speedup:g}",
             "--base-port", str(base), "--seed", str(seed), *cond.sitl_args]  # fmt: skip
     serve = [sys.executable, "-m", "gcs_ppf.cli", "serve", "--port", str(api_port),
              "--db", str(workdir / "gcs.db")]  # fmt: skip
-    env = {"GCS_PPF_TLOG_DIR": str(workdir / "tlogs")}
     budget_s = (mission.planner.max_time + 60.0) / cond.speedup * 2.0 + 60.0
     t_total = time.monotonic()
-    sitl_log = workdir / "sitl.log"
+    url = f"http://127.0.0.1:{api_port}"
     with ExitStack() as stack, httpx.Client(base_url=url, timeout=5.0) as api:
-        # The service first: the vehicles fly straight on from their start states until the
-        # run starts, so the SITL starts only once the service is up (its first start may
-        # compile the planner), and the service connects to it then.
-        stack.enter_context(process(serve, workdir / "serve.log", env))
-        wait_for(lambda: _get(api, "/missions") is not None, 180, "the service")
-        stack.enter_context(process(sitl, sitl_log))
-        wait_for(lambda: "sitl ready" in sitl_log.read_text(), 60, "the SITL")
-        for p in ports.values():
-            api.post("/links", json={"url": f"tcp:127.0.0.1:{p}"}).raise_for_status()
-        obs = stack.enter_context(Observer(ports))
-        wait_for(lambda: len(_get(api, "/vehicles") or []) == n, 60, "vehicles discovered")
-        wait_for(lambda: all(obs.latest_boot_ms().values()), 30, "the observer's first samples")
-        r = api.post("/missions", json=doc)
-        r.raise_for_status()
-        mid = r.json()["id"]
-        start_v = max(obs.latest_boot_ms().values()) / 1000.0
-        t0 = time.monotonic()
-        r = api.post(f"/missions/{mid}/start")
-        r.raise_for_status()
-        status: dict[str, Any] = {}
-        event: dict[str, Any] | None = None
-        while time.monotonic() - t0 < budget_s:
-            status = _get(api, f"/missions/{mid}/status") or status
-            if status.get("state") in FINISHED:
-                break
-            if cond.event and event is None and (status.get("mission_time_s") or 0) >= event_at_s:
-                event = _inject(cond.event, mission, ports, obs, status)
-            time.sleep(0.1)
-        end_wall = time.time()
-        rec["wall_s"] = round(time.monotonic() - t0, 1)
-        end_v = max(obs.latest_boot_ms().values()) / 1000.0
-        wait_for(lambda: max(obs.latest_boot_ms().values()) / 1000.0 >= end_v + after_s,
-                 after_s / cond.speedup * 4 + 30, "vehicle time after the end")  # fmt: skip
-        # the service watches after the end too: a violation then makes a completed run
-        # completed_unsafe, so its last word is read after the watch
-        status = _get(api, f"/missions/{mid}/status") or status
-        events = _get(api, f"/missions/{mid}/events") or []
-        rec["events"] = [(e["kind"], e["vehicle_id"]) for e in events]
-        ended = [e["wall_s"] for e in events if e["kind"] in {f"run_{s}" for s in FINISHED}]
-        if ended:  # the service's own moment (the status poll may be held up by an event)
-            end_wall = min(end_wall, min(ended))
+        obs = _start_processes(stack, api, sitl, serve, workdir, ports)
+        flight = _fly(api, doc, mission, cond, ports, obs, budget_s, event_at_s, after_s, rec)
     rec["total_wall_s"] = round(time.monotonic() - t_total, 1)
     raw = {v: {"pos": r.pos, "texts": r.texts} for v, r in obs.records.items()}
-    (workdir / "observer.json").write_text(json.dumps({"end_wall": end_wall, **raw}))
-    tracks = tracks_enu(obs, mission)
-    mission_time = float(status.get("mission_time_s") or 0.0)
+    (workdir / "observer.json").write_text(json.dumps({"end_wall": flight.end_wall, **raw}))
+    status, event = flight.status, flight.event
     rec.update(state=status.get("state", "no status"), outcome=status.get("outcome"),
-               mission_time_s=round(mission_time, 1), event=event,
+               mission_time_s=round(flight.mission_time_s, 1), event=event,
                service={k: status.get(k) for k in ("min_separation_m", "min_obstacle_clearance_m",
                                                    "safety_violations")})  # fmt: skip
     if status.get("state") not in FINISHED:
         rec["state"] = f"not finished after {budget_s:.0f} s"
-    j = judge(mission, tracks, start_v, end_v + after_s, run_start_s=end_v - mission_time)
+    _judge_run(rec, flight, obs, mission, after_s)
+    rec["ok"] = rec["state"] == cond.expect
+    if cond.event == "kill":
+        rec["ok"] = rec["ok"] and _failed_in_time(rec, obs, mission, event, flight.end_wall)
+    return rec
+
+
+@dataclass(frozen=True)
+class Flight:
+    """What a run left for judging: the service's last status and the event injected, the
+    watch window in vehicle seconds (the start, the end seen by the status poll) and the
+    end in wall time (``time.time()``)."""
+
+    status: dict[str, Any]
+    event: dict[str, Any] | None
+    start_v: float
+    end_v: float
+    end_wall: float
+
+    @property
+    def mission_time_s(self) -> float:
+        return float(self.status.get("mission_time_s") or 0.0)
+
+
+def _start_processes(
+    stack: ExitStack, api: httpx.Client, sitl: list[str], serve: list[str], workdir: Path,
+    ports: dict[int, int],
+) -> Observer:  # fmt: skip
+    """Start the service and the SITL in ``stack``, link the service to every vehicle, and
+    the observer once the vehicles are discovered and heard."""
+    # The service first: the vehicles fly straight on from their start states until the
+    # run starts, so the SITL starts only once the service is up (its first start may
+    # compile the planner), and the service connects to it then.
+    env = {"GCS_PPF_TLOG_DIR": str(workdir / "tlogs")}
+    stack.enter_context(process(serve, workdir / "serve.log", env))
+    wait_for(lambda: _get(api, "/missions") is not None, 180, "the service")
+    sitl_log = workdir / "sitl.log"
+    stack.enter_context(process(sitl, sitl_log))
+    wait_for(lambda: "sitl ready" in sitl_log.read_text(), 60, "the SITL")
+    for p in ports.values():
+        api.post("/links", json={"url": f"tcp:127.0.0.1:{p}"}).raise_for_status()
+    obs = stack.enter_context(Observer(ports))
+    wait_for(lambda: len(_get(api, "/vehicles") or []) == len(ports), 60, "vehicles discovered")
+    wait_for(lambda: all(obs.latest_boot_ms().values()), 30, "the observer's first samples")
+    return obs
+
+
+def _fly(
+    api: httpx.Client, doc: dict[str, Any], mission: Mission, cond: Condition,
+    ports: dict[int, int], obs: Observer, budget_s: float, event_at_s: float, after_s: float,
+    rec: dict[str, Any],
+) -> Flight:  # fmt: skip
+    """Upload and start the mission, inject the condition's event on time, wait for the end
+    (or ``budget_s``) and ``after_s`` of vehicle time more; ``rec`` gets the run's wall
+    time and the service's events."""
+    r = api.post("/missions", json=doc)
+    r.raise_for_status()
+    mid = r.json()["id"]
+    start_v = max(obs.latest_boot_ms().values()) / 1000.0
+    t0 = time.monotonic()
+    r = api.post(f"/missions/{mid}/start")
+    r.raise_for_status()
+    status: dict[str, Any] = {}
+    event: dict[str, Any] | None = None
+    while time.monotonic() - t0 < budget_s:
+        status = _get(api, f"/missions/{mid}/status") or status
+        if status.get("state") in FINISHED:
+            break
+        if cond.event and event is None and (status.get("mission_time_s") or 0) >= event_at_s:
+            event = _inject(cond.event, mission, ports, obs, status)
+        time.sleep(0.1)
+    end_wall = time.time()
+    rec["wall_s"] = round(time.monotonic() - t0, 1)
+    end_v = max(obs.latest_boot_ms().values()) / 1000.0
+    wait_for(lambda: max(obs.latest_boot_ms().values()) / 1000.0 >= end_v + after_s,
+             after_s / cond.speedup * 4 + 30, "vehicle time after the end")  # fmt: skip
+    # the service watches after the end too: a violation then makes a completed run
+    # completed_unsafe, so its last word is read after the watch
+    status = _get(api, f"/missions/{mid}/status") or status
+    events = _get(api, f"/missions/{mid}/events") or []
+    rec["events"] = [(e["kind"], e["vehicle_id"]) for e in events]
+    ended = [e["wall_s"] for e in events if e["kind"] in {f"run_{s}" for s in FINISHED}]
+    if ended:  # the service's own moment (the status poll may be held up by an event)
+        end_wall = min(end_wall, min(ended))
+    return Flight(status, event, start_v, end_v, end_wall)
+
+
+def _judge_run(
+    rec: dict[str, Any], flight: Flight, obs: Observer, mission: Mission, after_s: float
+) -> None:
+    """The observer's judgement of the run into ``rec``: the window watched, separation and
+    clearance (a stuck wingman's apart: it is not controlled), the lowest heights, the
+    leader's distance to the target, the violations of the safe distances, who sank."""
+    tracks = tracks_enu(obs, mission)
+    end_v = flight.end_v
+    j = judge(mission, tracks, flight.start_v, end_v + after_s,
+              run_start_s=end_v - flight.mission_time_s)  # fmt: skip
     lim = mission.limits
+    event = flight.event
     uncontrolled = [event["vehicle"]] if event and event["kind"] == "stuck" else []
     clearance = j.min_clearance_m(exclude=uncontrolled)
     rec.update(
-        window_s=[round(start_v, 1), round(end_v + after_s, 1)], samples=j.samples,
+        window_s=[round(flight.start_v, 1), round(end_v + after_s, 1)], samples=j.samples,
         min_separation_m=_r(j.min_separation_m), closest_pair=j.closest_pair,
         min_clearance_m=_r(clearance),
         uncontrolled_clearance_m=_r(min((c for v, c in j.clearance_m.items()
@@ -239,10 +293,6 @@ def fly_once(
     rec["sank"] = [
         v for v, h in j.lowest_m.items() if h is not None and h < lim.safe_distance_obstacle
     ]
-    rec["ok"] = rec["state"] == cond.expect
-    if cond.event == "kill":
-        rec["ok"] = rec["ok"] and _failed_in_time(rec, obs, mission, event, end_wall)
-    return rec
 
 
 def _r(x: float | None) -> float | None:

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import pytest
 
-from sitl.calibration import EXPERIMENTS, TRACES, compare, load_meta
+from sitl.calibration import EXPERIMENTS, compare
+from sitl.recordings import TRACES, load_meta
 
 
 def test_the_recordings_are_real_arduplane_4_7() -> None:

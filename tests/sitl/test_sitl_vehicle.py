@@ -11,6 +11,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from gcs_ppf.geodesy import enu_to_geodetic
 from gcs_ppf.mavlink.ardupilot import PlaneMode
+from gcs_ppf.mavlink.enums import HEADING_TYPE_DEFAULT
 from gcs_ppf.mission import load_mission_file
 from sitl.autopilot import Outbox
 from sitl.engine import ParamOverride, Simulation
@@ -153,7 +154,7 @@ def test_guided_change_heading_holds_a_course_until_cancelled() -> None:
     cmd_long(sim, 176, 1, 15)
     assert cmd_long(sim, HEADING, 0, 0.0, 50.0) == UNSUPPORTED  # COMMAND_INT only
     assert slew(sim, HEADING, 0, 360.0, 50.0) == DENIED
-    assert slew(sim, HEADING, 2, 0.0, 50.0) == DENIED  # no such heading type
+    assert slew(sim, HEADING, 3, 0.0, 50.0) == DENIED  # no such heading type
     assert slew(sim, HEADING, 0, 0.0, 5.0) == ACCEPTED  # north, 5 m/s² of lateral acceleration
     yaw0 = float(sim.state.yaw_rad[0])
     run(sim, 2.0)
@@ -161,7 +162,7 @@ def test_guided_change_heading_holds_a_course_until_cancelled() -> None:
     assert slew(sim, HEADING, 0, 0.0, 100.0) == ACCEPTED
     run(sim, 30.0)
     assert float(sim.state.yaw_rad[0]) == pytest.approx(math.pi / 2, abs=0.01)  # held
-    assert slew(sim, HEADING, 4, 0.0, 0.0) == ACCEPTED  # HEADING_TYPE_DEFAULT: cancel
+    assert slew(sim, HEADING, HEADING_TYPE_DEFAULT, 0.0, 0.0) == ACCEPTED  # cancel
     assert ap.guided_course is None
     assert slew(sim, HEADING, 1, 270.0, 100.0) == ACCEPTED  # west
     run(sim, 10.0)
@@ -170,6 +171,23 @@ def test_guided_change_heading_holds_a_course_until_cancelled() -> None:
     assert ap.guided_course is None
     assert slew(sim, HEADING, 0, 90.0, 100.0) == ACCEPTED
     assert cmd_long(sim, 176, 1, 12) == ACCEPTED  # LOITER
+    assert ap.guided_course is None
+
+
+def test_heading_type_default_cancels_the_course_and_4_is_no_heading_type() -> None:
+    """ArduPlane's ``handle_command_int_guided_slew_commands`` switches on MAVLink's
+    HEADING_TYPE: HEADING_TYPE_DEFAULT (2 in the dialect) cancels the course
+    (GUIDED_HEADING_NONE); a type the enum does not have, 4 among them, is DENIED."""
+    assert HEADING_TYPE_DEFAULT == mavlink.HEADING_TYPE_DEFAULT == 2
+    sim = sim_of()
+    ap = sim.autopilots[0]
+    cmd_long(sim, 176, 1, 15)  # GUIDED
+    assert slew(sim, HEADING, 0, 0.0, 50.0) == ACCEPTED
+    held = ap.guided_course
+    assert held is not None
+    assert slew(sim, HEADING, 4, 0.0, 0.0) == DENIED
+    assert ap.guided_course == held  # a refused command changes nothing
+    assert slew(sim, HEADING, HEADING_TYPE_DEFAULT, 0.0, 0.0) == ACCEPTED
     assert ap.guided_course is None
 
 

@@ -1,0 +1,88 @@
+"""Routes of missions: stored, planned offline, their obstacles replaced, started, aborted,
+and their status and events."""
+
+from __future__ import annotations
+
+import asyncio
+from typing import TYPE_CHECKING, Any
+
+from fastapi import APIRouter, status
+
+from api.deps import ERRORS, MissionId, Service
+from api.models import MissionDetail, MissionSummary, mission_detail, mission_summary
+from gcs_ppf.mission import Mission, Obstacle
+
+if TYPE_CHECKING:
+    from gcs_ppf.offline.plan import PlanRun
+
+router = APIRouter()
+
+
+@router.post("/missions", status_code=status.HTTP_201_CREATED)
+async def create_mission(mission: Mission, service: Service) -> MissionDetail:
+    return mission_detail(service.create_mission(mission))
+
+
+@router.get("/missions")
+async def list_missions(service: Service) -> list[MissionSummary]:
+    return [mission_summary(m) for m in service.missions()]
+
+
+@router.get("/missions/{mission_id}", responses=ERRORS)
+async def get_mission(mission_id: MissionId, service: Service) -> MissionDetail:
+    return mission_detail(service.mission(mission_id))
+
+
+@router.post("/missions/{mission_id}/plan", responses=ERRORS)
+async def plan(mission_id: MissionId, service: Service, every_s: float = 1.0) -> dict[str, Any]:
+    """The offline plan from the same planner: metrics (CONVENTIONS §4) and the
+    trajectories decimated to one point every ``every_s`` seconds."""
+    from gcs_ppf.offline.plan import plan_mission
+
+    mission = service.mission(mission_id).mission
+    every_s = min(max(every_s, mission.planner.dt), 60.0)
+    run = await asyncio.to_thread(plan_mission, mission)
+    return {"metrics": run.metrics, "trajectories": decimated_trajectories(run, every_s)}
+
+
+def decimated_trajectories(run: PlanRun, every_s: float) -> dict[str, dict[str, Any]]:
+    """Each vehicle's times, positions and speeds every ``every_s`` seconds, the last
+    record always kept, by vehicle id."""
+    tr = run.trajectory
+    step = max(1, round(every_s / run.dt))
+    keep = list(range(0, len(tr), step)) + ([len(tr) - 1] if (len(tr) - 1) % step else [])
+    return {
+        str(vid): {
+            "t": tr.t[keep].round(3).tolist(),
+            "position_m": tr.pos[keep, i].round(2).tolist(),
+            "speed_m_s": tr.speed[keep, i].round(2).tolist(),
+        }
+        for i, vid in enumerate(tr.ids.tolist())
+    }
+
+
+@router.put("/missions/{mission_id}/obstacles", responses=ERRORS)
+async def put_obstacles(
+    mission_id: MissionId, obstacles: list[Obstacle], service: Service
+) -> MissionDetail:
+    return mission_detail(service.replace_obstacles(mission_id, obstacles))
+
+
+@router.post("/missions/{mission_id}/start", status_code=status.HTTP_202_ACCEPTED, responses=ERRORS)
+async def start(mission_id: MissionId, service: Service) -> dict[str, Any]:
+    return await service.start(mission_id)
+
+
+@router.post("/missions/{mission_id}/abort", responses=ERRORS)
+async def abort(mission_id: MissionId, service: Service) -> dict[str, Any]:
+    return await service.abort(mission_id)
+
+
+@router.get("/missions/{mission_id}/status", responses=ERRORS)
+async def mission_status(mission_id: MissionId, service: Service) -> dict[str, Any]:
+    return service.status(mission_id)
+
+
+@router.get("/missions/{mission_id}/events", responses=ERRORS)
+async def mission_events(mission_id: MissionId, service: Service) -> list[dict[str, Any]]:
+    return service.events(mission_id)
