@@ -33,7 +33,7 @@ from pymavlink import mavutil
 from gcs_ppf.mission import Mission
 from gcs_ppf.tools.observer import Observer, free_port_block, judge, tracks_enu
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]  # the repository (gcs_ppf/tools/ → ../..)
 EXAMPLES = ROOT / "examples"
 DEFAULT_MISSIONS = ("paper_table3", "paper_table2", "scene_head_on", "scene_narrow_gap")
 FINISHED = ("completed", "completed_unsafe", "aborted", "failed")
@@ -333,7 +333,7 @@ def _failed_in_time(
 def mission_path(name: str) -> Path:
     """A mission file, or the name of one in examples/ (``paper_table3``)."""
     p = Path(name)
-    return p if p.suffix == ".json" else EXAMPLES / f"{name}.json"
+    return p.resolve() if p.suffix == ".json" else EXAMPLES / f"{name}.json"
 
 
 def run_campaign(
