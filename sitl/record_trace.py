@@ -8,6 +8,12 @@ course and altitude, then command a course that turns at ``--rate-dps`` for 40 s
 MAV_CMD_GUIDED_CHANGE_HEADING every 0.1 s of the vehicle's time, param3 10 m/s²) and 20 s
 more on the last course: how far ArduPlane's P-only heading controller lags a turning
 course. Time is the vehicle's (time_boot_ms), t = 0 at the first ramp command.
+
+``climb-at-speed``: the same takeoff and settling, then MAV_CMD_DO_CHANGE_SPEED to
+``--airspeed`` (28 m/s: near AIRSPEED_MAX, where a formation's leader flies to its target)
+for 25 s, then MAV_CMD_GUIDED_CHANGE_ALTITUDE +50 m with param3 = 0 for 60 s: how TECS
+shares its energy between speed and height when the speed asked is high. t = 0 at the
+altitude command.
 """
 
 from __future__ import annotations
@@ -117,6 +123,8 @@ def take_off(rec: Recorder, altitude_m: float = 100.0) -> None:
     rec.set_mode(TAKEOFF)
     rec.pump(1.0)
     while not (rec.rel_alt >= altitude_m - 5.0):
+        if rec.mode != TAKEOFF:  # refused while the autopilot is still starting
+            rec.set_mode(TAKEOFF)
         rec.command(400, 1)  # arm (refused until the EKF and GPS are ready)
         rec.pump(1.0)
         print(f"taking off: mode {rec.mode}, {rec.rel_alt:.1f} m", file=sys.stderr)
@@ -124,13 +132,7 @@ def take_off(rec: Recorder, altitude_m: float = 100.0) -> None:
 
 def heading_ramp(rec: Recorder, rate_dps: float) -> int:
     """The heading-ramp experiment; the vehicle time of its first ramp command, ms."""
-    take_off(rec)
-    rec.set_mode(GUIDED)
-    rec.pump(1.0)
-    c0 = round(rec.course, 1)
-    rec.command_int(43002, 0, (0, c0, 10.0))
-    rec.command_int(43001, 3, (0, 0, 0.0), z=round(rec.rel_alt, 1))
-    rec.wait_sim(15.0)
+    c0 = settle(rec)
     t0 = rec.boot_ms
     step_ms = 0
     while rec.boot_ms - t0 < 60_000:
@@ -142,15 +144,43 @@ def heading_ramp(rec: Recorder, rate_dps: float) -> int:
     return t0
 
 
+def settle(rec: Recorder) -> float:
+    """TAKEOFF to 100 m, GUIDED, hold the current course and altitude for 15 s; the course."""
+    take_off(rec)
+    rec.set_mode(GUIDED)
+    rec.pump(1.0)
+    c0 = round(rec.course, 1)
+    rec.command_int(43002, 0, (0, c0, 10.0))
+    rec.command_int(43001, 3, (0, 0, 0.0), z=round(rec.rel_alt, 1))
+    rec.wait_sim(15.0)
+    return c0
+
+
+def climb_at_speed(rec: Recorder, airspeed_m_s: float) -> int:
+    """The climb-at-speed experiment; the vehicle time of its altitude command, ms."""
+    settle(rec)
+    rec.command(178, 0, airspeed_m_s, -1)  # DO_CHANGE_SPEED: airspeed, throttle unchanged
+    rec.wait_sim(25.0)
+    target = round(rec.rel_alt + 50.0, 1)
+    t0 = rec.boot_ms
+    rec.command_int(43001, 3, (0, 0, 0.0), z=target)
+    rec.wait_sim(60.0)
+    return t0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m sitl.record_trace", description=__doc__)
     p.add_argument("url", help="pymavlink connection string of the vehicle")
-    p.add_argument("experiment", choices=["heading-ramp"])
+    p.add_argument("experiment", choices=["heading-ramp", "climb-at-speed"])
     p.add_argument("out", type=Path)
     p.add_argument("--rate-dps", type=float, default=6.0)
+    p.add_argument("--airspeed", type=float, default=28.0)
     a = p.parse_args(argv)
     rec = Recorder(a.url)
-    t0 = heading_ramp(rec, a.rate_dps)
+    if a.experiment == "heading-ramp":
+        t0 = heading_ramp(rec, a.rate_dps)
+    else:
+        t0 = climb_at_speed(rec, a.airspeed)
     rec.write(a.out, t0)
     print(f"wrote {a.out}: {len(rec.rows)} messages, t0 = {t0} ms")
     return 0

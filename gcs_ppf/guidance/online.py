@@ -42,9 +42,11 @@ def state_from_velocity(
     vd_m_s: float,
     age_s: float = 0.0,
     turn_rate_rad_s: float = 0.0,
+    flight_path_vd_m_s: float | None = None,
 ) -> VehicleState:
     """VehicleState from an ICS position and a NED velocity (GLOBAL_POSITION_INT), carried
-    ``age_s`` seconds on along that velocity, turning at ``turn_rate_rad_s`` (+: left).
+    ``age_s`` seconds on along that velocity, turning at ``turn_rate_rad_s`` (+: left); its
+    flight-path pitch from ``flight_path_vd_m_s`` (an averaged vertical speed) when given.
 
     Each vehicle's position arrives at its own moment within the stream's period; planned
     as if simultaneous, the formation's geometry is off by up to v × period (20 m at 200 m/s
@@ -65,7 +67,7 @@ def state_from_velocity(
         dy = r * (math.cos(yaw) - math.cos(yaw + turned))
     return VehicleState(
         pos_m=(x + dx, y + dy, z + vu * age_s),
-        pitch_rad=math.atan2(vu, horizontal),
+        pitch_rad=math.atan2(vu if flight_path_vd_m_s is None else -flight_path_vd_m_s, horizontal),
         yaw_rad=math.atan2(math.sin(yaw + turned), math.cos(yaw + turned)),
         speed_m_s=math.sqrt(horizontal**2 + vu**2),
         yaw_rate_rad_s=turn_rate_rad_s,

@@ -20,6 +20,13 @@ UINT16_UNKNOWN = 0xFFFF
 """GLOBAL_POSITION_INT.hdg when the heading is unknown."""
 COURSE_RATE_SMOOTHING = 0.5
 """Weight of the newest measurement in the course rate (an exponential average)."""
+FLIGHT_PATH_SMOOTHING_S = 2.0
+"""Time constant (vehicle seconds) of the averaged vertical speed the flight path is planned
+from.  ArduPlane's TECS holds a height with a ±2–4 m/s oscillation of the vertical speed
+(a 6–8 s period, measured on real ArduPlane SITL in formation): planned from the
+instantaneous flight path, each tick's altitude demand a few seconds ahead swung with it
+(±3 m) and fed the oscillation, and the slots 200 m behind the leader (Eq. 6 turns them
+with its pitch) swung ±15 m."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,6 +93,8 @@ class VehicleTelemetry:
     """How fast the course over the ground turns (rad/s, from north, +: clockwise, as the
     heading), from successive
     GLOBAL_POSITION_INT velocities in vehicle time, smoothed (``COURSE_RATE_SMOOTHING``)."""
+    vd_mean_m_s: float | None = None
+    """GLOBAL_POSITION_INT.vz averaged over ``FLIGHT_PATH_SMOOTHING_S`` of vehicle time."""
     roll_rad: float | None = None
     pitch_rad: float | None = None
     yaw_rad: float | None = None
@@ -179,6 +188,18 @@ def _course_rate(tel: VehicleTelemetry, vn: float, ve: float, boot_ms: int) -> f
     return a * turned / dt + (1.0 - a) * tel.course_rate_rad_s
 
 
+def _vd_mean(tel: VehicleTelemetry, vd: float, boot_ms: int) -> float:
+    """The vertical speed averaged over ``FLIGHT_PATH_SMOOTHING_S`` (the first one as it is,
+    and again after a gap of more than a second of vehicle time)."""
+    if tel.vd_mean_m_s is None or tel.position_boot_ms is None:
+        return vd
+    dt = (boot_ms - tel.position_boot_ms) / 1000.0
+    if not 0.0 <= dt <= 1.0:
+        return vd
+    a = 1.0 - math.exp(-dt / FLIGHT_PATH_SMOOTHING_S)
+    return a * vd + (1.0 - a) * tel.vd_mean_m_s
+
+
 def _global_position_int(
     tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float
 ) -> dict[str, Any]:
@@ -187,6 +208,7 @@ def _global_position_int(
     return {
         "position_boot_ms": int(msg.time_boot_ms),
         "course_rate_rad_s": _course_rate(tel, vn, ve, int(msg.time_boot_ms)),
+        "vd_mean_m_s": _vd_mean(tel, msg.vz * 1e-2, int(msg.time_boot_ms)),
         "lat_deg": msg.lat * 1e-7,
         "lon_deg": msg.lon * 1e-7,
         "alt_amsl_m": msg.alt * 1e-3,

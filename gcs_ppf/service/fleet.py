@@ -346,7 +346,7 @@ def planning_states(
         ahead = min(lags[vehicle.system_id].total_s, MAX_PREDICTION_S)
         turn = -t.course_rate_rad_s  # clockwise from north → ICS yaw rate
         states[vehicle.system_id] = state_from_velocity(
-            pos, t.vn_m_s, t.ve_m_s, t.vd_m_s, ahead, turn
+            pos, t.vn_m_s, t.ve_m_s, t.vd_m_s, ahead, turn, t.vd_mean_m_s
         )
         if not vehicle.lost:
             active.add(vehicle.system_id)

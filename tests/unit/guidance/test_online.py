@@ -160,3 +160,13 @@ def test_the_airframes_envelope_tightens_the_planned_scene(table3: Mission) -> N
     assert np.all(small.fleet.speed <= 30.0)
     unknown = scene_now(table3, states, ids, obstacles, envelope=OnlineLimits())
     assert unknown.limits == scene_now(table3, states, ids, obstacles).limits
+
+
+def test_the_flight_path_is_planned_from_the_averaged_vertical_speed_when_given() -> None:
+    """Carried on along the velocity it reports, pitched as its averaged vertical speed."""
+    s = state_from_velocity((0.0, 0.0, 100.0), 20.0, 0.0, -3.0, age_s=1.0,
+                            flight_path_vd_m_s=-1.0)  # fmt: skip
+    assert s.pos_m[2] == pytest.approx(103.0)  # climbing 3 m/s now
+    assert s.pitch_rad == pytest.approx(math.atan2(1.0, 20.0))
+    plain = state_from_velocity((0.0, 0.0, 100.0), 20.0, 0.0, -3.0, age_s=1.0)
+    assert plain.pitch_rad == pytest.approx(math.atan2(3.0, 20.0))

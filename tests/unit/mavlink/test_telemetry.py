@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import numpy as np
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
@@ -197,3 +198,31 @@ def test_the_course_rate_is_measured_from_successive_velocities_in_vehicle_time(
     assert tel.course_rate_rad_s == pytest.approx(0.0, abs=1e-3)
     tel = apply(tel, _position(20_000, 120.0), 1.0)
     assert tel.course_rate_rad_s == 0.0
+
+
+def _climbing(boot_ms: int, vd_m_s: float) -> MAVLinkMessage:
+    return _wire(mavlink2.MAVLink_global_position_int_message(
+        boot_ms, 473977420, 85455940, 788500, 300250, 2500, 0, round(vd_m_s * 100), 0
+    ))  # fmt: skip
+
+
+def test_the_flight_path_is_the_vertical_speed_averaged_over_tecs_oscillations() -> None:
+    """A ±3 m/s oscillation of the vertical speed with a 6 s period (ArduPlane's TECS in
+    formation) about a 1 m/s climb: the average stays near the climb; a steady climb is
+    followed; after a gap of more than a second the newest speed is taken as it is."""
+    tel = apply(None, _heartbeat(), 0.0)
+    means = []
+    for k in range(600):  # 60 s at 10 Hz
+        vd = -1.0 + 3.0 * math.sin(2.0 * math.pi * k * 0.1 / 6.0)
+        tel = apply(tel, _climbing(1000 + 100 * k, vd), 0.01 * k)
+        assert tel.vd_m_s == pytest.approx(vd, abs=0.01)
+        if k >= 300:
+            assert tel.vd_mean_m_s is not None
+            means.append(tel.vd_mean_m_s)
+    assert max(means) - min(means) < 0.5 * 6.0  # the swing attenuated by more than half
+    assert float(np.mean(means)) == pytest.approx(-1.0, abs=0.1)
+    for k in range(600, 800):
+        tel = apply(tel, _climbing(1000 + 100 * k, -2.0), 0.01 * k)
+    assert tel.vd_mean_m_s == pytest.approx(-2.0, abs=0.01)
+    tel = apply(tel, _climbing(200_000, 4.0), 3.0)
+    assert tel.vd_mean_m_s == 4.0
