@@ -158,3 +158,16 @@ def test_the_prediction_rolls_out_of_the_bank_as_the_sitl_flight_model_does() ->
     assert lowest_y < 0.0  # it did fly on to the right first (measured −5.1 m)
     assert error < 10.0  # measured 2.6 m
     assert naive > 10.0 * error  # measured 174 m
+
+
+def test_a_vehicle_diving_at_an_obstacle_with_no_level_escape_pulls_up() -> None:
+    """Told to descend onto a sphere below and ahead, with no turn left that clears it at
+    the commanded altitude, the vehicle is sent up instead: the escape is vertical."""
+    walls = sphere(0.0, 0.0, -300.0, 400.0)  # its top 100 m up; the keep-out 125 m up
+    m = Motion((-200.0, 0.0, 180.0), 0.0, 100.0, 0.5, climb_m_s=60.0, sink_m_s=60.0,
+               heading_tau_s=0.4)  # fmt: skip
+    [v] = assure([m], [Command(0.0, 0.0)], hold_s=2.0, keep=keep(walls, ground=None))
+    assert v.replaced
+    assert v.reason == "obstacle"
+    assert v.chosen_margin_m >= 0.0
+    assert v.command.z_m >= 180.0
