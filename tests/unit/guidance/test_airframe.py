@@ -14,7 +14,6 @@ from gcs_ppf.guidance.airframe import (
     DEFAULT_GUARD_RESOLUTION_M,
     DEFAULT_PLANNING_MARGIN_M,
     G_M_S2,
-    TURN_EFFICIENCY,
     Airframe,
     guard_tuning,
     online_limits,
@@ -22,6 +21,7 @@ from gcs_ppf.guidance.airframe import (
     response_lag_s,
     tick_envelope,
 )
+from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 
 PLANE_PARM = {  # ArduPlane 4.7 SITL, plane.parm defaults (../shared/arduplane-traces/meta.json)
     "TECS_CLMB_MAX": 5.0,

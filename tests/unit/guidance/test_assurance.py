@@ -121,7 +121,11 @@ def test_the_prediction_rolls_out_of_the_bank_as_the_sitl_flight_model_does() ->
     nearer than a prediction that starts the turn from wings level."""
     from dataclasses import replace
 
-    from gcs_ppf.mavlink.ardupilot import ROLL_LAG_PER_TCONST, ROLL_RATE_MAX_RAD_S
+    from gcs_ppf.mavlink.ardupilot import (
+        ROLL_LAG_PER_TCONST,
+        ROLL_RATE_MAX_RAD_S,
+        TURN_EFFICIENCY,
+    )
     from sitl import physics
 
     v, w = 100.0, math.pi / 6
@@ -129,8 +133,8 @@ def test_the_prediction_rolls_out_of_the_bank_as_the_sitl_flight_model_does() ->
         1, v_min=v, v_max=v, accel=10.0, decel=40.0, max_pitch_rate=w, max_yaw_rate=w,
         ground_z_m=np.zeros(1),
     )  # fmt: skip
-    env.roll_limit_rad[:] = math.atan(v * w / (physics.TURN_EFFICIENCY * physics.GRAVITY_M_S2))
-    env.heading_gain[:] = v / (0.4 * physics.TURN_EFFICIENCY * physics.GRAVITY_M_S2)
+    env.roll_limit_rad[:] = math.atan(v * w / (TURN_EFFICIENCY * physics.GRAVITY_M_S2))
+    env.heading_gain[:] = v / (0.4 * TURN_EFFICIENCY * physics.GRAVITY_M_S2)
     bank = math.radians(70.0)  # MAVLink sign: right wing down, a clockwise turn
     s = physics.initial_state(np.array([[0.0, 0.0, 300.0]]), np.zeros(1), np.zeros(1),
                               np.full(1, v))  # fmt: skip
@@ -146,7 +150,7 @@ def test_the_prediction_rolls_out_of_the_bank_as_the_sitl_flight_model_does() ->
         lowest_y = min(lowest_y, float(s.pos_enu_m[0, 1]))
     flown = s.pos_enu_m[0]
 
-    turning_right = -physics.TURN_EFFICIENCY * physics.GRAVITY_M_S2 * math.tan(bank) / v
+    turning_right = -TURN_EFFICIENCY * physics.GRAVITY_M_S2 * math.tan(bank) / v
     m = Motion((0.0, 0.0, 300.0), 0.0, v, w, 50.0, 50.0, heading_tau_s=0.4,
                yaw_rate_rad_s=turning_right, roll_lag_s=ROLL_LAG_PER_TCONST * 0.25,
                roll_rate_rad_s=ROLL_RATE_MAX_RAD_S)  # fmt: skip
