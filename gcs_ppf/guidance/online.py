@@ -17,7 +17,7 @@ from gcs_ppf.frames import local_target_point
 from gcs_ppf.geodesy import velocity_ned_to_enu
 from gcs_ppf.guidance.airframe import OnlineLimits
 from gcs_ppf.mission import Mission
-from gcs_ppf.planning.planner import STATE_NAMES, advance
+from gcs_ppf.planning.planner import STATE_NAMES, Trajectory, advance
 from gcs_ppf.planning.ppf.kernel import KernelLimits
 from gcs_ppf.planning.scene import FloatArray, Obstacles, Scene, scene_from_mission
 
@@ -234,52 +234,98 @@ def guidance(
     of Eq. 19 can alternate between full and partial steps), 0 for the leader flying the
     line of sight or going around.
     """
-    steps = max(1, round(lookahead_s / dt))
-    run = advance(scene, dt, steps)
+    run = advance(scene, dt, max(1, round(lookahead_s / dt)))
     tr = run.trajectory
-    k_lead = min(len(tr) - 1, max(0, round(lead_s / dt) - 1))
+    k_lead = _record_at(len(tr), lead_s, dt)
+    aim = _planned_aim(scene, tr, k_lead, climb_rate_floor_m_s, turn_window_s)
+    _leader_closes(scene, aim, run.arrived)
+    return Guidance(
+        ids=scene.fleet.ids.tolist(),
+        guided_point_m=_guided_points(scene, aim, carrot_m),
+        speed_m_s=tr.speed[k_lead].copy(),
+        course_rad=aim.course_rad,
+        turn_rate_rad_s=aim.turn_rate_rad_s,
+        climb_rate_m_s=aim.climb_rate_m_s,
+        state=[STATE_NAMES[int(s)] for s in tr.state[0]],
+        avoiding=[bool(a) for a in tr.avoiding[0]],
+        formed=[bool(f) for f in tr.formed[0]],
+        local_target_distance_m=[None, *_slot_distances_m(scene)],
+        leader_arrives_within_lookahead=run.arrived,
+        speed_ahead_m_s=tr.speed[_record_at(len(tr), speed_lead_s, dt)].copy(),
+    )
+
+
+@dataclass
+class _Aim:
+    """What ``guidance`` reads off the plan for each vehicle [N] (ICS), before the leader's
+    final approach or go-around replaces its own."""
+
+    ahead_m: FloatArray  # [N,3] planned position lookahead_s on
+    yaw_rad: FloatArray  # [N] planned heading lookahead_s on: the guided point's bearing
+    course_rad: FloatArray  # [N] planned heading lead_s on
+    climb_rate_m_s: FloatArray  # [N]
+    turn_rate_rad_s: FloatArray  # [N]
+
+
+def _record_at(n_records: int, t_s: float, dt: float) -> int:
+    """The plan's record ``t_s`` on (record k is after step k + 1), within the plan."""
+    return min(n_records - 1, max(0, round(t_s / dt) - 1))
+
+
+def _planned_aim(
+    scene: Scene, tr: Trajectory, k_lead: int, climb_rate_floor_m_s: float, turn_window_s: float
+) -> _Aim:
+    """Position and heading at the plan's end; course, climb rate (the planned vertical
+    speed plus ``climb_rate_floor_m_s``) and turn rate at record ``k_lead``."""
+    return _Aim(
+        ahead_m=tr.pos[-1].copy(),
+        yaw_rad=tr.yaw[-1].copy(),
+        course_rad=tr.yaw[k_lead].copy(),
+        climb_rate_m_s=np.abs(tr.speed[k_lead] * np.sin(tr.pitch[k_lead])) + climb_rate_floor_m_s,
+        turn_rate_rad_s=planned_turn_rate(scene.fleet.yaw, tr.t, tr.yaw, k_lead, turn_window_s),
+    )
+
+
+def _leader_closes(scene: Scene, aim: _Aim, arrived: bool) -> None:
+    """The leader's aim replaced (in place) on its final approach (``leader_approach``), or
+    when the plan arrives: through the target on the line of sight; on a go-around: straight
+    on at the target's altitude.  Either way it climbs as it can and does not turn."""
     fleet = scene.fleet
-    ids = fleet.ids.tolist()
-    ahead = tr.pos[-1].copy()
-    yaw = tr.yaw[-1].copy()
-    course = tr.yaw[k_lead].copy()
-    climb = np.abs(tr.speed[k_lead] * np.sin(tr.pitch[k_lead])) + climb_rate_floor_m_s
-    turn_rate = planned_turn_rate(fleet.yaw, tr.t, tr.yaw, k_lead, turn_window_s)
     approach = leader_approach(scene)
-    if run.arrived or approach == "final":  # through the target, on the line of sight
-        ahead[0] = scene.target
+    if arrived or approach == "final":  # through the target, on the line of sight
+        aim.ahead_m[0] = scene.target
         to_target = scene.target - fleet.pos[0]
-        yaw[0] = course[0] = math.atan2(to_target[1], to_target[0])
-        climb[0] = math.inf
-        turn_rate[0] = 0.0
+        aim.yaw_rad[0] = aim.course_rad[0] = math.atan2(to_target[1], to_target[0])
     elif approach == "go_around":  # straight on at the target's altitude, then come back
-        ahead[0] = (fleet.pos[0, 0], fleet.pos[0, 1], scene.target[2])
-        yaw[0] = course[0] = fleet.yaw[0]
-        climb[0] = math.inf
-        turn_rate[0] = 0.0
-    guided = ahead + carrot_m * np.stack([np.cos(yaw), np.sin(yaw), np.zeros_like(yaw)], axis=1)
+        aim.ahead_m[0] = (fleet.pos[0, 0], fleet.pos[0, 1], scene.target[2])
+        aim.yaw_rad[0] = aim.course_rad[0] = fleet.yaw[0]
+    else:
+        return
+    aim.climb_rate_m_s[0] = math.inf
+    aim.turn_rate_rad_s[0] = 0.0
+
+
+def _guided_points(scene: Scene, aim: _Aim, carrot_m: float) -> FloatArray:
+    """[N,3] each aim carried ``carrot_m`` on along its heading; an inactive vehicle's is
+    where it is."""
+    yaw = aim.yaw_rad
+    heading = np.stack([np.cos(yaw), np.sin(yaw), np.zeros_like(yaw)], axis=1)
+    guided = aim.ahead_m + carrot_m * heading
+    fleet = scene.fleet
     guided[~fleet.active] = fleet.pos[~fleet.active]
-    gaps = [
+    return guided
+
+
+def _slot_distances_m(scene: Scene) -> list[float]:
+    """Each wingman's distance from its slot behind the leader now (its local target)."""
+    fleet = scene.fleet
+    return [
         float(np.linalg.norm(
             local_target_point(fleet.pos[0], float(fleet.pitch[0]), float(fleet.yaw[0]),
                                fleet.slot[i]) - fleet.pos[i]
         ))
-        for i in range(1, len(ids))
+        for i in range(1, len(fleet.ids))
     ]  # fmt: skip
-    return Guidance(
-        ids=ids,
-        guided_point_m=guided,
-        speed_m_s=tr.speed[k_lead].copy(),
-        course_rad=course,
-        turn_rate_rad_s=turn_rate,
-        climb_rate_m_s=climb,
-        state=[STATE_NAMES[int(s)] for s in tr.state[0]],
-        avoiding=[bool(a) for a in tr.avoiding[0]],
-        formed=[bool(f) for f in tr.formed[0]],
-        local_target_distance_m=[None, *gaps],
-        leader_arrives_within_lookahead=run.arrived,
-        speed_ahead_m_s=tr.speed[min(len(tr) - 1, max(0, round(speed_lead_s / dt) - 1))].copy(),
-    )
 
 
 _WARM_UP_MISSION = {

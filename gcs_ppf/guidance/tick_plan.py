@@ -1,7 +1,7 @@
 """One tick's plan, pure: the envelope the fleet flies in now, the online scene, the PPF
 guidance and the separation guard's resolutions, with margins for the lag the tick measured.
 
-The service (``gcs_ppf.service.runs``) gathers the states and sends the commands; this is what
+The service (``gcs_ppf.service.flight``) gathers the states and sends the commands; this is what
 it decides in between, with no I/O and no clock.
 """
 

@@ -64,7 +64,7 @@ class Run:
     lost_ids: set[int] = field(default_factory=set)
     commanded_speed: dict[int, float] = field(default_factory=dict)
     ended_vehicle_s: float | None = None
-    """The fleet's vehicle time when the run ended (``FormationService._fleet_time_s``)."""
+    """The fleet's vehicle time when the run ended (``service.station.Station.fleet_time_s``)."""
     sent_course: dict[int, float] = field(default_factory=dict)
     """The course (ICS yaw, rad) each vehicle was last sent."""
     leader_pos: Any = None  # ICS position at the last tick
@@ -107,6 +107,19 @@ def latency_ms(run: Run) -> dict[str, float] | None:
         "p50": round(float(np.percentile(ms, 50)), 3),
         "p99": round(float(np.percentile(ms, 99)), 3),
         "ticks": int(ms.size),
+    }
+
+
+def summary(run: Run) -> dict[str, Any]:
+    """What the store keeps of a run when it ends (``StoredRun.summary``)."""
+    return {
+        "mission_time_s": run.mission_time_s,
+        "min_separation_m": run.min_separation_m,
+        "min_obstacle_clearance_m": run.min_clearance_m,
+        "safety_violations": run.safety.count,
+        "deepest_violation_m": run.safety.deepest_m,
+        "tick_latency_ms": latency_ms(run),
+        "worst_lag_s": round(run.lag_budget.worst_s, 3),
     }
 
 

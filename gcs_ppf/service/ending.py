@@ -1,0 +1,61 @@
+"""The end of a run: its final state and summary at once, then every vehicle still heard to
+a confirmed holding circle and the safety watch after the end (``service.watch``)."""
+
+from __future__ import annotations
+
+from gcs_ppf.guidance.airframe import Airframe
+from gcs_ppf.guidance.online import VehicleState
+from gcs_ppf.service import commanding, confirmation
+from gcs_ppf.service.fleet import planning_states
+from gcs_ppf.service.run import FINISHED, Run, RunState, summary
+from gcs_ppf.service.station import Station
+from gcs_ppf.service.watch import watch_after_end
+
+
+def finish(station: Station, run: Run, state: RunState, outcome: str) -> None:
+    """The run's final state, stored with its summary (once: a run already finished stays
+    as it is); completed with a safety violation is ``completed_unsafe``."""
+    if run.state in FINISHED:
+        return
+    if state == RunState.COMPLETED and run.safety.count:
+        state = RunState.COMPLETED_UNSAFE
+        outcome = f"{outcome}; {run.safety.count} safety violation(s)"
+    run.state = state
+    run.outcome = outcome
+    station.store.update_run(
+        run.record.id, state, ended=True, outcome=outcome, summary=summary(run)
+    )
+    station.event(run, f"run_{state}", outcome=outcome)
+    station.publish()
+
+
+def end(
+    station: Station, run: Run, state: RunState, outcome: str,
+    states: dict[int, VehicleState] | None = None,
+) -> None:  # fmt: skip
+    """The run ends now (its state, at once: a hold that takes long to confirm, or a
+    dead vehicle's that never is, does not delay it); every vehicle still heard then
+    holds clear of every obstacle, in the background: after completion (``states``
+    given) stacked above the target, otherwise stacked above the highest vehicle."""
+    finish(station, run, state, outcome)
+    run.ended_vehicle_s = station.fleet_time_s()
+    stacked = states is not None
+    if states is None:
+        states, _, _ = planning_states(list(station.located(run)))
+    run.hold_task = station.spawn(hold(station, run, states, stacked))
+
+
+async def hold(station: Station, run: Run, states: dict[int, VehicleState], stacked: bool) -> None:
+    """Each vehicle to its holding circle (``commanding.hold_orders``), every command
+    confirmed by its ACK and sent again while unanswered: a hold lost on a lossy link
+    left a vehicle flying its last course into an obstacle."""
+    fleet = station.fleet
+    airframes = {vid: Airframe.from_telemetry(v.telemetry) for vid, v in fleet.by_id.items()}
+    event = station.events_of(run)
+    heard = {i for i, v in fleet.by_id.items() if not v.lost}
+    orders = commanding.hold_orders(
+        run.orders, states, airframes, run.mission_time_s, stacked, event, heard
+    )
+    rate = max([v.clock.rate for v in fleet.by_id.values()] or [1.0])
+    await confirmation.confirm_all(fleet, orders, event, commanding.hold_retry(rate))
+    await watch_after_end(station, run)

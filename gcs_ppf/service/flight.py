@@ -1,0 +1,274 @@
+"""Flying one run: its vehicles launched, then a planning tick on the leader's clock until
+the run ends, each tick watching losses, safety, obedience and lag, planning
+(``guidance.tick_plan``) and commanding (``service.commanding``), sampling telemetry.
+
+The end itself (the run's final state, the holds, the watch after) is ``service.ending``.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import itertools
+import logging
+import math
+import statistics
+import time
+
+import numpy as np
+
+from gcs_ppf.guidance import assurance, lag, obedience, tick_plan
+from gcs_ppf.guidance.airframe import Airframe
+from gcs_ppf.guidance.online import VehicleState, clearance, home_ground, separations
+from gcs_ppf.guidance.tick_plan import passes_within, traffic_radius_m
+from gcs_ppf.mavlink.ardupilot import PlaneMode
+from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_HEADING
+from gcs_ppf.planning.scene import Obstacles, obstacles_from_mission
+from gcs_ppf.service import commanding, launch
+from gcs_ppf.service.ending import end
+from gcs_ppf.service.fleet import Vehicle, planning_states
+from gcs_ppf.service.run import Run, RunState, changes, min_of
+from gcs_ppf.service.station import Station
+from gcs_ppf.service.watch import watch_safety
+
+log = logging.getLogger("gcs_ppf.service.runs")  # the runs' log, under its name of old
+
+COURSE_COMMAND = {  # the command each guidance mode flies by
+    "course": MAV_CMD_GUIDED_CHANGE_HEADING,
+    "point": MAV_CMD_DO_REPOSITION,
+}
+RECENT_TICKS = 20  # the tick's own work is the median of this many latest
+
+Located = list[tuple[Vehicle, tuple[float, float, float]]]
+"""The run's vehicles that have reported a position, with it in the ICS."""
+
+
+async def fly(station: Station, run: Run) -> None:
+    """The run from launch to its end; an error fails the run, never the service."""
+    try:
+        await launch_fleet(station, run)
+        run.state = RunState.RUNNING
+        station.store.update_run(run.record.id, RunState.RUNNING)
+        station.event(run, "run_running")
+        await tick_loop(station, run)
+    except asyncio.CancelledError:
+        raise
+    except Exception as exc:  # a run must never take the service down
+        log.exception("mission %d failed", run.mission_id)
+        end(station, run, RunState.FAILED, f"error: {exc}")
+
+
+async def launch_fleet(station: Station, run: Run) -> None:
+    """Every vehicle flying in GUIDED (``gcs_ppf.service.launch``: those on the ground taken off
+    in TAKEOFF mode to their TKOFF_ALT first, every arm and mode change confirmed);
+    parameters not answered yet are asked for again first."""
+    ids = [v.id for v in run.mission.vehicles]
+    for vid in ids:
+        await station.fleet.request_airframe_params(vid, missing_only=True)
+    await launch.launch(
+        station.fleet, ids, station.settings.takeoff_alt_m, station.events_of(run),
+        takeoff_dist_m=station.settings.takeoff_dist_m,
+    )  # fmt: skip
+
+
+def vehicle_time_s(station: Station, run: Run) -> float | None:
+    """The leader's clock (seconds since its boot), which the ticks follow."""
+    leader = station.fleet.by_id.get(run.mission.leader.id)
+    if leader is None or leader.telemetry.time_boot_ms is None:
+        return None
+    return leader.telemetry.time_boot_ms / 1000.0
+
+
+async def tick_loop(station: Station, run: Run) -> None:
+    """A tick at ``tick_hz`` of the leader's clock, woken by fresh telemetry, until the run
+    is aborted or ends; a telemetry sample at ``telemetry_sample_hz`` of mission time."""
+    fleet = station.fleet
+    period = 1.0 / station.settings.tick_hz
+    sample_period = 1.0 / station.settings.telemetry_sample_hz
+    last_tick: float | None = None
+    last_sample = -math.inf
+    while not run.abort.is_set():
+        fleet.telemetry_event.clear()
+        try:
+            async with asyncio.timeout(1.0):
+                await fleet.telemetry_event.wait()
+        except TimeoutError:
+            pass
+        if await losses(station, run):  # not on the leader's clock: it may be the one lost
+            return
+        received = fleet.telemetry_received_s
+        now_v = vehicle_time_s(station, run)
+        if now_v is None:
+            continue
+        if run.start_vehicle_time_s is None:
+            run.start_vehicle_time_s = now_v
+        if last_tick is not None and now_v - last_tick < period * 0.999:
+            continue
+        if last_tick is not None:
+            run.tick_gaps_s.append(now_v - last_tick)
+        last_tick = now_v
+        run.mission_time_s = now_v - run.start_vehicle_time_s
+        done = await tick(station, run)
+        run.tick_latency_s.append(time.perf_counter() - received)
+        if run.mission_time_s - last_sample >= sample_period:
+            last_sample = run.mission_time_s
+            sample(station, run)
+        station.publish()
+        if done:
+            return
+
+
+async def losses(station: Station, run: Run) -> bool:
+    """Events for vehicles newly lost (the watchdog's verdict, in their own seconds);
+    True when the leader is lost: the run has then failed, every vehicle loitering."""
+    for v in run.mission.vehicles:
+        vehicle = station.fleet.by_id.get(v.id)
+        if vehicle is not None and vehicle.lost and v.id not in run.lost_ids:
+            run.lost_ids.add(v.id)
+            station.event(run, "vehicle_lost", v.id)
+        elif vehicle is not None and not vehicle.lost and v.id in run.lost_ids:
+            run.lost_ids.discard(v.id)  # heard again: planned for and watched again
+            station.event(run, "vehicle_back", v.id)
+    if run.mission.leader.id not in run.lost_ids:
+        return False
+    end(station, run, RunState.FAILED, "leader lost")
+    return True
+
+
+def check_obedience(
+    station: Station, run: Run, located: Located, states: dict[int, VehicleState]
+) -> bool:
+    """Which vehicles obey (GUIDED, the course command ACCEPTED, the course sent flown
+    or turned to): events when one stops for ``NOT_RESPONDING_S`` of vehicle time or
+    comes back; True if it is the leader."""
+    command = COURSE_COMMAND[station.settings.guidance]
+    reports = []
+    for v, _ in located:
+        t = v.telemetry
+        ack = t.ack(command)
+        guided = t.custom_mode == PlaneMode.GUIDED
+        s = states.get(v.system_id)
+        sent = run.sent_course.get(v.system_id)
+        error = turn = None
+        if s is not None and sent is not None:
+            error = math.remainder(sent - s.yaw_rad, math.tau)
+            turn = -t.course_rate_rad_s  # clockwise from north → ICS yaw rate
+        reports.append(obedience.Report(
+            v.system_id, guided, ack.result if ack else None, error, turn or 0.0
+        ))  # fmt: skip
+    flagged, cleared = run.obedience.update(run.mission_time_s, reports)
+    by_id = {v.system_id: v.telemetry for v, _ in located}
+    for vid in flagged:
+        t = by_id[vid]
+        ack = t.ack(command)
+        station.event(run, "vehicle_not_responding", vid, mode=t.mode_name,
+                      last_ack=ack.result if ack else None)  # fmt: skip
+    for vid in cleared:
+        station.event(run, "vehicle_responding", vid)
+    return run.mission.leader.id in flagged
+
+
+def account_lag(station: Station, run: Run, lags: list[lag.Lag]) -> None:
+    """The fleet's lag this tick, and an event when it crosses the budget."""
+    run.fleet_lag = lag.worst(lags)
+    change = run.lag_budget.update(run.fleet_lag.total_s)
+    if change is not None:
+        station.event(run, change, None, budget_s=run.lag_budget.budget_s,
+                      **run.fleet_lag.as_dict())  # fmt: skip
+
+
+async def tick(station: Station, run: Run) -> bool:
+    """One planning tick; True when the run has ended."""
+    mission = run.mission
+    leader_id = mission.leader.id
+
+    located = list(station.located(run))  # one geodetic → ICS conversion per vehicle
+    ground = home_ground(
+        [(pos[2], v.telemetry.relative_alt_m) for v, pos in located
+         if v.telemetry.relative_alt_m is not None]
+    )  # fmt: skip
+    reporting = [(v, p) for v, p in located if v.system_id not in run.lost_ids]
+    watch_safety(station, run, reporting, mission.ground if mission.ground is not None else ground)
+    recent = list(itertools.islice(reversed(run.tick_latency_s), RECENT_TICKS))
+    work = statistics.median(recent) if recent else 0.0
+    states, active, lags = planning_states(located, work)
+    account_lag(station, run, [lags[i] for i in active if i in lags])
+    if leader_id not in states:
+        return False
+    # what the vehicles report, not where they are predicted to be when commands act:
+    # the target is reached, and distances kept, by the reported positions
+    reported = {v.system_id: pos for v, pos in located}
+    positions = np.array([reported[i] for i in sorted(active)], dtype=float)
+    obstacles = obstacles_from_mission(mission).at(run.mission_time_s)
+    run.min_separation_m = min_of(run.min_separation_m, separations(positions))
+    run.min_clearance_m = min_of(run.min_clearance_m, clearance(positions, obstacles))
+
+    leader_pos = np.array(reported[leader_id])
+    previous, run.leader_pos = run.leader_pos, leader_pos
+    if passes_within(
+        previous, leader_pos, np.array(mission.target), mission.limits.target_accuracy
+    ):
+        end(station, run, RunState.COMPLETED, "leader reached the target", states)
+        return True
+
+    if run.mission_time_s > mission.planner.max_time:
+        end(station, run, RunState.FAILED, "planner.max_time passed before the target")
+        return True
+
+    if check_obedience(station, run, located, states):
+        end(station, run, RunState.FAILED, "leader not responding")
+        return True
+    uncontrolled = run.obedience.not_responding & set(states)
+    active -= uncontrolled  # not planned for, not commanded: avoided as traffic
+    if uncontrolled:
+        traffic = obedience.as_obstacles(states, uncontrolled, traffic_radius_m(mission))
+        obstacles = obedience.with_obstacles(obstacles, traffic)
+    await plan_and_command(station, run, located, states, active, obstacles, ground)
+    return False
+
+
+async def plan_and_command(
+    station: Station, run: Run, located: Located, states: dict[int, VehicleState],
+    active: set[int], obstacles: Obstacles, ground: float | None,
+) -> None:  # fmt: skip
+    """The tick's plan (``tick_plan.plan``, events for what changed) sent to the vehicles
+    it commands, every command through the run-time assurance."""
+    mission = run.mission
+    settings = station.settings
+    airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
+    lim = mission.limits
+    telemetry_interval_s = 1.0 / settings.stream_rate_hz
+    lagging_s = telemetry_interval_s + run.fleet_lag.total_s  # what the margins must cover
+    g, ordered = tick_plan.plan(
+        mission, states, active, obstacles, ground, airframes,
+        tick_plan.Tuning.of(settings), lagging_s, run.last,
+    )  # fmt: skip
+    for kind, vehicle_id in changes(run, g):  # what changed since the last tick
+        station.event(run, kind, vehicle_id)
+    run.last = g
+    keep = assurance.KeepOut(
+        obstacles, mission.ground if mission.ground is not None else ground,
+        lim.safe_distance_obstacle, lim.safe_distance_uav,
+    )  # fmt: skip
+    hold_s = lag.hold_s(run.tick_gaps_s, 1.0 / settings.tick_hz, telemetry_interval_s,
+                        run.fleet_lag)  # fmt: skip
+    verdicts = await commanding.command_fleet(
+        station.fleet, g, active, states, ordered, run.orders, keep, hold_s,
+        run.commanded_speed, station.events_of(run),
+    )  # fmt: skip
+    run.sent_course.update({vid: v.command.course_rad for vid, v in verdicts.items()})
+
+
+def sample(station: Station, run: Run) -> None:
+    """The run's vehicles' telemetry now, stored (the run's track)."""
+    rows = []
+    for vehicle, pos in station.located(run):
+        t = vehicle.telemetry
+        if t.lat_deg is None or t.lon_deg is None or t.alt_amsl_m is None:
+            continue
+        speed = t.groundspeed_m_s if t.groundspeed_m_s is not None else float("nan")
+        rows.append(
+            (run.mission_time_s, vehicle.system_id, t.lat_deg, t.lon_deg, t.alt_amsl_m,
+             *pos, speed)
+        )  # fmt: skip
+    if rows:
+        station.store.add_telemetry(run.record.id, rows)

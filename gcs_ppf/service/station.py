@@ -1,0 +1,75 @@
+"""What a run uses of the ground-station service: its fleet, settings and store, its task
+group and live stream, with the run's events and its vehicles' reported positions.
+
+``FormationService`` (``service.runs``) builds one and hands it to the flying of a run
+(``service.flight``), its end (``service.ending``) and the safety watch (``service.watch``),
+so that they see no more of the service than this.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections.abc import Callable, Coroutine, Iterator
+from dataclasses import dataclass
+from functools import partial
+from typing import Any
+
+from gcs_ppf.service.confirmation import EventSink
+from gcs_ppf.service.fleet import Fleet, Vehicle
+from gcs_ppf.service.run import Run
+from gcs_ppf.service.settings import Settings
+from gcs_ppf.service.store import Store
+
+log = logging.getLogger("gcs_ppf.service.runs")  # the runs' log, under its name of old
+
+
+@dataclass(frozen=True)
+class Station:
+    """The service's parts a run is flown with (shared, not copied)."""
+
+    settings: Settings
+    store: Store
+    fleet: Fleet
+    runs: dict[int, Run]
+    """Mission id → its current or last run (``FormationService``'s own)."""
+    spawn: Callable[[Coroutine[Any, Any, Any]], asyncio.Task[Any]]
+    """A task in the service's task group."""
+    publish: Callable[[], None]
+    """A snapshot to every live-stream subscriber."""
+
+    def event(self, run: Run, kind: str, vehicle_id: int | None = None, **detail: Any) -> None:
+        """One of the run's events, stored and logged."""
+        self.store.add_event(
+            run.record.id,
+            kind,
+            mission_time_s=round(run.mission_time_s, 3),
+            vehicle_id=vehicle_id,
+            detail=detail or None,
+        )
+        log.info(
+            "mission %d t=%.1f s: %s%s %s",
+            run.mission_id,
+            run.mission_time_s,
+            kind,
+            f" (vehicle {vehicle_id})" if vehicle_id else "",
+            detail or "",
+        )
+
+    def events_of(self, run: Run) -> EventSink:
+        """``event`` for this run, as the launch and commanding take it."""
+        return partial(self.event, run)
+
+    def located(self, run: Run) -> Iterator[tuple[Vehicle, tuple[float, float, float]]]:
+        """The run's vehicles that have reported a position, with it in the ICS."""
+        for v in run.mission.vehicles:
+            vehicle = self.fleet.by_id.get(v.id)
+            pos = None if vehicle is None else Fleet.vehicle_enu(vehicle, run.mission)
+            if vehicle is not None and pos is not None:
+                yield vehicle, pos
+
+    def fleet_time_s(self) -> float | None:
+        """The latest vehicle time any vehicle still heard has reported (seconds)."""
+        times = [v.telemetry.time_boot_ms for v in self.fleet.by_id.values()
+                 if not v.lost and v.telemetry.time_boot_ms is not None]  # fmt: skip
+        return max(times) / 1000.0 if times else None

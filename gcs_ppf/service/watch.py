@@ -1,0 +1,78 @@
+"""The safety monitor (``guidance.safety_monitor``) on a run's reported positions: every
+tick while it flies, and for ``WATCH_AFTER_END_S`` of vehicle time after it ends."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+
+import numpy as np
+
+from gcs_ppf.guidance.online import home_ground
+from gcs_ppf.planning.scene import obstacles_from_mission
+from gcs_ppf.service.fleet import Vehicle
+from gcs_ppf.service.run import Run, RunState, summary
+from gcs_ppf.service.station import Station
+
+WATCH_AFTER_END_S = 60.0  # vehicle seconds the safety monitor goes on after a run ends
+
+
+def watch_safety(
+    station: Station, run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]],
+    ground_z_m: float | None, after_end_s: float = 0.0,
+) -> None:  # fmt: skip
+    """The safety monitor on the positions the vehicles report (not carried on, not
+    planned): a ``safety_violation`` event for each keep-out entered."""
+    if not located:
+        return
+    lim = run.mission.limits
+    began = run.safety.watch(
+        [v.system_id for v, _ in located], np.array([p for _, p in located], dtype=float),
+        obstacles_from_mission(run.mission).at(run.mission_time_s + after_end_s), ground_z_m,
+        lim.safe_distance_uav, lim.safe_distance_obstacle,
+    )  # fmt: skip
+    late = {"after_end_s": round(after_end_s, 1)} if after_end_s else {}
+    for v in began:
+        station.event(run, "safety_violation", v.vehicle_id, keep_out=v.kind, other=v.other,
+                      depth_m=round(v.depth_m, 1), **late)  # fmt: skip
+
+
+def ground(run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]]) -> float | None:
+    """The mission's ground, or the vehicles' home (``online.home_ground``)."""
+    if run.mission.ground is not None:
+        return run.mission.ground
+    return home_ground([(pos[2], v.telemetry.relative_alt_m) for v, pos in located
+                        if v.telemetry.relative_alt_m is not None])  # fmt: skip
+
+
+async def watch_after_end(station: Station, run: Run) -> None:
+    """The safety monitor goes on for ``WATCH_AFTER_END_S`` of vehicle time after the
+    run ended, while the vehicles fly to and around their holds (an observer saw a
+    wingman enter a sphere 4.2 s after a run it ended plain ``completed``): a violation
+    is a ``safety_violation`` event, and a completed run becomes ``completed_unsafe``.
+    It stops when another run of the mission starts."""
+    fleet = station.fleet
+    start = run.ended_vehicle_s
+    while start is not None:
+        fleet.telemetry_event.clear()
+        with contextlib.suppress(TimeoutError):
+            async with asyncio.timeout(1.0):
+                await fleet.telemetry_event.wait()
+        now = station.fleet_time_s()
+        if (
+            now is None
+            or now - start > WATCH_AFTER_END_S
+            or station.runs.get(run.mission_id) is not run
+        ):
+            return
+        located = [(v, p) for v, p in station.located(run) if not v.lost]
+        before = run.safety.count
+        watch_safety(station, run, located, ground(run, located), now - start)
+        if run.safety.count > before and run.state == RunState.COMPLETED:
+            run.state = RunState.COMPLETED_UNSAFE
+            run.outcome = f"{run.outcome}; a safety violation after the end"
+            station.store.update_run(
+                run.record.id, run.state, outcome=run.outcome, summary=summary(run)
+            )
+            station.event(run, f"run_{run.state}", outcome=run.outcome)
+            station.publish()
