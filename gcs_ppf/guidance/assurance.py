@@ -41,6 +41,12 @@ STEP_S = 0.125
 ROLLED_IN_RAD = math.radians(0.5)
 #: A replacement that is not safe either must beat the command by this much (m).
 BETTER_BY_M = 1.0
+SLACK_S = 0.5
+"""A command counts as recoverable only with this many seconds of flight (× its speed) to
+spare beyond the keep-out: slack for what the prediction does not know (a late tick, a lost
+command, a teammate's turn).  Without it the switch to an escape came at zero margin, and
+under load on a lossy link the escapes' margins then fell 50–80 m within half a second
+(Table 3, ×5, 300 ms, 20 % loss: 5 of 20 runs entered a keep-out)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -309,17 +315,18 @@ def escape_altitudes(
 def assure(
     motions: list[Motion], commands: list[Command], hold_s: float, keep: KeepOut
 ) -> list[Verdict]:
-    """Each vehicle's command, in priority order (the leader first): kept if recoverable,
-    else the nearest recoverable course (``ESCAPE_OFFSETS`` off the command, at one of
-    ``escape_altitudes``), else the best there is if it beats the command by
-    ``BETTER_BY_M``.  A vehicle yields to those before it."""
+    """Each vehicle's command, in priority order (the leader first): kept if recoverable
+    with ``SLACK_S`` to spare, else the nearest course that is (``ESCAPE_OFFSETS`` off the
+    command, at one of ``escape_altitudes``), else the best there is if it beats the
+    command by ``BETTER_BY_M``.  A vehicle yields to those before it."""
     verdicts: list[Verdict] = []
     paths: list[Track] = []
     for i, (m, c) in enumerate(zip(motions, commands, strict=True)):
         near = [paths[j] for j in range(i) if within_reach(m, motions[j], hold_s, keep)]
         planned, reason, path = score(m, c, hold_s, keep, near)
         chosen, chosen_margin, chosen_path = c, planned, path
-        if planned < 0.0:
+        slack = SLACK_S * m.speed_m_s
+        if planned < slack:
             best: tuple[float, Command, Track] | None = None
             candidates = (
                 Command(_wrap(c.course_rad + offset), z)
@@ -328,16 +335,16 @@ def assure(
             )
             for candidate in candidates:
                 s, _, p = score(m, candidate, hold_s, keep, near)
-                if s >= 0.0:
+                if s >= slack:
                     best = (s, candidate, p)
                     break
                 if best is None or s > best[0]:
                     best = (s, candidate, p)
             assert best is not None
-            if best[0] >= 0.0 or best[0] > planned + BETTER_BY_M:
+            if best[0] >= slack or best[0] > planned + BETTER_BY_M:
                 chosen_margin, chosen, chosen_path = best
         replaced = chosen != c
-        verdicts.append(Verdict(chosen, replaced, reason if replaced or planned < 0 else None,
+        verdicts.append(Verdict(chosen, replaced, reason if replaced or planned < slack else None,
                                 planned, chosen_margin))  # fmt: skip
         paths.append(chosen_path)
     return verdicts

@@ -8,10 +8,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gcs_ppf.guidance.assurance import (
+    SLACK_S,
     Command,
     KeepOut,
     Motion,
@@ -175,3 +177,23 @@ def test_a_vehicle_diving_at_an_obstacle_with_no_level_escape_pulls_up() -> None
     assert v.reason == "obstacle"
     assert v.chosen_margin_m >= 0.0
     assert v.command.z_m >= 180.0
+
+
+def test_a_command_that_keeps_out_by_less_than_the_slack_is_replaced() -> None:
+    """Recoverable, but by 5 m where half a second of flight (12.5 m) is the slack: the
+    vehicle turns away now, to a command with the slack to spare."""
+    m = plane(0.0, 0.0, 150.0, 0.0)
+
+    def planned_margin(radius: float) -> float:
+        return score(m, Command(0.0, 150.0), 1.0, keep(sphere(400.0, 0.0, 150.0, radius)), [])[0]
+
+    lo, hi = 10.0, 300.0  # the radius that leaves 5 m, by bisection (the margin falls with it)
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if planned_margin(mid) > 5.0 else (lo, mid)
+    walls = sphere(400.0, 0.0, 150.0, lo)
+    planned = planned_margin(lo)
+    assert planned == pytest.approx(5.0, abs=0.5)
+    [v] = assure([m], [Command(0.0, 150.0)], hold_s=1.0, keep=keep(walls))
+    assert v.replaced
+    assert v.chosen_margin_m >= SLACK_S * SPEED
