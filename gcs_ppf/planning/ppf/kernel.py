@@ -49,7 +49,12 @@ import math
 import numpy as np
 from numba import njit
 
-from gcs_ppf.planning.ppf.formation import attraction, formation_targets, speed_trend
+from gcs_ppf.planning.ppf.formation import (
+    attraction,
+    crossing_point,
+    formation_targets,
+    speed_trend,
+)
 from gcs_ppf.planning.ppf.primitives import (
     AVOIDANCE_TURN_ANGLE,
     CONFLICT_HORIZON_TURNS,
@@ -67,6 +72,8 @@ from gcs_ppf.planning.ppf.primitives import (
     airframe_limited,
     away_from_obstacles,
     braking_speed,
+    catching_up_speed,
+    falling_back_speed,
     follow_direction,
     from_vcs,
     influence_radius,
@@ -109,7 +116,10 @@ __all__ = [
     "attraction",
     "away_from_obstacles",
     "braking_speed",
+    "catching_up_speed",
+    "crossing_point",
     "escape_local_minimum",
+    "falling_back_speed",
     "fleet_step",
     "flight_path_limited",
     "fly",
@@ -259,38 +269,39 @@ def fleet_step(
     the teammate lists).  Obstacles are moved at the end of the step.
     """
     unit_velocities(speed, trig, direction)  # Eq. 5
-    leader_waits = formation_targets(pos, slot, active, trig, direction, lim, local_target, formed)
-    lead = speed[0] / min(lim.max_pitch_rate, lim.max_yaw_rate)  # one turn time ahead
+    wait_speed = formation_targets(pos, slot, active, trig, direction, lim, local_target, formed)
     for i in range(pos.shape[0]):
         if not active[i]:
             continue
         cp, sp, cy, sy = trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3]
+        # Attraction (Eq. 14): the way to the target point, passing teammates.
+        fx, fy, fz, ax, ay, az = attraction(
+            i, pos, target, local_target, direction, speed, mate_start, mates, lim, dt, cy, sy
+        )
         # Repulsion (Eq. 12–13): the obstacles', then the teammates' of higher priority,
         # never pushing the vehicle into an obstacle (``obstacles_first``).
         ox, oy, oz, moving_obstacle = obstacle_repulsion(
             i, pos, speed, obs_center, obs_radius, obs_velocity, near_start, near_obstacles,
             lim, dt,
         )  # fmt: skip
-        rx, ry, rz, mate, hold_course, hx, hy, hz = teammate_conflicts(
-            i, ox, oy, oz, pos, speed, trig, mate_start, mates, lim, dt
+        rx, ry, rz, mate, hold_course = teammate_conflicts(
+            i, ox, oy, oz, fx, fy, fz, pos, speed, trig, mate_start, mates, lim, dt
         )
         rx, ry, rz = obstacles_first(rx, ry, rz, ox, oy, oz)
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0
         avoiding[i] = repelled
-        # The field (Eq. 14–15): the repulsion alone while repelled, else the attraction.
+        # The field (Eq. 15): the repulsion alone while repelled (Eq. 14: |F_g| = 0).
         if repelled:
             fx, fy, fz = rx, ry, rz
-        else:
-            fx, fy, fz = attraction(
-                i, pos, target, local_target, direction, lead, hold_course, hx, hy, hz, cy, sy
-            )
+        elif hold_course:
+            fx, fy, fz = direction[i, 0], direction[i, 1], direction[i, 2]
         # Trend matrix f (Eq. 16–20): pitch and yaw; speed (Eq. 21–24); kinematics (Eq. 3–5).
         f_pitch, f_yaw, along_field, s = steer(
             fx, fy, fz, rx, ry, rz, ox, oy, oz, moving_obstacle or mate, pos[i, 2], speed[i],
             pitch[i], yaw[i], cp, sp, cy, sy, lim, dt,
         )  # fmt: skip
         f_speed, state[i] = speed_trend(
-            i, along_field, repelled, leader_waits, pos, speed, local_target, direction,
+            i, along_field, repelled, wait_speed, pos, speed, ax, ay, az, direction,
             formed, lim, dt, s,
         )  # fmt: skip
         next_motion[i, 0], next_motion[i, 1], next_motion[i, 2] = kinematics(

@@ -13,6 +13,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from gcs_ppf.planning.ppf.formation import CROSSING_CLEARANCE, CROSSING_REACH
 from gcs_ppf.planning.ppf.kernel import (
     AVOIDANCE_TURN_ANGLE,
     CONFLICT_HORIZON_TURNS,
@@ -48,26 +49,25 @@ class Attitude(NamedTuple):
 class Formation(NamedTuple):
     """Eq. 6–8: local target points g [N,3], the offset to them, which vehicles are active
     wingmen and formed, the offset's component along the leader's flight direction, and
-    whether the leader waits (Eq. 24)."""
+    the speed the leader waits at (Eq. 24; 0: it does not wait)."""
 
     g: FloatArray
     to_g: FloatArray
     wingman: BoolArray
     formed: BoolArray
     along: FloatArray
-    leader_waits: bool
+    wait_speed: float
 
 
 class Repulsion(NamedTuple):
     """Eq. 12–13: the total repulsion, the obstacles' part, whether a moving threat (a
-    moving obstacle or a teammate) repels, and the teammates just clear of a conflict
-    (``near & ~threat``) with their unit miss vectors ``push`` [N,N,3]."""
+    moving obstacle or a teammate) repels, and whether to hold course (just clear of a
+    teammate conflict that following would turn into one)."""
 
     rep: FloatArray
     obstacles: FloatArray
     moving: BoolArray
-    just_clear: BoolArray
-    push: FloatArray
+    hold: BoolArray
 
 
 def _unit(v: FloatArray) -> FloatArray:
@@ -97,8 +97,14 @@ def _formation(
     formed = wingman & ((to_g**2).sum(1) <= lim.target_accuracy**2)
     along = to_g @ u[0]
     same_way = u @ u[0] > 0.0
-    leader_waits = bool(np.any(wingman & ~formed & ((along >= 0.0) | ~same_way)))
-    return Formation(g, to_g, wingman, formed, along, leader_waits)
+    out = wingman & ~formed
+    waits = out & ((along >= 0.0) | ~same_way)
+    straight_ahead = (to_g**2).sum(1) <= 2.0 * along**2  # within 45° of ahead of the slot
+    ahead = -along[out & ~waits & straight_ahead]  # flying the leader's way
+    gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    give_back = np.minimum(np.sqrt(2.0 * lim.accel * ahead), gain * ahead)
+    wait_speed = min(lim.v_min + float(give_back.max(initial=0.0)), lim.v_max)
+    return Formation(g, to_g, wingman, formed, along, wait_speed if waits.any() else 0.0)
 
 
 def _obstacle_repulsion(
@@ -123,18 +129,17 @@ def _obstacle_repulsion(
     return rep, moving
 
 
-def _repulsion(
-    pos: FloatArray, speed: FloatArray, a: Attitude, rank: IntArray, active: BoolArray,
-    obstacles: tuple[FloatArray, BoolArray], lim: KernelLimits, dt: float,
-) -> Repulsion:  # fmt: skip
-    """Eq. 12–13 with the teammates of higher priority as moving obstacles: conflicts by
-    closest point of approach, added to the obstacles' repulsion (Eq. 10–13), never
-    pushing a vehicle into an obstacle (the kernel's ``obstacles_first``)."""
-    n = pos.shape[0]
+def _conflicts(
+    pos: FloatArray, vel: FloatArray, mate_vel: FloatArray, speed: FloatArray, rank: IntArray,
+    active: BoolArray, lim: KernelLimits, dt: float,
+) -> tuple[BoolArray, BoolArray, FloatArray]:  # fmt: skip
+    """Teammates of higher priority as moving obstacles, by closest point of approach
+    within a quarter turn: [i,k] whether mate k is near (a conflict or just clear of one)
+    and a conflict for vehicle i flying ``vel[i]`` (mates at ``mate_vel``), and the unit
+    miss vectors [i,k,3]."""
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
-    rep, moving = obstacles
     d_m = pos[:, None, :] - pos[None]  # [i,k,3]: from mate k to vehicle i
-    w = a.vel[None] - a.vel[:, None]  # mate k relative to vehicle i
+    w = mate_vel[None] - vel[:, None]  # mate k relative to vehicle i
     approach = (w * d_m).sum(-1)
     w2 = (w**2).sum(-1)
     horizon = CONFLICT_HORIZON_TURNS * AVOIDANCE_TURN_ANGLE / omega
@@ -152,27 +157,97 @@ def _repulsion(
         & (miss2 < (threshold + lim.safe_distance_uav) ** 2)
         & (d2 <= mate_radius**2) & (d2 > 0)
     )  # fmt: skip
-    threat = near & (miss2 < threshold**2)
     miss_vec = d_m - w * t_cpa[..., None]
     miss = np.linalg.norm(miss_vec, axis=-1)
     push = np.where((miss > 1e-6 * np.sqrt(d2))[..., None], _unit(miss_vec), _unit(d_m))
+    return near, near & (miss2 < threshold**2), push
+
+
+def _repulsion(
+    pos: FloatArray, speed: FloatArray, a: Attitude, follow: FloatArray, rank: IntArray,
+    active: BoolArray, obstacles: tuple[FloatArray, BoolArray], lim: KernelLimits, dt: float,
+) -> Repulsion:  # fmt: skip
+    """Eq. 12–13 with the teammates of higher priority as moving obstacles (``_conflicts``),
+    added to the obstacles' repulsion (Eq. 10–13), never pushing a vehicle into an
+    obstacle (the kernel's ``obstacles_first``).  Just clear of a conflict a vehicle holds
+    course if flying ``follow`` (unit, [N,3]) at its speed would make it a conflict."""
+    n = pos.shape[0]
+    rep, moving = obstacles
+    near, threat, push = _conflicts(pos, a.vel, a.vel, speed, rank, active, lim, dt)
+    _, threat_after, _ = _conflicts(pos, speed[:, None] * follow, a.vel, speed, rank, active,
+                                    lim, dt)  # fmt: skip
+    hold: BoolArray = np.any(near & ~threat & threat_after, axis=1)
     total = rep + EPSILON_1 * (push * threat[..., None]).sum(1)
     o2 = (rep**2).sum(1)
     into = np.divide(((total - rep) * rep).sum(1), o2, out=np.zeros(n), where=o2 > 0)
     total = total - np.minimum(into, 0.0)[:, None] * rep
-    return Repulsion(total, rep, moving | threat.any(1), near & ~threat, push)
+    return Repulsion(total, rep, moving | threat.any(1), hold)
 
 
-def _attraction(
+def _crossing(
+    p: FloatArray, g: FloatArray, m: FloatArray, u: FloatArray, clearance: float, reach: float
+) -> tuple[float, FloatArray]:
+    """The kernel's ``crossing_point``: (s of the point Q of p→g nearest to m, the point
+    to make for), or (−1, g) if p→g passes ``clearance`` or more from m or Q is p or g.
+    The wingman heads along the tangent from p to the sphere of that radius round m, on
+    Q's side with its part ahead of m along u dropped (above m if Q is on m's track), to
+    the point ``reach`` (at most |g − p|) along it."""
+    seg = g - p
+    if not seg.any():
+        return -1.0, g
+    to_m = m - p
+    s = float(to_m @ seg / (seg @ seg))
+    side = s * seg - to_m  # Q − m
+    if not 0.0 < s < 1.0 or side @ side >= clearance**2:
+        return -1.0, g
+    side = side - max(float(side @ u), 0.0) * u
+    dist = float(np.linalg.norm(to_m))
+    b = to_m / dist
+    c = side - (side @ b) * b
+    if np.linalg.norm(c) <= 1e-9 * clearance:
+        c = np.array([0.0, 0.0, 1.0]) - b[2] * b
+        if not c.any():
+            c = u.copy()
+    sin_a = min(clearance / dist, 1.0)
+    heading = math.sqrt(1.0 - sin_a**2) * b + sin_a * c / np.linalg.norm(c)
+    point: FloatArray = p + min(float(np.linalg.norm(seg)), reach) * heading
+    return s, point
+
+
+def _aims(
     pos: FloatArray, target: FloatArray, speed: FloatArray, a: Attitude, f: Formation,
-    r: Repulsion, lim: KernelLimits,
+    rank: IntArray, active: BoolArray, lim: KernelLimits, dt: float,
 ) -> FloatArray:  # fmt: skip
-    """Eq. 14–15: the unit attraction (towards the mission target for the leader, towards
-    G_i one turn time ahead for a wingman) unless repelled; just clear of a teammate
-    conflict, the course is held where following would turn back into it."""
+    """The points made for [N,3]: the mission target (the leader), G_i or the point to
+    make for to pass a teammate of higher priority (``_crossing``; a wingman)."""
+    n = pos.shape[0]
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
-    aim = f.g + (speed[0] / omega) * a.u[0]
+    aim = f.g.copy()
+    lead = speed[0] / omega
+    r_mate = np.sqrt((lim.safe_distance_uav + speed / omega) ** 2 - (speed / omega) ** 2)
+    for i in range(1, n):
+        clearance = CROSSING_CLEARANCE * lim.safe_distance_uav + 2.0 * speed[i] * dt
+        first = 2.0
+        for k in range(n):
+            if k == i or not active[k] or rank[k] >= rank[i]:
+                continue
+            reach = r_mate[i] + speed[i] * dt + speed[k] * AVOIDANCE_TURN_ANGLE / omega
+            reach = min(reach, CROSSING_REACH * lim.safe_distance_uav)
+            if np.sum((pos[i] - pos[k]) ** 2) > reach**2:
+                continue
+            s, point = _crossing(pos[i], f.g[i], pos[k], a.u[0], clearance, lead)
+            if 0.0 <= s < first:
+                first, aim[i] = s, point
     aim[0] = target
+    return aim
+
+
+def _follow(pos: FloatArray, aim: FloatArray, speed: FloatArray, a: Attitude,
+            lim: KernelLimits) -> FloatArray:  # fmt: skip
+    """Eq. 14: the unit attraction towards the points made for (``_aims``), a wingman's one
+    turn time ahead along the leader's flight, no steeper than MAX_FOLLOW_PITCH."""
+    aim = aim.copy()
+    aim[1:] += (speed[0] / min(lim.max_pitch_rate, lim.max_yaw_rate)) * a.u[0]
     to_aim = aim - pos
     horizontal = np.hypot(to_aim[:, 0], to_aim[:, 1])
     heading = np.where(
@@ -181,13 +256,17 @@ def _attraction(
         np.stack([a.cy, a.sy], axis=1),
     )
     elevation = np.clip(np.arctan2(to_aim[:, 2], horizontal), -MAX_FOLLOW_PITCH, MAX_FOLLOW_PITCH)
-    follow = np.concatenate(
+    follow: FloatArray = np.concatenate(
         [np.cos(elevation)[:, None] * heading, np.sin(elevation)[:, None]], axis=1
     )
-    held = (r.push * r.just_clear[..., None]).sum(1)
-    hold = r.just_clear.any(1) & ((follow * held).sum(1) < (a.u * held).sum(1))
+    return follow
+
+
+def _field(follow: FloatArray, a: Attitude, r: Repulsion) -> FloatArray:
+    """Eq. 15: the repulsion alone while repelled, else the attraction, or the flight
+    direction while holding course."""
     repelled = (r.rep != 0).any(1)
-    field = np.where(repelled[:, None], r.rep, np.where(hold[:, None], a.u, follow))
+    field = np.where(repelled[:, None], r.rep, np.where(r.hold[:, None], a.u, follow))
     unit: FloatArray = np.where((np.linalg.norm(field, axis=1) > 0)[:, None], field, a.u)
     return unit
 
@@ -286,22 +365,29 @@ def _turn_trends(
 
 
 def _speed_trend(
-    along_field: FloatArray, speed: FloatArray, f: Formation, r: Repulsion, state: IntArray,
-    lim: KernelLimits, dt: float,
+    along_field: FloatArray, pos: FloatArray, aim: FloatArray, speed: FloatArray, a: Attitude,
+    f: Formation, r: Repulsion, state: IntArray, lim: KernelLimits, dt: float,
 ) -> FloatArray:  # fmt: skip
-    """Eq. 19's f_l with Eq. 21–24: the leader waits (s3); wingmen brake to arrive at the
-    leader's speed (s3 once d_i ≤ Δd'_i) or give lost ground back.  Sets ``state``."""
+    """Eq. 19's f_l with Eq. 21–24: the leader slows to its wait speed (s3); wingmen brake
+    to arrive at the leader's speed, Eq. 21–23 relative to the moving local target point
+    (s3 once d_i ≤ Δd'_i), or give ground back (the kernel's ``catching_up_speed`` and
+    ``falling_back_speed``).  Sets ``state``."""
     repelled = (r.rep != 0).any(1)
     f_speed = np.sign(along_field)
-    if f.leader_waits:
-        f_speed[0] = -1.0
+    if f.wait_speed > 0.0:
+        a_wait = lim.accel if f.wait_speed >= speed[0] else lim.decel
+        f_speed[0] = np.clip((f.wait_speed - speed[0]) / (a_wait * dt), -1.0, 1.0)
         state[0] = S3_FORMATION
     follow = f.wingman & ~repelled & (along_field > 0)
-    gap = np.linalg.norm(f.to_g, axis=1)
-    v_ahead = np.sqrt(speed[0] ** 2 + 2 * lim.decel * gap)
-    v_behind = np.sqrt(np.maximum(speed[0] ** 2 + 2 * lim.accel * f.along, 0.0))
-    v_cmd = np.where(f.along >= 0, v_ahead, v_behind)
-    brake = follow & (f.along >= 0) & ~f.formed & (speed >= v_cmd)
+    along = (aim - pos) @ a.u[0]  # to the point made for, along the leader's track
+    gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    behind = np.maximum(along, 0.0)
+    v_ahead = speed[0] + np.minimum(np.sqrt(2 * lim.decel * behind), gain * behind)  # Eq. 21–23
+    ahead = np.maximum(-along, 0.0)
+    v_behind = np.maximum(speed[0] - np.minimum(np.sqrt(2 * lim.accel * ahead), gain * ahead), 0)
+    slant = np.maximum(a.u @ a.u[0], 0.5)  # the angle flown to the leader's track
+    v_cmd = np.where(along >= 0, v_ahead, v_behind) / slant
+    brake = follow & (along >= 0) & ~f.formed & (speed >= v_cmd)
     state[brake] = S3_FORMATION
     a_cmd = np.where(v_cmd >= speed, lim.accel, lim.decel)
     braked: FloatArray = np.where(follow, np.clip((v_cmd - speed) / (a_cmd * dt), -1, 1), f_speed)
@@ -343,11 +429,13 @@ def reference_step(
     a = _attitude(pitch, yaw, speed)
     f = _formation(pos, slot, active, a, lim)
     obstacles = _obstacle_repulsion(pos, speed, obs_center, obs_radius, obs_velocity, lim, dt)
-    r = _repulsion(pos, speed, a, rank, active, obstacles, lim, dt)
-    field = _attraction(pos, target, speed, a, f, r, lim)
+    aim = _aims(pos, target, speed, a, f, rank, active, lim, dt)
+    follow = _follow(pos, aim, speed, a, lim)
+    r = _repulsion(pos, speed, a, follow, rank, active, obstacles, lim, dt)
+    field = _field(follow, a, r)
     fv, d, lowest, s2, along_field = _wanted_direction(field, pos, speed, a, r, lim, dt)
     state = np.where(s2, S2_LOCAL_MINIMUM, S1_FOLLOW).astype(np.int64)
     f_pitch, f_yaw = _turn_trends(fv, d, lowest, pitch, yaw, a, r, lim, dt)
-    f_speed = _speed_trend(along_field, speed, f, r, state, lim, dt)
+    f_speed = _speed_trend(along_field, pos, aim, speed, a, f, r, state, lim, dt)
     new = _kinematics(pos, pitch, yaw, speed, active, f_speed, f_pitch, f_yaw, lim, dt)
     return (*new, state)

@@ -148,6 +148,9 @@ def teammate_conflicts(
     rx: float,
     ry: float,
     rz: float,
+    fx: float,
+    fy: float,
+    fz: float,
     pos: np.ndarray,
     speed: np.ndarray,
     trig: np.ndarray,
@@ -155,38 +158,36 @@ def teammate_conflicts(
     mates: np.ndarray,
     lim: KernelLimits,
     dt: float,
-) -> tuple[float, float, float, bool, bool, float, float, float]:
+) -> tuple[float, float, float, bool, bool]:
     """The repulsion (rx, ry, rz) on vehicle i with that of its teammates of higher
     priority (lower rank) added (Eq. 12–13; each one by ``teammate_conflict``).  Only
     ``mates[mate_start[i]:mate_start[i+1]]`` are looked at (see ``nearby_teammates``);
     ``trig[:, 4:7]`` are the velocities (``unit_velocities``).
 
-    Returns (F_r, whether a mate repels, whether a conflict was only just avoided, the sum
-    of those conflicts' miss vectors).
+    Just clear of a conflict the vehicle holds its course rather than turn back into it
+    (otherwise the turn flips every step along the conflict's edge), but only if flying
+    the way it wants to, (fx, fy, fz) at its speed, would make that mate a conflict: a
+    hold whenever following took off some of the miss kept wingmen from their slots for
+    the rest of a flight, beside a teammate at the edge of the conflict band.
+
+    Returns (F_r, whether a mate repels, whether to hold course).
     """
     vi = speed[i]
     px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
     repelled_by_mate = False
     hold_course = False
-    hx, hy, hz = 0.0, 0.0, 0.0
     for c in range(mate_start[i], mate_start[i + 1]):
         k = mates[c]
+        dx, dy, dz = px - pos[k, 0], py - pos[k, 1], pz - pos[k, 2]
+        wx, wy, wz = trig[k, 4], trig[k, 5], trig[k, 6]
         kind, mx, my, mz = teammate_conflict(
-            px - pos[k, 0],
-            py - pos[k, 1],
-            pz - pos[k, 2],
-            trig[k, 4] - trig[i, 4],
-            trig[k, 5] - trig[i, 5],
-            trig[k, 6] - trig[i, 6],
-            vi,
-            speed[k],
-            lim,
-            dt,
+            dx, dy, dz, wx - trig[i, 4], wy - trig[i, 5], wz - trig[i, 6], vi, speed[k], lim, dt
         )
-        if kind == JUST_CLEAR:
-            hold_course = True
-            hx, hy, hz = hx + mx, hy + my, hz + mz
+        if kind == JUST_CLEAR and not hold_course:
+            wx, wy, wz = wx - vi * fx, wy - vi * fy, wz - vi * fz  # were it to follow
+            kind_after, _, _, _ = teammate_conflict(dx, dy, dz, wx, wy, wz, vi, speed[k], lim, dt)
+            hold_course = kind_after == CONFLICT
         elif kind == CONFLICT:
             rx, ry, rz = rx + EPSILON_1 * mx, ry + EPSILON_1 * my, rz + EPSILON_1 * mz
             repelled_by_mate = True
-    return rx, ry, rz, repelled_by_mate, hold_course, hx, hy, hz
+    return rx, ry, rz, repelled_by_mate, hold_course
