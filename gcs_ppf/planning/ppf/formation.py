@@ -152,10 +152,13 @@ def crossing_point(
 @njit(cache=True, inline="always")
 def attraction(
     i: int,
+    gx: float,
+    gy: float,
+    gz: float,
+    ux: float,
+    uy: float,
+    uz: float,
     pos: np.ndarray,
-    target: np.ndarray,
-    local_target: np.ndarray,
-    direction: np.ndarray,
     speed: np.ndarray,
     mate_start: np.ndarray,
     mates: np.ndarray,
@@ -165,34 +168,34 @@ def attraction(
     sy: float,
 ) -> tuple[float, float, float, float, float, float]:
     """The unit attraction F_g on vehicle i (Eq. 14, ``follow_direction``) towards its
-    target point, the field while nothing repels it (Eq. 15 with F_r = 0), and the point
-    it makes for (the mission's target, G_i, or the ``crossing_point`` that passes a
-    teammate; ``speed_trend`` matches the leader's speed there).
+    target point G = (gx, gy, gz) (the mission's target for the leader, index 0; G_i for a
+    wingman), the field while nothing repels it (Eq. 15 with F_r = 0), and the point it
+    makes for (G, or the ``crossing_point`` that passes a teammate; ``speed_trend``
+    matches the leader's speed there).  (ux, uy, uz) is the leader's flight direction.
 
     A wingman aims where that point will be one turn time 1/ω ahead along the leader's
     flight: its estimate of the leader's motion.  The teammates it passes are those of
     higher priority within ``CROSSING_REACH`` safe distances (and within reach of
     ``teammate_conflict``, so that they are in its list
     ``mates[mate_start[i]:mate_start[i+1]]``); of those the way passes too close to, the
-    first along the way decides.
+    first along the way decides.  (Scalars rather than arrays where it can: every array
+    argument of an inlined group costs two atomic reference counts a call.)
     """
     px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
-    if i == 0:
-        fx, fy, fz = follow_direction(target[0] - px, target[1] - py, target[2] - pz, cy, sy)
-        return fx, fy, fz, target[0], target[1], target[2]
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
-    lead = speed[0] / omega
-    ux, uy, uz = direction[0, 0], direction[0, 1], direction[0, 2]
-    gx, gy, gz = local_target[i, 0], local_target[i, 1], local_target[i, 2]
+    lead = speed[0] / omega if i > 0 else 0.0
     ax, ay, az = gx, gy, gz
     first = 2.0
     vi = speed[i]
     clearance = CROSSING_CLEARANCE * lim.safe_distance_uav + 2.0 * vi * dt
-    for c in range(mate_start[i], mate_start[i + 1]):
+    # A wingman within the target accuracy of G has no way to pass anyone on.
+    way2 = (gx - px) ** 2 + (gy - py) ** 2 + (gz - pz) ** 2
+    last = mate_start[i + 1] if i > 0 and way2 > lim.target_accuracy**2 else mate_start[i]
+    own = influence_radius(vi, omega, lim.safe_distance_uav) + vi * dt
+    for c in range(mate_start[i], last):
         k = mates[c]
         dx, dy, dz = px - pos[k, 0], py - pos[k, 1], pz - pos[k, 2]
-        reach = influence_radius(vi, omega, lim.safe_distance_uav) + vi * dt
-        reach = min(reach + speed[k] * AVOIDANCE_TURN_ANGLE / omega,
+        reach = min(own + speed[k] * AVOIDANCE_TURN_ANGLE / omega,
                     CROSSING_REACH * lim.safe_distance_uav)  # fmt: skip
         if dx * dx + dy * dy + dz * dz > reach * reach:
             continue

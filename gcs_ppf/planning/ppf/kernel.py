@@ -270,13 +270,15 @@ def fleet_step(
     """
     unit_velocities(speed, trig, direction)  # Eq. 5
     wait_speed = formation_targets(pos, slot, active, trig, direction, lim, local_target, formed)
+    ux, uy, uz = direction[0, 0], direction[0, 1], direction[0, 2]  # the leader's direction
     for i in range(pos.shape[0]):
         if not active[i]:
             continue
         cp, sp, cy, sy = trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3]
         # Attraction (Eq. 14): the way to the target point, passing teammates.
+        g = target if i == 0 else local_target[i]
         fx, fy, fz, ax, ay, az = attraction(
-            i, pos, target, local_target, direction, speed, mate_start, mates, lim, dt, cy, sy
+            i, g[0], g[1], g[2], ux, uy, uz, pos, speed, mate_start, mates, lim, dt, cy, sy
         )
         # Repulsion (Eq. 12–13): the obstacles', then the teammates' of higher priority,
         # never pushing the vehicle into an obstacle (``obstacles_first``).

@@ -228,6 +228,8 @@ def _aims(
     for i in range(1, n):
         clearance = CROSSING_CLEARANCE * lim.safe_distance_uav + 2.0 * speed[i] * dt
         first = 2.0
+        if np.sum((f.g[i] - pos[i]) ** 2) <= lim.target_accuracy**2:
+            continue  # no way to pass anyone on
         for k in range(n):
             if k == i or not active[k] or rank[k] >= rank[i]:
                 continue

@@ -23,7 +23,9 @@ FAR = 1000.0
 
 def cross(p: tuple[float, ...], g: tuple[float, ...], m: tuple[float, ...] = (0.0, 0.0, 0.0),
           u: tuple[float, ...] = EAST, reach: float = FAR) -> tuple[float, np.ndarray]:  # fmt: skip
-    s, x, y, z = crossing_point(*p, *g, *m, *u, CLEARANCE, reach)
+    s, x, y, z = crossing_point(
+        p[0], p[1], p[2], g[0], g[1], g[2], m[0], m[1], m[2], u[0], u[1], u[2], CLEARANCE, reach
+    )
     return s, np.array([x, y, z])
 
 
