@@ -55,33 +55,88 @@ def leader_arrival_fraction(
 
 
 @njit(cache=True)
-def run_fleet(
+def wrap_angle(a: float) -> float:
+    """An angle wrapped to (−π, π] (one turn at most either way)."""
+    if a > math.pi:
+        return a - 2.0 * math.pi
+    if a <= -math.pi:
+        return a + 2.0 * math.pi
+    return a
+
+
+@njit(cache=True)
+def cut_step_at(
+    s: float,
     pos: np.ndarray,
     pitch: np.ndarray,
     yaw: np.ndarray,
     speed: np.ndarray,
-    slot: np.ndarray,
-    rank: np.ndarray,
     active: np.ndarray,
+    prev_pos: np.ndarray,
+    prev_motion: np.ndarray,
     obs_center: np.ndarray,
-    obs_radius: np.ndarray,
     obs_velocity: np.ndarray,
-    target: np.ndarray,
-    lim: KernelLimits,
     dt: float,
-    method: int,
-    n_steps: int,
-    record_every: int,
-    rec_dt: np.ndarray,
-    rec_pos: np.ndarray,
-    rec_pitch: np.ndarray,
-    rec_yaw: np.ndarray,
-    rec_speed: np.ndarray,
-    rec_state: np.ndarray,
-    rec_avoiding: np.ndarray,
-    rec_formed: np.ndarray,
-    mate_search: int,
-) -> tuple[int, int, float, bool]:
+) -> None:
+    """Cut the step just taken at the fraction ``s`` of it: every active vehicle's state
+    interpolated between ``prev_pos``/``prev_motion`` (speed, pitch, yaw) and now, the
+    obstacles moved back by the rest of the step."""
+    for i in range(pos.shape[0]):
+        if not active[i]:
+            continue
+        for c in range(3):
+            pos[i, c] = prev_pos[i, c] + s * (pos[i, c] - prev_pos[i, c])
+        speed[i] = prev_motion[i, 0] + s * (speed[i] - prev_motion[i, 0])
+        pitch[i] = prev_motion[i, 1] + s * (pitch[i] - prev_motion[i, 1])
+        yaw[i] = wrap_angle(prev_motion[i, 2] + s * wrap_angle(yaw[i] - prev_motion[i, 2]))
+    for j in range(obs_center.shape[0]):
+        for c in range(3):
+            obs_center[j, c] -= (1.0 - s) * obs_velocity[j, c] * dt
+
+
+@njit(cache=True)
+def rollout_buffers(
+    pos: np.ndarray, pitch: np.ndarray, yaw: np.ndarray, obs_center: np.ndarray
+) -> tuple[
+    tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    np.ndarray,
+    np.ndarray,
+    np.ndarray,
+]:
+    """The working arrays of a rollout of N vehicles among M obstacles: the step's scratch
+    (state, avoiding, formed, direction, local_target, next_motion), the neighbour lists
+    (near_start, near_obstacles, mate_start, mates), the previous positions and motions,
+    and ``trig`` (``attitude_trig`` of the start, then kept by ``fleet_step``)."""
+    n = pos.shape[0]
+    scratch = (
+        np.ones(n, dtype=np.int8),
+        np.zeros(n, dtype=np.bool_),
+        np.zeros(n, dtype=np.bool_),
+        np.empty((n, 3)),
+        np.empty((n, 3)),
+        np.empty((n, 3)),
+    )
+    lists = (
+        np.zeros(n + 1, dtype=np.int64),
+        np.empty(n * obs_center.shape[0], dtype=np.int64),
+        np.zeros(n + 1, dtype=np.int64),
+        np.empty(4 * n, dtype=np.int64),
+    )
+    trig = np.empty((n, 7))
+    attitude_trig(pitch, yaw, trig)
+    return scratch, lists, np.empty((n, 3)), np.empty((n, 3)), trig
+
+
+@njit(cache=True)
+def run_fleet(
+    pos: np.ndarray, pitch: np.ndarray, yaw: np.ndarray, speed: np.ndarray, slot: np.ndarray,
+    rank: np.ndarray, active: np.ndarray, obs_center: np.ndarray, obs_radius: np.ndarray,
+    obs_velocity: np.ndarray, target: np.ndarray, lim: KernelLimits, dt: float, method: int,
+    n_steps: int, record_every: int, rec_dt: np.ndarray, rec_pos: np.ndarray,
+    rec_pitch: np.ndarray, rec_yaw: np.ndarray, rec_speed: np.ndarray, rec_state: np.ndarray,
+    rec_avoiding: np.ndarray, rec_formed: np.ndarray, mate_search: int,
+) -> tuple[int, int, float, bool]:  # fmt: skip
     """Run up to ``n_steps`` steps in place, stopping when the leader reaches the target.
 
     ``mate_search`` is how PPF finds the teammates a vehicle looks at (``nearby_teammates``:
@@ -89,25 +144,13 @@ def run_fleet(
     Records every ``record_every``-th step and the last one into the ``rec_*`` arrays
     (``rec_dt[k]`` is the flight time since the start of this run).  The final step is cut
     short at the point where the leader enters the target accuracy, every vehicle's
-    state interpolated to that instant.  Returns (steps taken, records written, elapsed
-    flight time); the leader has arrived iff the elapsed time is below ``n_steps · dt``.
+    state interpolated to that instant (``cut_step_at``).  Returns (steps taken, records
+    written, elapsed flight time, whether the leader arrived).
     """
-    n = pos.shape[0]
-    state = np.ones(n, dtype=np.int8)
-    avoiding = np.zeros(n, dtype=np.bool_)
-    formed = np.zeros(n, dtype=np.bool_)
-    direction = np.empty((n, 3))
-    local_target = np.empty((n, 3))
-    next_motion = np.empty((n, 3))
-    prev_pos = np.empty((n, 3))
-    prev_motion = np.empty((n, 3))
-    near_start = np.zeros(n + 1, dtype=np.int64)
-    near_obstacles = np.empty(n * obs_center.shape[0], dtype=np.int64)
-    mate_start = np.zeros(n + 1, dtype=np.int64)
-    mates = np.empty(4 * n, dtype=np.int64)
-    trig = np.empty((n, 7))
-    attitude_trig(pitch, yaw, trig)  # then kept by fleet_step
-    mate_search = mate_search_for(mate_search, n)
+    scratch, lists, prev_pos, prev_motion, trig = rollout_buffers(pos, pitch, yaw, obs_center)
+    state, avoiding, formed, direction, local_target, next_motion = scratch
+    near_start, near_obstacles, mate_start, mates = lists
+    mate_search = mate_search_for(mate_search, pos.shape[0])
     elapsed = 0.0
     records = 0
     for step in range(n_steps):
@@ -117,15 +160,12 @@ def run_fleet(
         prev_motion[:, 2] = yaw
         if method == PPF:
             if step % NEIGHBOUR_LIST_STEPS == 0:
-                nearby_obstacles(
-                    pos, obs_center, obs_radius, obs_velocity, lim, dt, NEIGHBOUR_LIST_STEPS,
-                    near_start, near_obstacles,
-                )  # fmt: skip
+                nearby_obstacles(pos, obs_center, obs_radius, obs_velocity, lim, dt,
+                                 NEIGHBOUR_LIST_STEPS, near_start, near_obstacles)  # fmt: skip
             if step == 0 or (mate_search != MATES_ALL_PAIRS and step % MATE_LIST_STEPS == 0):
-                mates = nearby_teammates(
-                    pos, pitch, yaw, speed, rank, active, lim, dt, MATE_LIST_STEPS,
-                    mate_search, mate_start, mates,
-                )  # fmt: skip
+                mates = nearby_teammates(pos, pitch, yaw, speed, rank, active, lim, dt,
+                                         MATE_LIST_STEPS, mate_search, mate_start,
+                                         mates)  # fmt: skip
             fleet_step(
                 pos, pitch, yaw, speed, slot, rank, active, obs_center, obs_radius,
                 obs_velocity, target, lim, dt, state, avoiding, formed, direction,
@@ -140,29 +180,9 @@ def run_fleet(
         s = leader_arrival_fraction(prev_pos[0], pos[0], target, lim.target_accuracy)
         arrived = s >= 0.0
         if arrived:
-            for i in range(n):
-                if not active[i]:
-                    continue
-                for c in range(3):
-                    pos[i, c] = prev_pos[i, c] + s * (pos[i, c] - prev_pos[i, c])
-                speed[i] = prev_motion[i, 0] + s * (speed[i] - prev_motion[i, 0])
-                pitch[i] = prev_motion[i, 1] + s * (pitch[i] - prev_motion[i, 1])
-                turn = yaw[i] - prev_motion[i, 2]
-                if turn > math.pi:
-                    turn -= 2.0 * math.pi
-                elif turn <= -math.pi:
-                    turn += 2.0 * math.pi
-                yaw[i] = prev_motion[i, 2] + s * turn
-                if yaw[i] > math.pi:
-                    yaw[i] -= 2.0 * math.pi
-                elif yaw[i] <= -math.pi:
-                    yaw[i] += 2.0 * math.pi
-            for j in range(obs_center.shape[0]):
-                for c in range(3):
-                    obs_center[j, c] -= (1.0 - s) * obs_velocity[j, c] * dt
-            elapsed += s * dt
-        else:
-            elapsed += dt
+            cut_step_at(s, pos, pitch, yaw, speed, active, prev_pos, prev_motion,
+                        obs_center, obs_velocity, dt)  # fmt: skip
+        elapsed += s * dt if arrived else dt
         due = arrived or (step + 1) % record_every == 0 or step == n_steps - 1
         if due and records < rec_dt.shape[0]:
             rec_dt[records] = elapsed

@@ -5,7 +5,9 @@ saturated trend, the braking speed, and the flight-path limits.
 * ``to_vcs``                Eq. 16–18 (ICS → VCS)
 * ``slot_to_ics``           Eq. 6–8 (VCS → ICS, erratum 1: the pitch matrix transposed)
 * ``trend``                 Eq. 19 (one entry of the trend matrix f, erratum 2)
-* ``braking_speed``         Eq. 21–23 (wingman deceleration ahead of its local target)
+* ``catching_up_speed``     Eq. 21–23 relative to the moving local target point (as printed:
+  ``braking_speed``)
+* ``falling_back_speed``    a wingman ahead of its slot gives the ground back
 * ``lowest_climb``, ``limit_climb``, ``follow_direction``, ``away_from_obstacles``,
   ``obstacles_first``: choices where the paper is silent (see their docstrings)
 
@@ -132,11 +134,41 @@ def braking_speed(leader_speed: float, distance: float, accel: float) -> float:
     Eq. 21–22 give the distance needed to slow from v_i to v_0 at a_i:
     Δt' = (v_i − v_0)/a_i and Δd' = v_i Δt' − a_i Δt'²/2, i.e. v_i² − v_0² = 2 a_i Δd'.
     Eq. 23 brakes (s3) once d_i ≤ Δd'; so the wingman's speed limit at distance d_i is
-    √(v_0² + 2 a_i d_i).  A negative distance (slot behind) asks for the speed that gives
-    the lost ground back at ``accel``.
+    √(v_0² + 2 a_i d_i).  This is the equation as printed; the kernel uses it relative to
+    the moving local target point (``catching_up_speed``).
     """
     v2 = leader_speed * leader_speed + 2.0 * accel * distance
     return math.sqrt(v2) if v2 > 0.0 else 0.0
+
+
+@njit(cache=True)
+def catching_up_speed(leader_speed: float, distance: float, decel: float, gain: float) -> float:
+    """Speed from which a wingman ``distance`` metres from its local target point (the
+    point not behind it) can just match the leader's speed there: Eq. 21–23 relative to
+    the moving point.
+
+    The point moves at v_0, so the wingman closes on it at v_i − v_0, and Eq. 22 with that
+    closing speed, Δd' = (v_i − v_0)Δt' − a_iΔt'²/2 with Δt' = (v_i − v_0)/a_i (Eq. 21), is
+    (v_i − v_0)²/2a_i: Eq. 23 brakes once d_i ≤ Δd', so v_i ≤ v_0 + √(2·a_i·d_i).  Near
+    the point the excess is at most ``gain``·d_i (the wingman's other corrections settle
+    in 1/ω too), so that the speed does not jump by √(2·a·d) over the last metres.  As
+    printed (``braking_speed``), Eq. 22 counts the wingman's own distance in the ICS and
+    brakes from v_i² − v_0² = 2a_iΔd': 20 m behind at ArduPlane's 16 m/s and 0.8 m/s² it
+    closed at 1 m/s, 15 s for the last 10 m.
+    """
+    d = max(distance, 0.0)
+    return leader_speed + min(math.sqrt(2.0 * decel * d), gain * d)
+
+
+@njit(cache=True)
+def falling_back_speed(leader_speed: float, distance: float, accel: float, gain: float) -> float:
+    """Speed at which a wingman ``distance`` metres ahead of its local target point gives
+    the ground back and just matches the leader's speed there (where the paper is silent):
+    ``catching_up_speed`` the other way, v_0 − min(√(2·a·d), ``gain``·d), with the
+    acceleration a that restores its speed.
+    """
+    d = max(distance, 0.0)
+    return max(leader_speed - min(math.sqrt(2.0 * accel * d), gain * d), 0.0)
 
 
 @njit(cache=True)

@@ -1,17 +1,19 @@
-"""A plain-numpy reference of one PPF step, vectorised over the fleet.
+"""A plain-numpy reference of one PPF step, vectorised over the fleet, to check the kernel.
 
 The same equations as ``gcs_ppf.planning.ppf.kernel.fleet_step`` written with whole-array numpy
-operations: slower (see the README's speed table) but short, and independent enough of
-the compiled kernel to check it in tests.  Same arguments; returns new arrays
-(pos, pitch, yaw, speed, state) instead of updating in place.
+operations, one function per equation group: slower (see the README's speed table) but
+short, and independent enough of the compiled kernel to check it in tests.  Same
+arguments; returns new arrays (pos, pitch, yaw, speed, state) instead of updating in place.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
+from gcs_ppf.planning.ppf.formation import CROSSING_CLEARANCE, CROSSING_REACH
 from gcs_ppf.planning.ppf.kernel import (
     AVOIDANCE_TURN_ANGLE,
     CONFLICT_HORIZON_TURNS,
@@ -32,26 +34,60 @@ from gcs_ppf.planning.scene import BoolArray, FloatArray, IntArray
 Step = tuple[FloatArray, FloatArray, FloatArray, FloatArray, IntArray]
 
 
+class Attitude(NamedTuple):
+    """cos θ, sin θ, cos ψ, sin ψ [N] of every vehicle, its flight direction u [N,3] (Eq. 5
+    divided by v) and its velocity [N,3]."""
+
+    cp: FloatArray
+    sp: FloatArray
+    cy: FloatArray
+    sy: FloatArray
+    u: FloatArray
+    vel: FloatArray
+
+
+class Formation(NamedTuple):
+    """Eq. 6–8: local target points g [N,3], the offset to them, which vehicles are active
+    wingmen and formed, the offset's component along the leader's flight direction, and
+    the speed the leader waits at (Eq. 24; 0: it does not wait)."""
+
+    g: FloatArray
+    to_g: FloatArray
+    wingman: BoolArray
+    formed: BoolArray
+    along: FloatArray
+    wait_speed: float
+
+
+class Repulsion(NamedTuple):
+    """Eq. 12–13: the total repulsion, the obstacles' part, whether a moving threat (a
+    moving obstacle or a teammate) repels, and whether to hold course (just clear of a
+    teammate conflict that following would turn into one)."""
+
+    rep: FloatArray
+    obstacles: FloatArray
+    moving: BoolArray
+    hold: BoolArray
+
+
 def _unit(v: FloatArray) -> FloatArray:
     norm = np.linalg.norm(v, axis=-1, keepdims=True)
     unit: FloatArray = np.divide(v, norm, out=np.zeros_like(v), where=norm > 0)
     return unit
 
 
-def reference_step(
-    pos: FloatArray, pitch: FloatArray, yaw: FloatArray, speed: FloatArray,
-    slot: FloatArray, rank: IntArray, active: BoolArray, obs_center: FloatArray,
-    obs_radius: FloatArray, obs_velocity: FloatArray, target: FloatArray,
-    lim: KernelLimits, dt: float,
-) -> Step:  # fmt: skip
-    """One step Δt of the whole fleet (Eq. 3–24), in numpy."""
-    n = pos.shape[0]
-    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+def _attitude(pitch: FloatArray, yaw: FloatArray, speed: FloatArray) -> Attitude:
     cp, sp, cy, sy = np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
     u = np.stack([cp * cy, cp * sy, sp], axis=1)  # flight directions (Eq. 5)
-    vel = speed[:, None] * u
+    return Attitude(cp, sp, cy, sy, u, speed[:, None] * u)
 
-    # Eq. 6–8 (corrected): local target points, formed, and whether the leader waits.
+
+def _formation(
+    pos: FloatArray, slot: FloatArray, active: BoolArray, a: Attitude, lim: KernelLimits
+) -> Formation:
+    """Eq. 6–8 (corrected): local target points, formed, and whether the leader waits."""
+    n = pos.shape[0]
+    cp, sp, cy, sy, u = a.cp, a.sp, a.cy, a.sy, a.u
     sx, sy_, sz = slot.T
     px_ = cp[0] * sx - sp[0] * sz
     g = np.stack([cy[0] * px_ - sy[0] * sy_, sy[0] * px_ + cy[0] * sy_, sp[0] * sx + cp[0] * sz], 1)
@@ -61,9 +97,22 @@ def reference_step(
     formed = wingman & ((to_g**2).sum(1) <= lim.target_accuracy**2)
     along = to_g @ u[0]
     same_way = u @ u[0] > 0.0
-    leader_waits = bool(np.any(wingman & ~formed & ((along >= 0.0) | ~same_way)))
+    out = wingman & ~formed
+    waits = out & ((along >= 0.0) | ~same_way)
+    straight_ahead = (to_g**2).sum(1) <= 2.0 * along**2  # within 45° of ahead of the slot
+    ahead = -along[out & ~waits & straight_ahead]  # flying the leader's way
+    gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    give_back = np.minimum(np.sqrt(2.0 * lim.accel * ahead), gain * ahead)
+    wait_speed = min(lim.v_min + float(give_back.max(initial=0.0)), lim.v_max)
+    return Formation(g, to_g, wingman, formed, along, wait_speed if waits.any() else 0.0)
 
-    # Eq. 10–13: obstacles inside the influence radius repel with ε₁.
+
+def _obstacle_repulsion(
+    pos: FloatArray, speed: FloatArray, obs_center: FloatArray, obs_radius: FloatArray,
+    obs_velocity: FloatArray, lim: KernelLimits, dt: float,
+) -> tuple[FloatArray, BoolArray]:  # fmt: skip
+    """Eq. 10–13: obstacles inside the influence radius repel with ε₁."""
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     d_obs = pos[:, None, :] - obs_center[None]  # [N,M,3]
     dist = np.linalg.norm(d_obs, axis=-1)
     u_obs = np.linalg.norm(obs_velocity, axis=-1)
@@ -77,10 +126,20 @@ def reference_step(
     inside = (dist <= radius) & (dist > 0)
     rep = EPSILON_1 * (_unit(d_obs) * inside[..., None]).sum(1)
     moving = (inside & (u_obs[None] > 0)).any(1)
+    return rep, moving
 
-    # Teammates of higher priority: conflicts by closest point of approach.
+
+def _conflicts(
+    pos: FloatArray, vel: FloatArray, mate_vel: FloatArray, speed: FloatArray, rank: IntArray,
+    active: BoolArray, lim: KernelLimits, dt: float,
+) -> tuple[BoolArray, BoolArray, FloatArray]:  # fmt: skip
+    """Teammates of higher priority as moving obstacles, by closest point of approach
+    within a quarter turn: [i,k] whether mate k is near (a conflict or just clear of one)
+    and a conflict for vehicle i flying ``vel[i]`` (mates at ``mate_vel``), and the unit
+    miss vectors [i,k,3]."""
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     d_m = pos[:, None, :] - pos[None]  # [i,k,3]: from mate k to vehicle i
-    w = vel[None] - vel[:, None]  # mate k relative to vehicle i
+    w = mate_vel[None] - vel[:, None]  # mate k relative to vehicle i
     approach = (w * d_m).sum(-1)
     w2 = (w**2).sum(-1)
     horizon = CONFLICT_HORIZON_TURNS * AVOIDANCE_TURN_ANGLE / omega
@@ -98,59 +157,146 @@ def reference_step(
         & (miss2 < (threshold + lim.safe_distance_uav) ** 2)
         & (d2 <= mate_radius**2) & (d2 > 0)
     )  # fmt: skip
-    threat = near & (miss2 < threshold**2)
-    hold_course = (near & ~threat).any(1)
     miss_vec = d_m - w * t_cpa[..., None]
     miss = np.linalg.norm(miss_vec, axis=-1)
     push = np.where((miss > 1e-6 * np.sqrt(d2))[..., None], _unit(miss_vec), _unit(d_m))
-    obstacles_rep = rep
-    rep = rep + EPSILON_1 * (push * threat[..., None]).sum(1)
-    # Obstacles first: drop the teammates' push against the obstacles' (the kernel's
-    # obstacles_first).
-    o2 = (obstacles_rep**2).sum(1)
-    into = np.divide(((rep - obstacles_rep) * obstacles_rep).sum(1), o2, out=np.zeros(n),
-                     where=o2 > 0)  # fmt: skip
-    rep = rep - np.minimum(into, 0.0)[:, None] * obstacles_rep
-    moving |= threat.any(1)
-    repelled = (rep != 0).any(1)
+    return near, near & (miss2 < threshold**2), push
 
-    # Eq. 14–15: attraction (unit) unless repelled.
-    aim = g + (speed[0] / omega) * u[0]
+
+def _repulsion(
+    pos: FloatArray, speed: FloatArray, a: Attitude, follow: FloatArray, rank: IntArray,
+    active: BoolArray, obstacles: tuple[FloatArray, BoolArray], lim: KernelLimits, dt: float,
+) -> Repulsion:  # fmt: skip
+    """Eq. 12–13 with the teammates of higher priority as moving obstacles (``_conflicts``),
+    added to the obstacles' repulsion (Eq. 10–13), never pushing a vehicle into an
+    obstacle (the kernel's ``obstacles_first``).  Just clear of a conflict a vehicle holds
+    course if flying ``follow`` (unit, [N,3]) at its speed would make it a conflict."""
+    n = pos.shape[0]
+    rep, moving = obstacles
+    near, threat, push = _conflicts(pos, a.vel, a.vel, speed, rank, active, lim, dt)
+    _, threat_after, _ = _conflicts(pos, speed[:, None] * follow, a.vel, speed, rank, active,
+                                    lim, dt)  # fmt: skip
+    hold: BoolArray = np.any(near & ~threat & threat_after, axis=1)
+    total = rep + EPSILON_1 * (push * threat[..., None]).sum(1)
+    o2 = (rep**2).sum(1)
+    into = np.divide(((total - rep) * rep).sum(1), o2, out=np.zeros(n), where=o2 > 0)
+    total = total - np.minimum(into, 0.0)[:, None] * rep
+    return Repulsion(total, rep, moving | threat.any(1), hold)
+
+
+def _crossing(
+    p: FloatArray, g: FloatArray, m: FloatArray, u: FloatArray, clearance: float, reach: float
+) -> tuple[float, FloatArray]:
+    """The kernel's ``crossing_point``: (s of the point Q of p→g nearest to m, the point
+    to make for), or (−1, g) if p→g passes ``clearance`` or more from m or Q is p or g.
+    The wingman heads along the tangent from p to the sphere of that radius round m, on
+    Q's side with its part ahead of m along u dropped (above m if Q is on m's track), to
+    the point ``reach`` (at most |g − p|) along it."""
+    seg = g - p
+    if not seg.any():
+        return -1.0, g
+    to_m = m - p
+    s = float(to_m @ seg / (seg @ seg))
+    side = s * seg - to_m  # Q − m
+    if not 0.0 < s < 1.0 or side @ side >= clearance**2:
+        return -1.0, g
+    side = side - max(float(side @ u), 0.0) * u
+    dist = float(np.linalg.norm(to_m))
+    b = to_m / dist
+    c = side - (side @ b) * b
+    if np.linalg.norm(c) <= 1e-9 * clearance:
+        c = np.array([0.0, 0.0, 1.0]) - b[2] * b
+        if not c.any():
+            c = u.copy()
+    sin_a = min(clearance / dist, 1.0)
+    heading = math.sqrt(1.0 - sin_a**2) * b + sin_a * c / np.linalg.norm(c)
+    point: FloatArray = p + min(float(np.linalg.norm(seg)), reach) * heading
+    return s, point
+
+
+def _aims(
+    pos: FloatArray, target: FloatArray, speed: FloatArray, a: Attitude, f: Formation,
+    rank: IntArray, active: BoolArray, lim: KernelLimits, dt: float,
+) -> FloatArray:  # fmt: skip
+    """The points made for [N,3]: the mission target (the leader), G_i or the point to
+    make for to pass a teammate of higher priority (``_crossing``; a wingman)."""
+    n = pos.shape[0]
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    aim = f.g.copy()
+    lead = speed[0] / omega
+    r_mate = np.sqrt((lim.safe_distance_uav + speed / omega) ** 2 - (speed / omega) ** 2)
+    for i in range(1, n):
+        clearance = CROSSING_CLEARANCE * lim.safe_distance_uav + 2.0 * speed[i] * dt
+        first = 2.0
+        if np.sum((f.g[i] - pos[i]) ** 2) <= lim.target_accuracy**2:
+            continue  # no way to pass anyone on
+        for k in range(n):
+            if k == i or not active[k] or rank[k] >= rank[i]:
+                continue
+            reach = r_mate[i] + speed[i] * dt + speed[k] * AVOIDANCE_TURN_ANGLE / omega
+            reach = min(reach, CROSSING_REACH * lim.safe_distance_uav)
+            if np.sum((pos[i] - pos[k]) ** 2) > reach**2:
+                continue
+            s, point = _crossing(pos[i], f.g[i], pos[k], a.u[0], clearance, lead)
+            if 0.0 <= s < first:
+                first, aim[i] = s, point
     aim[0] = target
+    return aim
+
+
+def _follow(pos: FloatArray, aim: FloatArray, speed: FloatArray, a: Attitude,
+            lim: KernelLimits) -> FloatArray:  # fmt: skip
+    """Eq. 14: the unit attraction towards the points made for (``_aims``), a wingman's one
+    turn time ahead along the leader's flight, no steeper than MAX_FOLLOW_PITCH."""
+    aim = aim.copy()
+    aim[1:] += (speed[0] / min(lim.max_pitch_rate, lim.max_yaw_rate)) * a.u[0]
     to_aim = aim - pos
     horizontal = np.hypot(to_aim[:, 0], to_aim[:, 1])
     heading = np.where(
         (horizontal > 0)[:, None],
         to_aim[:, :2] / np.where(horizontal > 0, horizontal, 1.0)[:, None],
-        np.stack([cy, sy], axis=1),
+        np.stack([a.cy, a.sy], axis=1),
     )
     elevation = np.clip(np.arctan2(to_aim[:, 2], horizontal), -MAX_FOLLOW_PITCH, MAX_FOLLOW_PITCH)
-    follow = np.concatenate(
+    follow: FloatArray = np.concatenate(
         [np.cos(elevation)[:, None] * heading, np.sin(elevation)[:, None]], axis=1
     )
-    # Hold course only where following would turn back into the conflict.
-    held = (push * (near & ~threat)[..., None]).sum(1)
-    hold = hold_course & ((follow * held).sum(1) < (u * held).sum(1))  # it would turn back
-    field = np.where(repelled[:, None], rep, np.where(hold[:, None], u, follow))
-    field = np.where((np.linalg.norm(field, axis=1) > 0)[:, None], field, u)
+    return follow
 
-    # Eq. 16–18 into the VCS.
+
+def _field(follow: FloatArray, a: Attitude, r: Repulsion) -> FloatArray:
+    """Eq. 15: the repulsion alone while repelled, else the attraction, or the flight
+    direction while holding course."""
+    repelled = (r.rep != 0).any(1)
+    field = np.where(repelled[:, None], r.rep, np.where(r.hold[:, None], a.u, follow))
+    unit: FloatArray = np.where((np.linalg.norm(field, axis=1) > 0)[:, None], field, a.u)
+    return unit
+
+
+def _wanted_direction(
+    field: FloatArray, pos: FloatArray, speed: FloatArray, a: Attitude, r: Repulsion,
+    lim: KernelLimits, dt: float,
+) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray, FloatArray]:  # fmt: skip
+    """Eq. 16–18 into the VCS, Eq. 20 (s2), the slide along static obstacles and the
+    flight-path and ground limits.  Returns (F_v [N,3], the wanted ICS direction d [N,3],
+    the sine of the lowest flight-path angle allowed, s2, F_v^x before any change)."""
+    cp, sp, cy, sy = a.cp, a.sp, a.cy, a.sy
+    n = pos.shape[0]
+    repelled = (r.rep != 0).any(1)
     bx = cy * field[:, 0] + sy * field[:, 1]
     fvx = cp * bx + sp * field[:, 2]
     fvy = -sy * field[:, 0] + cy * field[:, 1]
     fvz = -sp * bx + cp * field[:, 2]
     along_field = fvx.copy()
-    state = np.full(n, S1_FOLLOW)
 
     # Eq. 20: local minimum → F_add along +z_v.
     norm = np.sqrt(fvx**2 + fvy**2 + fvz**2)
     s2 = repelled & (fvx < 0) & (np.hypot(fvy, fvz) <= norm * math.sin(LOCAL_MINIMUM_ANGLE))
     fvz = fvz + np.where(s2, EPSILON_1, 0.0)
-    state[s2] = S2_LOCAL_MINIMUM
     norm = np.sqrt(fvx**2 + fvy**2 + fvz**2)
 
     # Static obstacles: turn only until no longer closing (projection onto the tangent plane).
-    project = repelled & ~moving
+    project = repelled & ~r.moving
     k = np.divide(fvx, norm**2, out=np.zeros_like(fvx), where=norm > 0)
     closing_in = project & (fvx < 0)
     hold = project & (fvx >= 0)
@@ -165,11 +311,11 @@ def reference_step(
     height = pos[:, 2] - lim.ground - lim.safe_distance_obstacle - INFLUENCE_STEPS * speed * dt
     quarter_turn = AVOIDANCE_TURN_ANGLE / lim.max_pitch_rate
     rho_up = np.minimum(speed + lim.accel * quarter_turn, lim.v_max) / lim.max_pitch_rate
-    r = np.minimum(height / rho_up, 1.0)
+    ratio = np.minimum(height / rho_up, 1.0)
     lowest = np.where(
-        r >= 0.0,
-        -np.sqrt(1.0 - (1.0 - np.maximum(r, 0.0)) ** 2),
-        np.minimum(-r, math.sin(MAX_FOLLOW_PITCH)),
+        ratio >= 0.0,
+        -np.sqrt(1.0 - (1.0 - np.maximum(ratio, 0.0)) ** 2),
+        np.minimum(-ratio, math.sin(MAX_FOLLOW_PITCH)),
     )
 
     # No steeper than MAX_AVOID_PITCH or the airframe (the kernel's limit_climb, by vehicle).
@@ -177,22 +323,24 @@ def reference_step(
     d = np.stack([cy * px_ - sy * fvy, sy * px_ + cy * fvy, sp * fvx + cp * fvz], axis=1)
     for i in range(n):
         d[i] = limit_climb(
-            d[i, 0],
-            d[i, 1],
-            d[i, 2],
-            rep[i, 0],
-            rep[i, 1],
-            rep[i, 2],
-            bool(closing_in[i]),
-            cy[i],
-            sy[i],
-            float(lowest[i]),
-            lim,
-        )
+            d[i, 0], d[i, 1], d[i, 2], r.rep[i, 0], r.rep[i, 1], r.rep[i, 2],
+            bool(closing_in[i]), cy[i], sy[i], float(lowest[i]), lim,
+        )  # fmt: skip
     bx = cy * d[:, 0] + sy * d[:, 1]  # ICS → VCS
-    fvx, fvy, fvz = cp * bx + sp * d[:, 2], -sy * d[:, 0] + cy * d[:, 1], -sp * bx + cp * d[:, 2]
+    fv = np.stack(
+        [cp * bx + sp * d[:, 2], -sy * d[:, 0] + cy * d[:, 1], -sp * bx + cp * d[:, 2]], 1
+    )
+    return fv, d, lowest, s2, along_field
 
-    # Eq. 19 (erratum 2), saturated.
+
+def _turn_trends(
+    fv: FloatArray, d: FloatArray, lowest: FloatArray, pitch: FloatArray, yaw: FloatArray,
+    a: Attitude, r: Repulsion, lim: KernelLimits, dt: float,
+) -> tuple[FloatArray, FloatArray]:  # fmt: skip
+    """Eq. 19 (erratum 2), saturated: the pitch and yaw entries of the trend matrix, the
+    yaw never turning further towards a repelling obstacle when the other sense does not
+    (the kernel's ``away_from_obstacles``)."""
+    fvx, fvy, fvz = fv.T
     elevation = np.arctan2(fvz, np.hypot(fvx, fvy))
     behind = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1])) - pitch
     ics = (fvx < 0) | (np.abs(pitch) > MAX_FOLLOW_PITCH) | (lowest > -1.0)
@@ -203,10 +351,8 @@ def reference_step(
     azimuth = np.where((fvx < 0) & (azimuth == 0.0), math.pi, azimuth)
     f_pitch = np.clip(elevation / (lim.max_pitch_rate * dt), -1, 1)
     f_yaw = np.clip(azimuth / (lim.max_yaw_rate * dt), -1, 1)
-    # Never turn further towards a repelling obstacle when the other sense does not
-    # (the kernel's away_from_obstacles).
-    o = obstacles_rep
-    now = (u * o).sum(1)
+    o = r.obstacles
+    now = (a.u * o).sum(1)
     th = pitch + f_pitch * lim.max_pitch_rate * dt
     turn = f_yaw * lim.max_yaw_rate * dt
 
@@ -217,24 +363,45 @@ def reference_step(
 
     after, other = towards(yaw + turn), towards(yaw - turn)
     reverse = (now < 0) & (f_yaw != 0) & (after < now) & (other > after)
-    f_yaw = np.where(reverse, -f_yaw, f_yaw)
-    f_speed = np.sign(along_field)
+    return f_pitch, np.where(reverse, -f_yaw, f_yaw)
 
-    # Eq. 21–24: the leader waits; wingmen brake to arrive at the leader's speed.
-    if leader_waits:
-        f_speed[0] = -1.0
+
+def _speed_trend(
+    along_field: FloatArray, pos: FloatArray, aim: FloatArray, speed: FloatArray, a: Attitude,
+    f: Formation, r: Repulsion, state: IntArray, lim: KernelLimits, dt: float,
+) -> FloatArray:  # fmt: skip
+    """Eq. 19's f_l with Eq. 21–24: the leader slows to its wait speed (s3); wingmen brake
+    to arrive at the leader's speed, Eq. 21–23 relative to the moving local target point
+    (s3 once d_i ≤ Δd'_i), or give ground back (the kernel's ``catching_up_speed`` and
+    ``falling_back_speed``).  Sets ``state``."""
+    repelled = (r.rep != 0).any(1)
+    f_speed = np.sign(along_field)
+    if f.wait_speed > 0.0:
+        a_wait = lim.accel if f.wait_speed >= speed[0] else lim.decel
+        f_speed[0] = np.clip((f.wait_speed - speed[0]) / (a_wait * dt), -1.0, 1.0)
         state[0] = S3_FORMATION
-    follow = wingman & ~repelled & (along_field > 0)
-    gap = np.linalg.norm(to_g, axis=1)
-    v_ahead = np.sqrt(speed[0] ** 2 + 2 * lim.decel * gap)
-    v_behind = np.sqrt(np.maximum(speed[0] ** 2 + 2 * lim.accel * along, 0.0))
-    v_cmd = np.where(along >= 0, v_ahead, v_behind)
-    brake = follow & (along >= 0) & ~formed & (speed >= v_cmd)
+    follow = f.wingman & ~repelled & (along_field > 0)
+    along = (aim - pos) @ a.u[0]  # to the point made for, along the leader's track
+    gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    behind = np.maximum(along, 0.0)
+    v_ahead = speed[0] + np.minimum(np.sqrt(2 * lim.decel * behind), gain * behind)  # Eq. 21–23
+    ahead = np.maximum(-along, 0.0)
+    v_behind = np.maximum(speed[0] - np.minimum(np.sqrt(2 * lim.accel * ahead), gain * ahead), 0)
+    slant = np.maximum(a.u @ a.u[0], 0.5)  # the angle flown to the leader's track
+    v_cmd = np.where(along >= 0, v_ahead, v_behind) / slant
+    brake = follow & (along >= 0) & ~f.formed & (speed >= v_cmd)
     state[brake] = S3_FORMATION
     a_cmd = np.where(v_cmd >= speed, lim.accel, lim.decel)
-    f_speed = np.where(follow, np.clip((v_cmd - speed) / (a_cmd * dt), -1, 1), f_speed)
+    braked: FloatArray = np.where(follow, np.clip((v_cmd - speed) / (a_cmd * dt), -1, 1), f_speed)
+    return braked
 
-    # Eq. 3–5.
+
+def _kinematics(
+    pos: FloatArray, pitch: FloatArray, yaw: FloatArray, speed: FloatArray, active: BoolArray,
+    f_speed: FloatArray, f_pitch: FloatArray, f_yaw: FloatArray, lim: KernelLimits, dt: float,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:  # fmt: skip
+    """Eq. 3–5: the new speed, pitch and yaw within their limits, and one step of flight;
+    inactive vehicles keep theirs."""
     a_l = np.where(f_speed > 0, lim.accel, lim.decel)
     new_speed = np.clip(speed + f_speed * a_l * dt, lim.v_min, lim.v_max)
     new_pitch = np.clip(pitch + f_pitch * lim.max_pitch_rate * dt, -math.pi / 2, math.pi / 2)
@@ -251,4 +418,26 @@ def reference_step(
         [np.cos(new_pitch) * np.cos(new_yaw), np.cos(new_pitch) * np.sin(new_yaw),
          np.sin(new_pitch)], axis=1)  # fmt: skip
     new_pos = pos + np.where(active[:, None], step * dt, 0.0)
-    return new_pos, new_pitch, new_yaw, new_speed, state.astype(np.int64)
+    return new_pos, new_pitch, new_yaw, new_speed
+
+
+def reference_step(
+    pos: FloatArray, pitch: FloatArray, yaw: FloatArray, speed: FloatArray,
+    slot: FloatArray, rank: IntArray, active: BoolArray, obs_center: FloatArray,
+    obs_radius: FloatArray, obs_velocity: FloatArray, target: FloatArray,
+    lim: KernelLimits, dt: float,
+) -> Step:  # fmt: skip
+    """One step Δt of the whole fleet (Eq. 3–24), in numpy."""
+    a = _attitude(pitch, yaw, speed)
+    f = _formation(pos, slot, active, a, lim)
+    obstacles = _obstacle_repulsion(pos, speed, obs_center, obs_radius, obs_velocity, lim, dt)
+    aim = _aims(pos, target, speed, a, f, rank, active, lim, dt)
+    follow = _follow(pos, aim, speed, a, lim)
+    r = _repulsion(pos, speed, a, follow, rank, active, obstacles, lim, dt)
+    field = _field(follow, a, r)
+    fv, d, lowest, s2, along_field = _wanted_direction(field, pos, speed, a, r, lim, dt)
+    state = np.where(s2, S2_LOCAL_MINIMUM, S1_FOLLOW).astype(np.int64)
+    f_pitch, f_yaw = _turn_trends(fv, d, lowest, pitch, yaw, a, r, lim, dt)
+    f_speed = _speed_trend(along_field, pos, aim, speed, a, f, r, state, lim, dt)
+    new = _kinematics(pos, pitch, yaw, speed, active, f_speed, f_pitch, f_yaw, lim, dt)
+    return (*new, state)

@@ -1,0 +1,263 @@
+"""Formation forming and maintenance: the wingmen's local target points (Eq. 6–8), the
+attraction towards a target point (Eq. 14–15) and the speed law (Eq. 21–24).
+
+* ``formation_targets``  Eq. 6–8: local target points G_i; Eq. 24's condition (leader waits)
+* ``attraction``         Eq. 14–15: towards the target point while nothing repels, passing
+  teammates behind or above them on the way to a slot (``crossing_point``)
+* ``speed_trend``        Eq. 19's f_l with Eq. 21–24 (wingman braking, leader waiting)
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from gcs_ppf.planning.ppf.primitives import (
+    AVOIDANCE_TURN_ANGLE,
+    S3_FORMATION,
+    KernelLimits,
+    catching_up_speed,
+    falling_back_speed,
+    follow_direction,
+    influence_radius,
+    slot_to_ics,
+    trend,
+)
+
+CROSSING_CLEARANCE = 2.5  # safe distances (+ 2 steps): a wingman passes a teammate this far
+CROSSING_REACH = 3.0  # safe distances: teammates this near are passed at CROSSING_CLEARANCE
+
+
+@njit(cache=True, inline="always")
+def formation_targets(
+    pos: np.ndarray,
+    slot: np.ndarray,
+    active: np.ndarray,
+    trig: np.ndarray,
+    direction: np.ndarray,
+    lim: KernelLimits,
+    local_target: np.ndarray,
+    formed: np.ndarray,
+) -> float:
+    """The wingmen's local target points G_i = P_0 + A_vf(ψ₀) B_vf(θ₀) s_i (Eq. 6–8) into
+    ``local_target[N,3]``, whether each wingman is formed (within the target accuracy of
+    G_i) into ``formed[N]``, and the speed the leader waits at (s3, Eq. 24; 0: it does
+    not wait).
+
+    The leader waits while a wingman is out of formation and has to catch up: its local
+    target point is not behind it, or it does not yet fly the leader's way.  A wingman
+    that flies the leader's way ahead of its slot cannot fall back while the leader flies
+    at v_min: then the leader leads on (s1) and the slot comes to it, or, if it waits for
+    another, it waits at v_min plus the speed the one furthest ahead gives ground back at
+    (``falling_back_speed``); at v_min they would wait for each other for ever.  Only for
+    a wingman at most 45° off straight ahead of its slot: one further to the side loses
+    the ground by turning in, and the leader waits at v_min for it as the paper's does.
+    """
+    lcp, lsp, lcy, lsy = trig[0, 0], trig[0, 1], trig[0, 2], trig[0, 3]
+    gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    leader_waits = False
+    give_back = 0.0
+    for i in range(pos.shape[0]):
+        formed[i] = False
+        gx, gy, gz = slot_to_ics(slot[i, 0], slot[i, 1], slot[i, 2], lcp, lsp, lcy, lsy)
+        local_target[i, 0] = pos[0, 0] + gx
+        local_target[i, 1] = pos[0, 1] + gy
+        local_target[i, 2] = pos[0, 2] + gz
+        if i == 0 or not active[i]:
+            continue
+        gx = local_target[i, 0] - pos[i, 0]
+        gy = local_target[i, 1] - pos[i, 1]
+        gz = local_target[i, 2] - pos[i, 2]
+        formed[i] = gx * gx + gy * gy + gz * gz <= lim.target_accuracy**2
+        along = gx * direction[0, 0] + gy * direction[0, 1] + gz * direction[0, 2]
+        same_way = (
+            direction[i, 0] * direction[0, 0]
+            + direction[i, 1] * direction[0, 1]
+            + direction[i, 2] * direction[0, 2]
+        ) > 0.0
+        if not formed[i] and (along >= 0.0 or not same_way):
+            leader_waits = True
+        elif not formed[i] and gx * gx + gy * gy + gz * gz <= 2.0 * along * along:
+            give_back = max(give_back, lim.v_min - falling_back_speed(lim.v_min, -along,
+                                                                      lim.accel, gain))  # fmt: skip
+    return min(lim.v_min + give_back, lim.v_max) if leader_waits else 0.0
+
+
+@njit(cache=True, inline="always")
+def crossing_point(
+    px: float,
+    py: float,
+    pz: float,
+    gx: float,
+    gy: float,
+    gz: float,
+    mx: float,
+    my: float,
+    mz: float,
+    ux: float,
+    uy: float,
+    uz: float,
+    clearance: float,
+    reach: float,
+) -> tuple[float, float, float, float]:
+    """How a wingman at P bound for G passes a teammate at M (formation maintenance; the
+    paper is silent).  Returns (the parameter s ∈ (0, 1) of the point Q of P→G nearest to
+    M, the point to make for instead of G), or (−1, G) if the straight way passes
+    ``clearance`` or more from M or M is not between (Q is P or G).
+
+    The formation moves together, so the way to a slot on the other side of a teammate
+    is seen at the instant: the segment P→G.  If it passes closer than ``clearance``, the
+    wingman heads along the tangent from P to the sphere of that radius round M, on the
+    side where Q lies, and makes for the point ``reach`` along it (at most as far as G);
+    inside the sphere it heads across the line to M.  The side is Q − M without its part
+    ahead of M along the formation's direction u (the leader's, who does not avoid
+    wingmen): behind M, or above or below it; a way straight through M's track passes
+    above it.  Made for afresh every step, the point slides round M until the straight
+    way is clear.
+    """
+    sx, sy, sz = gx - px, gy - py, gz - pz
+    length2 = sx * sx + sy * sy + sz * sz
+    if length2 == 0.0:
+        return -1.0, gx, gy, gz
+    bx, by, bz = mx - px, my - py, mz - pz  # towards M
+    s = (bx * sx + by * sy + bz * sz) / length2
+    if s <= 0.0 or s >= 1.0:
+        return -1.0, gx, gy, gz
+    ex, ey, ez = s * sx - bx, s * sy - by, s * sz - bz  # Q − M
+    if ex * ex + ey * ey + ez * ez >= clearance * clearance:
+        return -1.0, gx, gy, gz
+    ahead = max(ex * ux + ey * uy + ez * uz, 0.0)
+    ex, ey, ez = ex - ahead * ux, ey - ahead * uy, ez - ahead * uz  # the side to pass on
+    d = math.sqrt(bx * bx + by * by + bz * bz)
+    bx, by, bz = bx / d, by / d, bz / d
+    k = ex * bx + ey * by + ez * bz
+    cx, cy, cz = ex - k * bx, ey - k * by, ez - k * bz  # the side, across the line to M
+    c = math.sqrt(cx * cx + cy * cy + cz * cz)
+    if c <= 1e-9 * clearance:  # straight through M's track: above it
+        cx, cy, cz = -bz * bx, -bz * by, 1.0 - bz * bz
+        c = math.sqrt(cx * cx + cy * cy + cz * cz)
+        if c == 0.0:
+            cx, cy, cz, c = ux, uy, uz, 1.0
+    sin_a = min(clearance / d, 1.0)  # the tangent's angle from the line to M
+    cos_a = math.sqrt(1.0 - sin_a * sin_a)
+    hx = cos_a * bx + sin_a * cx / c
+    hy = cos_a * by + sin_a * cy / c
+    hz = cos_a * bz + sin_a * cz / c
+    far = min(math.sqrt(length2), reach)
+    return s, px + far * hx, py + far * hy, pz + far * hz
+
+
+@njit(cache=True, inline="always")
+def attraction(
+    i: int,
+    gx: float,
+    gy: float,
+    gz: float,
+    ux: float,
+    uy: float,
+    uz: float,
+    pos: np.ndarray,
+    speed: np.ndarray,
+    mate_start: np.ndarray,
+    mates: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+    cy: float,
+    sy: float,
+) -> tuple[float, float, float, float, float, float]:
+    """The unit attraction F_g on vehicle i (Eq. 14, ``follow_direction``) towards its
+    target point G = (gx, gy, gz) (the mission's target for the leader, index 0; G_i for a
+    wingman), the field while nothing repels it (Eq. 15 with F_r = 0), and the point it
+    makes for (G, or the ``crossing_point`` that passes a teammate; ``speed_trend``
+    matches the leader's speed there).  (ux, uy, uz) is the leader's flight direction.
+
+    A wingman aims where that point will be one turn time 1/ω ahead along the leader's
+    flight: its estimate of the leader's motion.  The teammates it passes are those of
+    higher priority within ``CROSSING_REACH`` safe distances (and within reach of
+    ``teammate_conflict``, so that they are in its list
+    ``mates[mate_start[i]:mate_start[i+1]]``); of those the way passes too close to, the
+    first along the way decides.  (Scalars rather than arrays where it can: every array
+    argument of an inlined group costs two atomic reference counts a call.)
+    """
+    px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    lead = speed[0] / omega if i > 0 else 0.0
+    ax, ay, az = gx, gy, gz
+    first = 2.0
+    vi = speed[i]
+    clearance = CROSSING_CLEARANCE * lim.safe_distance_uav + 2.0 * vi * dt
+    # A wingman within the target accuracy of G has no way to pass anyone on.
+    way2 = (gx - px) ** 2 + (gy - py) ** 2 + (gz - pz) ** 2
+    last = mate_start[i + 1] if i > 0 and way2 > lim.target_accuracy**2 else mate_start[i]
+    own = influence_radius(vi, omega, lim.safe_distance_uav) + vi * dt
+    for c in range(mate_start[i], last):
+        k = mates[c]
+        dx, dy, dz = px - pos[k, 0], py - pos[k, 1], pz - pos[k, 2]
+        reach = min(own + speed[k] * AVOIDANCE_TURN_ANGLE / omega,
+                    CROSSING_REACH * lim.safe_distance_uav)  # fmt: skip
+        if dx * dx + dy * dy + dz * dz > reach * reach:
+            continue
+        s, vx, vy, vz = crossing_point(
+            px, py, pz, gx, gy, gz, pos[k, 0], pos[k, 1], pos[k, 2], ux, uy, uz, clearance, lead
+        )
+        if 0.0 <= s < first:
+            first, ax, ay, az = s, vx, vy, vz
+    fx, fy, fz = follow_direction(
+        ax + lead * ux - px, ay + lead * uy - py, az + lead * uz - pz, cy, sy
+    )
+    return fx, fy, fz, ax, ay, az
+
+
+@njit(cache=True, inline="always")
+def speed_trend(
+    i: int,
+    along_field: float,
+    repelled: bool,
+    wait_speed: float,
+    pos: np.ndarray,
+    speed: np.ndarray,
+    ax: float,
+    ay: float,
+    az: float,
+    direction: np.ndarray,
+    formed: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+    state: int,
+) -> tuple[float, int]:
+    """The speed entry f_l of the trend matrix (Eq. 19): the sign of F_v^x (``along_field``),
+    except that the leader slows to ``wait_speed`` while the formation forms (s3, Eq. 24;
+    see ``formation_targets``), and
+    a wingman that nothing repels brakes so as to arrive at the leader's speed (Eq. 21–23
+    relative to its moving local target point, ``catching_up_speed``; s3 once
+    d_i ≤ Δd'_i) or, with its slot behind it, gives the ground back (``falling_back_speed``);
+    d_i is measured along the leader's track, to the point the wingman makes for
+    (``attraction``: G_i or a crossing point), and the speed is what makes that good at
+    the angle the wingman flies to the track.  Returns (f_l, the vehicle's state:
+    ``state`` or s3).
+    """
+    f_speed = 1.0 if along_field > 0.0 else (-1.0 if along_field < 0.0 else 0.0)
+    if i == 0:
+        if wait_speed > 0.0:
+            a_cmd = lim.accel if wait_speed >= speed[0] else lim.decel
+            return trend(wait_speed - speed[0], a_cmd, dt), S3_FORMATION
+        return f_speed, state
+    if repelled or not along_field > 0.0:
+        return f_speed, state
+    vi, v0 = speed[i], speed[0]
+    gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    ux, uy, uz = direction[0, 0], direction[0, 1], direction[0, 2]
+    along = (ax - pos[i, 0]) * ux + (ay - pos[i, 1]) * uy + (az - pos[i, 2]) * uz
+    # The speed that makes good the leader's speed (plus or minus) along its track, at the
+    # angle the wingman flies to it (sideways corrections need more speed).
+    slant = max(direction[i, 0] * ux + direction[i, 1] * uy + direction[i, 2] * uz, 0.5)
+    if along >= 0.0:
+        v_cmd = catching_up_speed(v0, along, lim.decel, gain) / slant
+        if not formed[i] and vi >= v_cmd:
+            state = S3_FORMATION  # Eq. 23: d_i ≤ Δd'_i
+    else:
+        v_cmd = falling_back_speed(v0, -along, lim.accel, gain) / slant
+    a_cmd = lim.accel if v_cmd >= vi else lim.decel
+    return trend(v_cmd - vi, a_cmd, dt), state

@@ -1,0 +1,193 @@
+"""Repulsion from obstacles and from teammates of higher priority (Eq. 10–13 of the paper).
+
+* ``obstacle_repulsion``  Eq. 10–13: ε₁ from every obstacle whose influence radius we are in
+* ``teammate_conflict``   Eq. 12–13 for one teammate of higher priority, a moving obstacle
+* ``teammate_conflicts``  the same summed over the teammates a vehicle looks at
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from gcs_ppf.planning.ppf.primitives import (
+    AVOIDANCE_TURN_ANGLE,
+    CONFLICT_HORIZON_TURNS,
+    EPSILON_1,
+    INFLUENCE_STEPS,
+    KernelLimits,
+    airframe_limited,
+    closing_speed,
+    influence_radius,
+)
+
+NO_CONFLICT = 0  # a teammate that does not repel
+JUST_CLEAR = 1  # a teammate conflict only just avoided: hold course
+CONFLICT = 2  # a teammate that repels (a moving obstacle)
+
+
+@njit(cache=True, inline="always")
+def obstacle_repulsion(
+    i: int,
+    pos: np.ndarray,
+    speed: np.ndarray,
+    obs_center: np.ndarray,
+    obs_radius: np.ndarray,
+    obs_velocity: np.ndarray,
+    near_start: np.ndarray,
+    near_obstacles: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+) -> tuple[float, float, float, bool]:
+    """Repulsion on vehicle i from the obstacles (Eq. 10–13): ε₁ along the outward normal
+    from every obstacle whose influence radius R_j (Eq. 10–11, erratum 4: see
+    ``influence_radius``) the vehicle is in.  R_j grows by a few steps of travel, by the
+    obstacle's closing speed times a quarter-turn time, and for an ``airframe_limited``
+    vehicle by one turn radius.  Only ``near_obstacles[near_start[i]:near_start[i+1]]``
+    are looked at.  Returns (F_r, whether a repelling obstacle moves).
+    """
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    vi = speed[i]
+    px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
+    rx, ry, rz = 0.0, 0.0, 0.0
+    moving_threat = False
+    rho = vi / omega
+    half_turn = rho if airframe_limited(lim) else 0.0
+    for c in range(near_start[i], near_start[i + 1]):
+        j = near_obstacles[c]
+        dx = px - obs_center[j, 0]
+        dy = py - obs_center[j, 1]
+        dz = pz - obs_center[j, 2]
+        d2 = dx * dx + dy * dy + dz * dz
+        keep_out = obs_radius[j] + lim.safe_distance_obstacle
+        u_max = math.sqrt(
+            obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2
+        )
+        reach = (
+            keep_out
+            + rho
+            + INFLUENCE_STEPS * vi * dt
+            + u_max * AVOIDANCE_TURN_ANGLE / omega
+            + half_turn
+        )
+        if d2 > reach * reach:  # cheap rejection: R ≤ keep_out + ρ
+            continue
+        d = math.sqrt(d2)
+        closing = closing_speed(
+            dx, dy, dz, d, obs_velocity[j, 0], obs_velocity[j, 1], obs_velocity[j, 2]
+        )
+        radius = influence_radius(vi, omega, keep_out) + INFLUENCE_STEPS * vi * dt
+        radius += closing * AVOIDANCE_TURN_ANGLE / omega + half_turn
+        if d <= radius and d > 0.0:
+            rx += EPSILON_1 * dx / d
+            ry += EPSILON_1 * dy / d
+            rz += EPSILON_1 * dz / d
+            moving_threat = moving_threat or u_max > 0.0
+    return rx, ry, rz, moving_threat
+
+
+@njit(cache=True, inline="always")
+def teammate_conflict(
+    dx: float,
+    dy: float,
+    dz: float,
+    wx: float,
+    wy: float,
+    wz: float,
+    vi: float,
+    vk: float,
+    lim: KernelLimits,
+    dt: float,
+) -> tuple[int, float, float, float]:
+    """One teammate k of higher priority as a moving obstacle (Eq. 12–13, formation model).
+
+    (dx, dy, dz) is vehicle i's offset from k, (wx, wy, wz) k's velocity relative to i.
+    The mate repels (``CONFLICT``) only while the two close on each other and, within a
+    quarter turn's time, would come nearer than the safe distance plus what turning at
+    full rate could take off it (closest point of approach); mates flying alongside do
+    not (``NO_CONFLICT``).  A moving obstacle repels from where it will be at the closest
+    approach: along the miss vector, which is what widens the miss; radially when the two
+    would meet head-on (then s2 decides the way out).  Within one more safe distance of a
+    conflict it is ``JUST_CLEAR``: hold course rather than turn back into it (otherwise the
+    turn flips every step along the conflict's edge).  Returns (kind, unit miss vector).
+    """
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    approach = wx * dx + wy * dy + wz * dz  # > 0: the gap is shrinking
+    w2 = wx * wx + wy * wy + wz * wz
+    if approach <= 0.0 or w2 == 0.0:  # (w2 can underflow while approach does not)
+        return NO_CONFLICT, 0.0, 0.0, 0.0
+    d2 = dx * dx + dy * dy + dz * dz
+    # Closest approach within the horizon (straight flight), and its time.
+    t_cpa = min(approach / w2, CONFLICT_HORIZON_TURNS * AVOIDANCE_TURN_ANGLE / omega)
+    miss2 = d2 - 2.0 * approach * t_cpa + w2 * t_cpa * t_cpa
+    # Either vehicle may be turning at full rate meanwhile (½ v ω t² each, at most one
+    # more safe distance).
+    turning = min(0.5 * (vi + vk) * omega * t_cpa * t_cpa, lim.safe_distance_uav)
+    threshold = lim.safe_distance_uav + (2.0 * vi * dt + turning)
+    if miss2 >= (threshold + lim.safe_distance_uav) ** 2:
+        return NO_CONFLICT, 0.0, 0.0, 0.0
+    d = math.sqrt(d2)
+    radius = influence_radius(vi, omega, lim.safe_distance_uav) + vi * dt
+    radius += vk * AVOIDANCE_TURN_ANGLE / omega
+    if d > radius or d == 0.0:
+        return NO_CONFLICT, 0.0, 0.0, 0.0
+    mx, my, mz = dx - wx * t_cpa, dy - wy * t_cpa, dz - wz * t_cpa
+    miss = math.sqrt(mx * mx + my * my + mz * mz)
+    if miss > 1e-6 * d:
+        mx, my, mz = mx / miss, my / miss, mz / miss
+    else:
+        mx, my, mz = dx / d, dy / d, dz / d
+    return (JUST_CLEAR if miss2 >= threshold * threshold else CONFLICT), mx, my, mz
+
+
+@njit(cache=True, inline="always")
+def teammate_conflicts(
+    i: int,
+    rx: float,
+    ry: float,
+    rz: float,
+    fx: float,
+    fy: float,
+    fz: float,
+    pos: np.ndarray,
+    speed: np.ndarray,
+    trig: np.ndarray,
+    mate_start: np.ndarray,
+    mates: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+) -> tuple[float, float, float, bool, bool]:
+    """The repulsion (rx, ry, rz) on vehicle i with that of its teammates of higher
+    priority (lower rank) added (Eq. 12–13; each one by ``teammate_conflict``).  Only
+    ``mates[mate_start[i]:mate_start[i+1]]`` are looked at (see ``nearby_teammates``);
+    ``trig[:, 4:7]`` are the velocities (``unit_velocities``).
+
+    Just clear of a conflict the vehicle holds its course rather than turn back into it
+    (otherwise the turn flips every step along the conflict's edge), but only if flying
+    the way it wants to, (fx, fy, fz) at its speed, would make that mate a conflict: a
+    hold whenever following took off some of the miss kept wingmen from their slots for
+    the rest of a flight, beside a teammate at the edge of the conflict band.
+
+    Returns (F_r, whether a mate repels, whether to hold course).
+    """
+    vi = speed[i]
+    px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
+    repelled_by_mate = False
+    hold_course = False
+    for c in range(mate_start[i], mate_start[i + 1]):
+        k = mates[c]
+        dx, dy, dz = px - pos[k, 0], py - pos[k, 1], pz - pos[k, 2]
+        wx, wy, wz = trig[k, 4], trig[k, 5], trig[k, 6]
+        kind, mx, my, mz = teammate_conflict(
+            dx, dy, dz, wx - trig[i, 4], wy - trig[i, 5], wz - trig[i, 6], vi, speed[k], lim, dt
+        )
+        if kind == JUST_CLEAR and not hold_course:
+            wx, wy, wz = wx - vi * fx, wy - vi * fy, wz - vi * fz  # were it to follow
+            kind_after, _, _, _ = teammate_conflict(dx, dy, dz, wx, wy, wz, vi, speed[k], lim, dt)
+            hold_course = kind_after == CONFLICT
+        elif kind == CONFLICT:
+            rx, ry, rz = rx + EPSILON_1 * mx, ry + EPSILON_1 * my, rz + EPSILON_1 * mz
+            repelled_by_mate = True
+    return rx, ry, rz, repelled_by_mate, hold_course

@@ -1,0 +1,130 @@
+"""Formation maintenance (gcs_ppf.planning.ppf.formation): crossing points and speed laws."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from gcs_ppf.planning.ppf.kernel import (
+    catching_up_speed,
+    crossing_point,
+    falling_back_speed,
+)
+from gcs_ppf.planning.ppf.reference import _crossing
+
+EAST = (1.0, 0.0, 0.0)
+CLEARANCE = 127.0
+FAR = 1000.0
+
+
+def cross(p: tuple[float, ...], g: tuple[float, ...], m: tuple[float, ...] = (0.0, 0.0, 0.0),
+          u: tuple[float, ...] = EAST, reach: float = FAR) -> tuple[float, np.ndarray]:  # fmt: skip
+    s, x, y, z = crossing_point(
+        p[0], p[1], p[2], g[0], g[1], g[2], m[0], m[1], m[2], u[0], u[1], u[2], CLEARANCE, reach
+    )
+    return s, np.array([x, y, z])
+
+
+def closest_to(m: np.ndarray, p: np.ndarray, q: np.ndarray) -> float:
+    """Distance from m to the ray from p through q."""
+    d = (q - p) / np.linalg.norm(q - p)
+    t = max(float((m - p) @ d), 0.0)
+    return float(np.linalg.norm(p + t * d - m))
+
+
+def test_a_clear_way_is_kept() -> None:
+    g = (-100.0, 100.0, 0.0)
+    s, point = cross((-300.0, -100.0, 0.0), g)  # passes 212 m behind the leader
+    assert s == -1.0
+    assert np.allclose(point, g)
+    s, point = cross((-100.0, 200.0, 0.0), g)  # the leader is not between
+    assert s == -1.0
+    assert np.allclose(point, g)
+
+
+def test_a_way_across_the_track_close_behind_passes_at_the_clearance() -> None:
+    p = np.array([-100.0, -150.0, 5.0])
+    s, point = cross(tuple(p), (-100.0, 100.0, 0.0))
+    assert 0.0 < s < 1.0
+    assert closest_to(np.zeros(3), p, point) == pytest.approx(CLEARANCE, rel=1e-9)
+    d = (point - p) / np.linalg.norm(point - p)
+    nearest = p + float(-p @ d) * d
+    assert nearest[0] < 0.0  # it passes behind the leader, never ahead of it
+
+
+def test_a_way_straight_through_the_teammate_passes_above_it() -> None:
+    p = np.array([0.0, -150.0, 0.0])
+    _, point = cross(tuple(p), (0.0, 150.0, 0.0))
+    assert point[2] > 0.0
+    assert point[0] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_a_way_passing_ahead_of_the_leader_is_turned_above_it_not_further_ahead() -> None:
+    p = np.array([20.0, -150.0, 0.0])
+    _, point = cross(tuple(p), (20.0, 150.0, 10.0))
+    assert closest_to(np.zeros(3), p, point) == pytest.approx(CLEARANCE, rel=1e-9)
+    assert point[0] <= p[0] + 1e-9  # no further forward than the wingman is
+    assert point[2] > 0.0
+
+
+def test_inside_the_clearance_the_wingman_heads_across_the_line_to_the_teammate() -> None:
+    p = np.array([-90.0, -20.0, 10.0])
+    _, point = cross(tuple(p), (-100.0, 100.0, 0.0))
+    assert float((point - p) @ (np.zeros(3) - p)) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_the_point_made_for_is_at_most_reach_away() -> None:
+    p = (-100.0, -400.0, 0.0)
+    _, point = cross(p, (-100.0, 400.0, 0.0), reach=150.0)
+    assert np.linalg.norm(point - np.array(p)) == pytest.approx(150.0)
+
+
+coordinate = st.floats(-400.0, 400.0)
+
+
+@given(
+    p=st.tuples(coordinate, coordinate, coordinate),
+    g=st.tuples(coordinate, coordinate, coordinate),
+    m=st.tuples(coordinate, coordinate, coordinate),
+    heading=st.floats(-math.pi, math.pi),
+    climb=st.floats(-1.0, 1.0),
+    reach=st.floats(50.0, 600.0),
+)
+def test_the_kernel_and_the_reference_make_for_the_same_point(
+    p: tuple[float, float, float], g: tuple[float, float, float],
+    m: tuple[float, float, float], heading: float, climb: float, reach: float,
+) -> None:  # fmt: skip
+    u = (math.cos(climb) * math.cos(heading), math.cos(climb) * math.sin(heading), math.sin(climb))
+    s, point = cross(p, g, m, u, reach)
+    s_ref, point_ref = _crossing(np.array(p), np.array(g), np.array(m), np.array(u), CLEARANCE,
+                                 reach)  # fmt: skip
+    assert s == pytest.approx(s_ref, abs=1e-12)
+    assert np.allclose(point, point_ref, atol=1e-6)
+    if s >= 0.0 and np.linalg.norm(np.subtract(m, p)) > CLEARANCE:
+        # Outside the sphere the way made for is tangent to it: it keeps the clearance.
+        assert closest_to(np.array(m), np.array(p), point) >= CLEARANCE * (1 - 1e-9)
+
+
+@pytest.mark.parametrize(("v0", "d"), [(100.0, 2000.0), (16.0, 500.0), (220.0, 37.0)])
+def test_catching_up_speed_is_eq22_with_the_closing_speed(v0: float, d: float) -> None:
+    """Eq. 21–22 relative to the moving local target point: braking from v_i to v_0 at a
+    closes exactly d on it (where √(2ad) is below the gain's limit)."""
+    a = 40.0
+    vi = catching_up_speed(v0, d, a, math.inf)
+    dt_prime = (vi - v0) / a  # Eq. 21
+    dd_prime = (vi - v0) * dt_prime - a * dt_prime**2 / 2  # Eq. 22, closing speed v_i − v_0
+    assert dd_prime == pytest.approx(d, rel=1e-12)
+
+
+def test_near_the_slot_the_speed_laws_are_linear_and_meet_at_the_leaders_speed() -> None:
+    gain = math.pi / 6
+    assert catching_up_speed(100.0, 0.0, 40.0, gain) == 100.0
+    assert falling_back_speed(100.0, 0.0, 10.0, gain) == 100.0
+    assert catching_up_speed(100.0, 2.0, 40.0, gain) == pytest.approx(100.0 + 2.0 * gain)
+    assert falling_back_speed(100.0, 2.0, 10.0, gain) == pytest.approx(100.0 - 2.0 * gain)
+    # Far from it, the ground given back is what the acceleration can take back.
+    assert falling_back_speed(100.0, 500.0, 10.0, gain) == pytest.approx(100.0 - 100.0)
