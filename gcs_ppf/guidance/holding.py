@@ -18,6 +18,7 @@ circle flew 240 m outside it, into a sphere, campaign (c)).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -109,6 +110,22 @@ def points_clearance(points: FloatArray, obstacles: Obstacles) -> float:
     return float(gap.min())
 
 
+def ring_gap(x: float, y: float, wide_m: float, taken: Sequence[tuple[Hold, float]]) -> float:
+    """Smallest horizontal gap between the ring flown at centre (x, y), ``wide_m`` wide, and
+    the rings already ``taken`` (each with the width it is flown at); inf without any."""
+    gaps = [math.hypot(x - h.x_m, y - h.y_m) - wide_m - w for h, w in taken]
+    return min(gaps, default=math.inf)
+
+
+def flown_width_m(radius_m: float, motion: Motion | None) -> float:
+    """How wide a circle of ``radius_m`` is flown: radius / η, and the capture swings out by
+    up to a turn's radius beyond it."""
+    wide = radius_m / TURN_EFFICIENCY
+    if motion is not None:
+        wide += motion.speed_m_s / max(motion.turn_rate_rad_s, 1e-6)
+    return wide
+
+
 def holding_circle(
     pos_m: FloatArray,
     yaw_rad: float,
@@ -118,11 +135,17 @@ def holding_circle(
     obstacles: Obstacles,
     keep_out_m: float,
     motion: Motion | None = None,
+    taken: Sequence[tuple[Hold, float]] = (),
+    separation_m: float = 0.0,
 ) -> Hold:
     """The loiter circle for a vehicle at ``pos_m`` heading ``yaw_rad``: centred ``ahead_m``
     (or further) off its nose, as near the heading as keeps ``keep_out_m`` from every
-    obstacle along the ring and the way there; if none does, the one with most clearance."""
+    obstacle along the ring and the way there, and whose ring stays ``separation_m`` clear
+    of the rings ``taken`` by teammates (whatever their heights: an ArduPlane climbs its
+    100 m of the stack in 20 s, and two wingmen on overlapping circles 31 m apart in height
+    came to 46.5 m of each other); if none does, the one with most to spare."""
     best: Hold | None = None
+    best_spare = -math.inf
     for step in REACH_STEPS:
         d = ahead_m + step * radius_m
         for bearing in BEARINGS:
@@ -138,18 +161,17 @@ def holding_circle(
                 approach = points_clearance(
                     approach_path(motion, x, y, z_m, radius_m / TURN_EFFICIENCY), obstacles
                 )
-            wide = radius_m / TURN_EFFICIENCY  # flown wider
-            if motion is not None:  # and the capture swings out by up to a turn's radius
-                wide += motion.speed_m_s / max(motion.turn_rate_rad_s, 1e-6)
+            wide = flown_width_m(radius_m, motion)
             clear = min(
                 ring_clearance(x, y, z_m, radius_m, obstacles),
                 ring_clearance(x, y, z_m, wide, obstacles),
                 approach,
             )
             hold = Hold(x, y, z_m, radius_m, clear)
-            if clear >= keep_out_m:
+            spare = min(clear - keep_out_m, ring_gap(x, y, wide, taken) - separation_m)
+            if spare >= 0.0:
                 return hold
-            if best is None or clear > best.clearance_m:
-                best = hold
+            if best is None or spare > best_spare:
+                best, best_spare = hold, spare
     assert best is not None
     return best

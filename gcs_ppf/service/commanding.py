@@ -192,8 +192,8 @@ def hold_orders(
     mission_time_s: float, stacked: bool, event: Callable[..., None], heard: set[int],
 ) -> list[confirmation.Order]:  # fmt: skip
     """Each vehicle to a holding circle that cuts no obstacle's keep-out (twice the safe
-    distance) at the radius it flies (``HOLD_TURN_RADII`` turn radii at its speed,
-    ``gcs_ppf.guidance.holding``), the k-th lowest vehicle now ``LOITER_STACK_M``·k above
+    distance), flown clear of its teammates' circles by the safe distance, at the radius it
+    flies (``HOLD_TURN_RADII`` turn radii at its speed, ``gcs_ppf.guidance.holding``), the k-th lowest vehicle now ``LOITER_STACK_M``·k above
     the target after completion (``stacked``), above the highest vehicle after an abort or a
     failure: no two circles at one height (held at their own heights after a failure, a
     leader and a wingman came to 42.5 m on crossing circles), and no two vehicles' climbs or
@@ -206,6 +206,7 @@ def hold_orders(
     obstacles = obstacles_from_mission(mission).at(mission_time_s)
     keep_out = 2.0 * mission.limits.safe_distance_obstacle
     out: list[confirmation.Order] = []
+    taken: list[tuple[holding.Hold, float]] = []  # the circles chosen so far, flown this wide
     highest = max((st.pos_m[2] for st in states.values()), default=mission.target[2])
     for v in mission.vehicles:
         if v.id not in heard:
@@ -222,16 +223,12 @@ def hold_orders(
         omega = min(airframe_omega or math.inf, mission.limits.max_yaw_rate)
         radius = max(HOLD_MIN_RADIUS_M, HOLD_TURN_RADII * s.speed_m_s / omega)
         z = (mission.target[2] if stacked else highest) + LOITER_STACK_M * stack_level(v.id, states)
+        m = motion(s, airframes[v.id], mission)
         hold = holding.holding_circle(
-            np.array(s.pos_m),
-            s.yaw_rad,
-            z,
-            radius,
-            LOITER_AHEAD_M,
-            obstacles,
-            keep_out,
-            motion(s, airframes[v.id], mission),
-        )
+            np.array(s.pos_m), s.yaw_rad, z, radius, LOITER_AHEAD_M, obstacles, keep_out, m,
+            taken, mission.limits.safe_distance_uav,
+        )  # fmt: skip
+        taken.append((hold, holding.flown_width_m(radius, m)))
         if hold.clearance_m < keep_out:
             event("hold_not_clear", v.id, clearance_m=round(hold.clearance_m, 1))
         lat, lon, alt = enu_to_geodetic(hold.x_m, hold.y_m, hold.z_m, mission.origin)

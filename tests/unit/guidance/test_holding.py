@@ -88,3 +88,20 @@ def test_the_hold_is_chosen_on_the_approach_the_vehicle_flies_not_a_straight_lin
     hold = holding_circle(pos, yaw, 400.0, radius, 800.0, sphere, keep_out, motion=m)
     assert hold.clearance_m >= keep_out
     assert flown(hold) >= keep_out
+
+
+def test_circles_of_teammates_flying_side_by_side_do_not_overlap() -> None:
+    """Five vehicles 100 m apart abreast, each asked for a circle 800 m ahead: each circle,
+    as flown, keeps the safe distance from the ones chosen before it."""
+    from gcs_ppf.guidance.holding import flown_width_m, ring_gap
+
+    none = Obstacles(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
+    taken: list[tuple[Hold, float]] = []
+    for k in range(5):
+        m = Motion((0.0, 100.0 * k, 150.0), 0.0, 28.0, 0.3, 5.0, 5.0, 2.0)
+        hold = holding_circle(np.array(m.pos_m), 0.0, 150.0, 140.0, 800.0, none, 50.0, m,
+                              taken, 50.0)  # fmt: skip
+        wide = flown_width_m(140.0, m)
+        assert ring_gap(hold.x_m, hold.y_m, wide, taken) >= 50.0
+        taken.append((hold, wide))
+    assert len({(round(h.x_m), round(h.y_m)) for h, _ in taken}) == 5
