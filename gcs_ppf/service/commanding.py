@@ -191,17 +191,17 @@ def hold_orders(
     orders: Orders, states: dict[int, VehicleState], airframes: dict[int, Airframe],
     mission_time_s: float, stacked: bool, event: Callable[..., None], heard: set[int],
 ) -> list[confirmation.Order]:  # fmt: skip
-    """Each vehicle to a holding circle that cuts no obstacle's keep-out (twice the safe
-    distance), flown clear of its teammates' circles by the safe distance, at the radius it
-    flies (``HOLD_TURN_RADII`` turn radii at its speed, ``gcs_ppf.guidance.holding``), the k-th lowest vehicle now ``LOITER_STACK_M``·k above
-    the target after completion (``stacked``), above the highest vehicle after an abort or a
-    failure: no two circles at one height (held at their own heights after a failure, a
-    leader and a wingman came to 42.5 m on crossing circles), and no two vehicles' climbs or
-    descents to them crossing (stacked by the mission's order, a wingman descending to its
-    level met one climbing through it to a higher one, 14.2 m apart, 3.9 s after the end of
-    a Table 3 run).  A vehicle without a state is
-    put in LOITER; one not ``heard`` (lost) is not commanded.  A
-    ``hold_not_clear`` event when no circle keeps the keep-out."""
+    """Each vehicle to a holding circle (``gcs_ppf.guidance.holding``) that cuts no
+    obstacle's keep-out (twice the safe distance) and is flown clear of its teammates'
+    circles by the safe distance, at ``HOLD_TURN_RADII`` turn radii at its speed.  The k-th
+    lowest vehicle now holds ``LOITER_STACK_M``·k above the target after completion
+    (``stacked``), above the highest vehicle after an abort or a failure: no two circles at
+    one height (held at their own heights after a failure, a leader and a wingman came to
+    42.5 m on crossing circles), and no two climbs or descents to them crossing (stacked by
+    the mission's order, a wingman descending to its level met one climbing through it to a
+    higher one, 14.2 m apart, 3.9 s after the end of a Table 3 run).  A vehicle without a
+    state is put in LOITER; one not ``heard`` (lost) is not commanded.  A ``hold_not_clear``
+    event when no circle keeps the keep-out."""
     mission = orders.mission
     obstacles = obstacles_from_mission(mission).at(mission_time_s)
     keep_out = 2.0 * mission.limits.safe_distance_obstacle
