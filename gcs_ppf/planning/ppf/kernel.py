@@ -287,7 +287,7 @@ def fleet_step(
             lim, dt,
         )  # fmt: skip
         rx, ry, rz, mate, hold_course = teammate_conflicts(
-            i, ox, oy, oz, fx, fy, fz, pos, speed, trig, mate_start, mates, lim, dt
+            i, ox, oy, oz, fx, fy, fz, pos, speed, trig, mate_start, mates, formed, lim, dt
         )
         rx, ry, rz = obstacles_first(rx, ry, rz, ox, oy, oz)
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0

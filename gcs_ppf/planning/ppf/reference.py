@@ -131,7 +131,7 @@ def _obstacle_repulsion(
 
 def _conflicts(
     pos: FloatArray, vel: FloatArray, mate_vel: FloatArray, speed: FloatArray, rank: IntArray,
-    active: BoolArray, lim: KernelLimits, dt: float,
+    active: BoolArray, formed: BoolArray, lim: KernelLimits, dt: float,
 ) -> tuple[BoolArray, BoolArray, FloatArray]:  # fmt: skip
     """Teammates of higher priority as moving obstacles, by closest point of approach
     within a quarter turn: [i,k] whether mate k is near (a conflict or just clear of one)
@@ -145,7 +145,10 @@ def _conflicts(
     horizon = CONFLICT_HORIZON_TURNS * AVOIDANCE_TURN_ANGLE / omega
     t_cpa = np.minimum(np.divide(approach, w2, out=np.zeros_like(approach), where=w2 > 0), horizon)
     miss2 = (d_m**2).sum(-1) - 2 * approach * t_cpa + w2 * t_cpa**2
-    turning = 0.5 * (speed[:, None] + speed[None]) * omega * t_cpa**2
+    leader = np.zeros(pos.shape[0], dtype=bool)
+    leader[0] = True
+    together = formed[:, None] & (formed | leader)[None]  # a pair in formation: no turning
+    turning = np.where(together, 0.0, 0.5 * (speed[:, None] + speed[None]) * omega * t_cpa**2)
     margin = 2 * speed[:, None] * dt + np.minimum(turning, lim.safe_distance_uav)
     d2 = (d_m**2).sum(-1)
     mate_radius = (
@@ -165,7 +168,8 @@ def _conflicts(
 
 def _repulsion(
     pos: FloatArray, speed: FloatArray, a: Attitude, follow: FloatArray, rank: IntArray,
-    active: BoolArray, obstacles: tuple[FloatArray, BoolArray], lim: KernelLimits, dt: float,
+    active: BoolArray, formed: BoolArray, obstacles: tuple[FloatArray, BoolArray],
+    lim: KernelLimits, dt: float,
 ) -> Repulsion:  # fmt: skip
     """Eq. 12–13 with the teammates of higher priority as moving obstacles (``_conflicts``),
     added to the obstacles' repulsion (Eq. 10–13), never pushing a vehicle into an
@@ -173,9 +177,9 @@ def _repulsion(
     course if flying ``follow`` (unit, [N,3]) at its speed would make it a conflict."""
     n = pos.shape[0]
     rep, moving = obstacles
-    near, threat, push = _conflicts(pos, a.vel, a.vel, speed, rank, active, lim, dt)
+    near, threat, push = _conflicts(pos, a.vel, a.vel, speed, rank, active, formed, lim, dt)
     _, threat_after, _ = _conflicts(pos, speed[:, None] * follow, a.vel, speed, rank, active,
-                                    lim, dt)  # fmt: skip
+                                    formed, lim, dt)  # fmt: skip
     hold: BoolArray = np.any(near & ~threat & threat_after, axis=1)
     total = rep + EPSILON_1 * (push * threat[..., None]).sum(1)
     o2 = (rep**2).sum(1)
@@ -433,7 +437,7 @@ def reference_step(
     obstacles = _obstacle_repulsion(pos, speed, obs_center, obs_radius, obs_velocity, lim, dt)
     aim = _aims(pos, target, speed, a, f, rank, active, lim, dt)
     follow = _follow(pos, aim, speed, a, lim)
-    r = _repulsion(pos, speed, a, follow, rank, active, obstacles, lim, dt)
+    r = _repulsion(pos, speed, a, follow, rank, active, f.formed, obstacles, lim, dt)
     field = _field(follow, a, r)
     fv, d, lowest, s2, along_field = _wanted_direction(field, pos, speed, a, r, lim, dt)
     state = np.where(s2, S2_LOCAL_MINIMUM, S1_FOLLOW).astype(np.int64)
