@@ -126,6 +126,69 @@ def flown_width_m(radius_m: float, motion: Motion | None) -> float:
     return wide
 
 
+def hold_at(
+    pos_m: FloatArray, z_m: float, radius_m: float, x: float, y: float, heading: float,
+    obstacles: Obstacles, motion: Motion | None,
+) -> Hold:  # fmt: skip
+    """The circle centred at (x, y), ``heading`` the way from the vehicle to it, with its
+    clearance along the ring (as asked and as flown) and the approach."""
+    if motion is None:
+        entry = np.array([x - radius_m * math.cos(heading), y - radius_m * math.sin(heading), z_m])
+        approach = path_clearance(np.asarray(pos_m, dtype=float), entry, obstacles)
+    else:
+        approach = points_clearance(
+            approach_path(motion, x, y, z_m, radius_m / TURN_EFFICIENCY), obstacles
+        )
+    wide = flown_width_m(radius_m, motion)
+    clear = min(
+        ring_clearance(x, y, z_m, radius_m, obstacles),
+        ring_clearance(x, y, z_m, wide, obstacles),
+        approach,
+    )
+    return Hold(x, y, z_m, radius_m, clear)
+
+
+@dataclass(frozen=True, slots=True)
+class HoldRequest:
+    """A vehicle to hold: where it is, its heading, the height and radius of its circle,
+    and its response (None: approached in a straight line)."""
+
+    pos_m: FloatArray
+    yaw_rad: float
+    z_m: float
+    radius_m: float
+    motion: Motion | None
+
+
+def formation_holds(
+    requests: Sequence[HoldRequest], yaw_rad: float, ahead_m: float, obstacles: Obstacles,
+    keep_out_m: float,
+) -> list[Hold] | None:  # fmt: skip
+    """Every vehicle's circle at its own position moved by one same vector (``ahead_m``
+    or further, nearest the bearing ``yaw_rad`` first): the formation as it flies now,
+    translated, so the approaches are parallel and the circles — all flown clockwise, each
+    vehicle starting it where its teammates start theirs — keep the vehicles' present
+    spacing (circles chosen one vehicle at a time, clear of each other, made two wingmen
+    cross on the way to them, 7.1 m apart on real ArduPlane); None if no vector keeps every
+    circle and approach ``keep_out_m`` from the obstacles."""
+    if not requests:
+        return []
+    reach = max(r.radius_m for r in requests)
+    for step in REACH_STEPS:
+        d = ahead_m + step * reach
+        for bearing in BEARINGS:
+            heading = yaw_rad + bearing
+            dx, dy = d * math.cos(heading), d * math.sin(heading)
+            holds = [
+                hold_at(r.pos_m, r.z_m, r.radius_m, float(r.pos_m[0]) + dx,
+                        float(r.pos_m[1]) + dy, heading, obstacles, r.motion)
+                for r in requests
+            ]  # fmt: skip
+            if all(h.clearance_m >= keep_out_m for h in holds):
+                return holds
+    return None
+
+
 def holding_circle(
     pos_m: FloatArray,
     yaw_rad: float,
@@ -152,23 +215,9 @@ def holding_circle(
             heading = yaw_rad + bearing
             x = float(pos_m[0]) + d * math.cos(heading)
             y = float(pos_m[1]) + d * math.sin(heading)
-            entry = np.array(
-                [x - radius_m * math.cos(heading), y - radius_m * math.sin(heading), z_m]
-            )
-            if motion is None:
-                approach = path_clearance(np.asarray(pos_m, dtype=float), entry, obstacles)
-            else:
-                approach = points_clearance(
-                    approach_path(motion, x, y, z_m, radius_m / TURN_EFFICIENCY), obstacles
-                )
+            hold = hold_at(pos_m, z_m, radius_m, x, y, heading, obstacles, motion)
             wide = flown_width_m(radius_m, motion)
-            clear = min(
-                ring_clearance(x, y, z_m, radius_m, obstacles),
-                ring_clearance(x, y, z_m, wide, obstacles),
-                approach,
-            )
-            hold = Hold(x, y, z_m, radius_m, clear)
-            spare = min(clear - keep_out_m, ring_gap(x, y, wide, taken) - separation_m)
+            spare = min(hold.clearance_m - keep_out_m, ring_gap(x, y, wide, taken) - separation_m)
             if spare >= 0.0:
                 return hold
             if best is None or spare > best_spare:

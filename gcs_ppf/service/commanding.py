@@ -24,7 +24,7 @@ from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import ROLL_LAG_PER_TCONST, ROLL_RATE_MAX_RAD_S, PlaneMode
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission
-from gcs_ppf.planning.scene import obstacles_from_mission
+from gcs_ppf.planning.scene import Obstacles, obstacles_from_mission
 from gcs_ppf.service import confirmation
 
 LOITER_AHEAD_M = 800.0
@@ -177,6 +177,33 @@ def hold_retry(clock_rate: float) -> confirmation.Retry:
     return replace(HOLD_RETRY, ack_timeout_s=wait)
 
 
+def _holds(
+    requests: dict[int, holding.HoldRequest], states: dict[int, VehicleState], mission: Mission,
+    obstacles: Obstacles, keep_out: float,
+) -> dict[int, holding.Hold]:  # fmt: skip
+    """The formation's present layout translated (``holding.formation_holds``, towards the
+    leader's heading), or, where no translation clears the obstacles, each vehicle's own
+    circle clear of those chosen before it."""
+    reference = states.get(mission.leader.id) or next(iter(states.values()), None)
+    yaw = 0.0 if reference is None else reference.yaw_rad
+    ids = list(requests)
+    together = holding.formation_holds(
+        [requests[i] for i in ids], yaw, LOITER_AHEAD_M, obstacles, keep_out
+    )
+    if together is not None:
+        return dict(zip(ids, together, strict=True))
+    taken: list[tuple[holding.Hold, float]] = []  # the circles chosen so far, flown this wide
+    out = {}
+    for vid, r in requests.items():
+        hold = holding.holding_circle(
+            r.pos_m, r.yaw_rad, r.z_m, r.radius_m, LOITER_AHEAD_M, obstacles, keep_out,
+            r.motion, taken, mission.limits.safe_distance_uav,
+        )  # fmt: skip
+        taken.append((hold, holding.flown_width_m(r.radius_m, r.motion)))
+        out[vid] = hold
+    return out
+
+
 def stack_level(vehicle_id: int, states: dict[int, VehicleState]) -> int:
     """A vehicle's level in the holding stack: how many vehicles are lower than it now (ties
     by id), so that the order of heights is kept on the way to the holds."""
@@ -206,8 +233,8 @@ def hold_orders(
     obstacles = obstacles_from_mission(mission).at(mission_time_s)
     keep_out = 2.0 * mission.limits.safe_distance_obstacle
     out: list[confirmation.Order] = []
-    taken: list[tuple[holding.Hold, float]] = []  # the circles chosen so far, flown this wide
     highest = max((st.pos_m[2] for st in states.values()), default=mission.target[2])
+    requests: dict[int, holding.HoldRequest] = {}
     for v in mission.vehicles:
         if v.id not in heard:
             continue
@@ -223,23 +250,21 @@ def hold_orders(
         omega = min(airframe_omega or math.inf, mission.limits.max_yaw_rate)
         radius = max(HOLD_MIN_RADIUS_M, HOLD_TURN_RADII * s.speed_m_s / omega)
         z = (mission.target[2] if stacked else highest) + LOITER_STACK_M * stack_level(v.id, states)
-        m = motion(s, airframes[v.id], mission)
-        hold = holding.holding_circle(
-            np.array(s.pos_m), s.yaw_rad, z, radius, LOITER_AHEAD_M, obstacles, keep_out, m,
-            taken, mission.limits.safe_distance_uav,
-        )  # fmt: skip
-        taken.append((hold, holding.flown_width_m(radius, m)))
+        requests[v.id] = holding.HoldRequest(
+            np.array(s.pos_m), s.yaw_rad, z, radius, motion(s, airframes[v.id], mission)
+        )
+    for vid, hold in _holds(requests, states, mission, obstacles, keep_out).items():
         if hold.clearance_m < keep_out:
-            event("hold_not_clear", v.id, clearance_m=round(hold.clearance_m, 1))
+            event("hold_not_clear", vid, clearance_m=round(hold.clearance_m, 1))
         lat, lon, alt = enu_to_geodetic(hold.x_m, hold.y_m, hold.z_m, mission.origin)
         out.append(confirmation.Order(
-            v.id, partial(commands.reposition, v.id, lat, lon, alt, radius),
+            vid, partial(commands.reposition, vid, lat, lon, alt, hold.radius_m),
             commands.MAV_CMD_DO_REPOSITION, "hold: guided loiter",
         ))  # fmt: skip
         if orders.guidance_mode == "course":  # the guided altitude outlives the course
             altitude = slew.sendable_altitude(alt)
             out.append(confirmation.Order(
-                v.id, partial(commands.guided_change_altitude, v.id, altitude, 0.0),
+                vid, partial(commands.guided_change_altitude, vid, altitude, 0.0),
                 commands.MAV_CMD_GUIDED_CHANGE_ALTITUDE, "hold: altitude",
             ))  # fmt: skip
     return out

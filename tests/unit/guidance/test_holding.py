@@ -105,3 +105,28 @@ def test_circles_of_teammates_flying_side_by_side_do_not_overlap() -> None:
         assert ring_gap(hold.x_m, hold.y_m, wide, taken) >= 50.0
         taken.append((hold, wide))
     assert len({(round(h.x_m), round(h.y_m)) for h, _ in taken}) == 5
+
+
+def test_a_formation_holds_as_it_flies_translated() -> None:
+    """Five vehicles abreast, 100 m apart: every circle is its vehicle's position moved by
+    one same vector, so the approaches are parallel and the spacing is kept; a sphere in the
+    way moves that vector for all of them, never one alone."""
+    from gcs_ppf.guidance.holding import HoldRequest, formation_holds
+
+    def requests() -> list[HoldRequest]:
+        return [HoldRequest(np.array([0.0, 100.0 * k, 150.0]), 0.0, 150.0 + 100.0 * k, 140.0,
+                            Motion((0.0, 100.0 * k, 150.0), 0.0, 28.0, 0.3, 5.0, 5.0, 2.0))
+                for k in range(5)]  # fmt: skip
+
+    none = Obstacles(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
+    holds = formation_holds(requests(), 0.0, 800.0, none, 50.0)
+    assert holds is not None
+    shifts = {(round(h.x_m - 0.0, 6), round(h.y_m - 100.0 * k, 6)) for k, h in enumerate(holds)}
+    assert shifts == {(800.0, 0.0)}  # straight ahead, one vector
+    wall = Obstacles(np.array([[800.0, 200.0, 150.0]]), np.array([150.0]), np.zeros((1, 3)))
+    moved = formation_holds(requests(), 0.0, 800.0, wall, 50.0)
+    assert moved is not None
+    shifts = {(round(h.x_m, 6), round(h.y_m - 100.0 * k, 6)) for k, h in enumerate(moved)}
+    assert len(shifts) == 1
+    assert shifts != {(800.0, 0.0)}
+    assert all(h.clearance_m >= 50.0 for h in moved)
