@@ -285,6 +285,27 @@ def _held_others(others: list[Track], k: int) -> FloatArray | None:
     return np.stack(rows)
 
 
+def overtaking(a: Motion, b: Motion) -> bool:
+    """Whether ``a`` closes on ``b`` from behind: ``b`` ahead of it, flying the same way
+    (within 90°; head on, the one of lower priority turns), and the gap shrinking.
+    The overtaking vehicle gives way, whatever their priorities (the rule of the air): a
+    wingman of higher priority caught up with one flying ahead of it and came to 44.6 m of it
+    on real ArduPlane, where only the one ahead was to yield."""
+    gap = np.subtract(b.pos_m, a.pos_m)
+    va = a.speed_m_s * np.array([math.cos(a.yaw_rad), math.sin(a.yaw_rad), 0.0])
+    vb = b.speed_m_s * np.array([math.cos(b.yaw_rad), math.sin(b.yaw_rad), 0.0])
+    return bool(gap @ va > 0.0 and va @ vb > 0.0 and gap @ (va - vb) > 0.0)
+
+
+def straight_track(m: Motion, hold_s: float) -> Track:
+    """A teammate not yet assured this tick, flying straight on at its speed (the positions
+    every ``STEP_S`` over ``hold_s``, like a hold path)."""
+    k = max(1, math.ceil(hold_s / STEP_S))
+    velocity = m.speed_m_s * np.array([math.cos(m.yaw_rad), math.sin(m.yaw_rad), 0.0])
+    t = np.linspace(0.0, hold_s, k + 1)[:, None]
+    return Track(np.asarray(m.pos_m, dtype=float)[None] + velocity[None] * t, velocity)
+
+
 def within_reach(a: Motion, b: Motion, hold_s: float, keep: KeepOut) -> bool:
     """Whether two vehicles can come within the safe distance of each other during a hold
     and an escape (both at full speed towards each other): the others are not checked (at
@@ -318,11 +339,16 @@ def assure(
     """Each vehicle's command, in priority order (the leader first): kept if recoverable
     with ``SLACK_S`` to spare, else the nearest course that is (``ESCAPE_OFFSETS`` off the
     command, at one of ``escape_altitudes``), else the best there is if it beats the
-    command by ``BETTER_BY_M``.  A vehicle yields to those before it."""
+    command by ``BETTER_BY_M``.  A vehicle yields to those before it, and to those after it
+    that it is ``overtaking``."""
     verdicts: list[Verdict] = []
     paths: list[Track] = []
     for i, (m, c) in enumerate(zip(motions, commands, strict=True)):
         near = [paths[j] for j in range(i) if within_reach(m, motions[j], hold_s, keep)]
+        near += [
+            straight_track(o, hold_s) for o in motions[i + 1 :]
+            if overtaking(m, o) and within_reach(m, o, hold_s, keep)
+        ]  # fmt: skip
         planned, reason, path = score(m, c, hold_s, keep, near)
         chosen, chosen_margin, chosen_path = c, planned, path
         slack = SLACK_S * m.speed_m_s

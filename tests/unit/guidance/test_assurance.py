@@ -6,6 +6,7 @@ assurance never enters the keep-out."""
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -197,3 +198,20 @@ def test_a_command_that_keeps_out_by_less_than_the_slack_is_replaced() -> None:
     [v] = assure([m], [Command(0.0, 150.0)], hold_s=1.0, keep=keep(walls))
     assert v.replaced
     assert v.chosen_margin_m >= SLACK_S * SPEED
+
+
+def test_the_overtaking_vehicle_gives_way_whatever_its_priority() -> None:
+    """The leader (first, highest priority) 40 m behind a slower wingman on the same track
+    gives way to it; flying side by side, neither is taken to overtake the other."""
+    from gcs_ppf.guidance.assurance import overtaking
+
+    fast = Motion((0.0, 0.0, 150.0), 0.0, 30.0, 0.3, 5.0, 5.0, 1.5)
+    slow = Motion((90.0, 0.0, 150.0), 0.0, 18.0, 0.3, 5.0, 5.0, 1.5)
+    assert overtaking(fast, slow)
+    assert not overtaking(slow, fast)
+    far = keep(sphere(1e5, 0.0, 0.0, 1.0), ground=None)
+    verdicts = assure([fast, slow], [Command(0.0, 150.0), Command(0.0, 150.0)], 1.0, far)
+    assert verdicts[0].replaced
+    assert verdicts[0].reason == "teammate"
+    abreast = Motion((0.0, 141.0, 150.0), 0.0, 28.0, 0.3, 5.0, 5.0, 1.5)
+    assert not overtaking(replace(fast, speed_m_s=28.0), abreast)
