@@ -13,7 +13,8 @@ where the vehicle is at the end of ``hold_s`` (the lag of the telemetry, the lin
 next tick), a turn to either side at the full bank through 180° (the way back is the way
 it came), rolled into from the bank it then has, keeps out of every keep-out: an
 obstacle's surface plus ``safe_distance_obstacle``, the ground plus the same, a teammate
-of higher priority (earlier in the order; the leader first) plus ``safe_distance_uav``.
+of higher priority (earlier in the order; the leader first) or one it is overtaking, plus
+``safe_distance_uav``, with ``SLACK_S`` of flight to spare.
 Teammates are predicted on their own (assured) commands, straight on after their hold.
 Moving obstacles are taken where they are now (their motion over a few seconds is inside
 the planner's margins).
@@ -26,10 +27,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from gcs_ppf.guidance.airframe import G_M_S2
 from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from gcs_ppf.planning.scene import FloatArray, Obstacles
-
-G_M_S2 = 9.80665
 
 #: Course offsets tried for an escape, nearest the command first (radians).
 ESCAPE_OFFSETS = tuple(
