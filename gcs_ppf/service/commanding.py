@@ -219,8 +219,9 @@ def hold_orders(
     mission_time_s: float, stacked: bool, event: Callable[..., None], heard: set[int],
 ) -> list[confirmation.Order]:  # fmt: skip
     """Each vehicle to a holding circle (``gcs_ppf.guidance.holding``) that cuts no
-    obstacle's keep-out (twice the safe distance) and is flown clear of its teammates'
-    circles by the safe distance, at ``HOLD_TURN_RADII`` turn radii at its speed.  The k-th
+    obstacle's keep-out (twice the safe distance), at ``HOLD_TURN_RADII`` turn radii at its
+    speed: the formation's present layout translated (``_holds``), else each circle clear
+    of its teammates' by the safe distance.  The k-th
     lowest vehicle now holds ``LOITER_STACK_M``·k above the target after completion
     (``stacked``), above the highest vehicle after an abort or a failure: no two circles at
     one height (held at their own heights after a failure, a leader and a wingman came to
