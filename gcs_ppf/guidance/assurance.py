@@ -84,6 +84,11 @@ class Motion:
         v = max(self.speed_m_s, 1e-6)
         return math.atan(yaw_rate_rad_s * v / (TURN_EFFICIENCY * G_M_S2))
 
+    def velocity(self, yaw_rad: float | None = None) -> FloatArray:
+        """Its level velocity (m/s, ICS) along ``yaw_rad`` (default: its yaw now)."""
+        yaw = self.yaw_rad if yaw_rad is None else yaw_rad
+        return self.speed_m_s * np.array([math.cos(yaw), math.sin(yaw), 0.0])
+
     def yaw_rate_for(self, bank_rad: float) -> float:
         """The turn (rad/s, + left) that ``bank_rad`` gives."""
         return TURN_EFFICIENCY * G_M_S2 * math.tan(bank_rad) / max(self.speed_m_s, 1e-6)
@@ -254,7 +259,7 @@ def score(
     """A command's margin: along its hold, then along the better of its two escapes (the
     teammates carried straight on meanwhile); with the vehicle's predicted track."""
     path, end = _fly_hold(m, c, hold_s)
-    held_others = _held_others(others, path.shape[0])
+    held_others = np.stack([o.path for o in others]) if others else None  # same instants
     held, reason = margin(path, keep, held_others)
     escapes = []
     for arc, t in escape_arcs(m, end):
@@ -265,24 +270,10 @@ def score(
             ahead = ends + velocities * t[None, :, None]
         escapes.append(margin(arc, keep, ahead))
     escape, escape_reason = max(escapes, key=lambda e: e[0])
-    velocity = m.speed_m_s * np.array([math.cos(end.yaw), math.sin(end.yaw), 0.0])
-    track = Track(path, velocity)
+    track = Track(path, m.velocity(end.yaw))
     if escape < held:
         return escape, escape_reason, track
     return held, reason, track
-
-
-def _held_others(others: list[Track], k: int) -> FloatArray | None:
-    """The teammates' hold paths [n,k,3] (each padded with its last point, or cut, to k)."""
-    if not others:
-        return None
-    rows = []
-    for o in others:
-        p = o.path[:k]
-        if p.shape[0] < k:
-            p = np.vstack([p, np.repeat(p[-1:], k - p.shape[0], axis=0)])
-        rows.append(p)
-    return np.stack(rows)
 
 
 def overtaking(a: Motion, b: Motion) -> bool:
@@ -292,16 +283,15 @@ def overtaking(a: Motion, b: Motion) -> bool:
     wingman of higher priority caught up with one flying ahead of it and came to 44.6 m of it
     on real ArduPlane, where only the one ahead was to yield."""
     gap = np.subtract(b.pos_m, a.pos_m)
-    va = a.speed_m_s * np.array([math.cos(a.yaw_rad), math.sin(a.yaw_rad), 0.0])
-    vb = b.speed_m_s * np.array([math.cos(b.yaw_rad), math.sin(b.yaw_rad), 0.0])
+    va, vb = a.velocity(), b.velocity()
     return bool(gap @ va > 0.0 and va @ vb > 0.0 and gap @ (va - vb) > 0.0)
 
 
 def straight_track(m: Motion, hold_s: float) -> Track:
     """A teammate not yet assured this tick, flying straight on at its speed (the positions
     every ``STEP_S`` over ``hold_s``, like a hold path)."""
-    k = max(1, math.ceil(hold_s / STEP_S))
-    velocity = m.speed_m_s * np.array([math.cos(m.yaw_rad), math.sin(m.yaw_rad), 0.0])
+    k = max(1, math.ceil(hold_s / STEP_S))  # as many instants as ``hold_path``'s
+    velocity = m.velocity()
     t = np.linspace(0.0, hold_s, k + 1)[:, None]
     return Track(np.asarray(m.pos_m, dtype=float)[None] + velocity[None] * t, velocity)
 

@@ -72,13 +72,11 @@ def motion(state: VehicleState, airframe: Airframe, mission: Mission) -> assuran
     climb = airframe.climb_max_m_s or DEFAULT_PATH_SLOPE * v
     sink = airframe.sink_max_m_s or DEFAULT_PATH_SLOPE * v
     tau = airframe.heading_time_constant_s(v) or 1.0
-    roll_tconst = airframe.roll_time_constant_s
-    if roll_tconst is None:  # not ArduPlane: the bank where it is asked at once
-        return assurance.Motion(state.pos_m, state.yaw_rad, v, turn, climb, sink, tau,
-                                state.yaw_rate_rad_s)  # fmt: skip
+    tconst = airframe.roll_time_constant_s  # None: not ArduPlane, the bank at once
+    roll_lag = 0.0 if tconst is None else ROLL_LAG_PER_TCONST * tconst
+    roll_rate = math.inf if tconst is None else ROLL_RATE_MAX_RAD_S
     return assurance.Motion(state.pos_m, state.yaw_rad, v, turn, climb, sink, tau,
-                            state.yaw_rate_rad_s, ROLL_LAG_PER_TCONST * roll_tconst,
-                            ROLL_RATE_MAX_RAD_S)  # fmt: skip
+                            state.yaw_rate_rad_s, roll_lag, roll_rate)  # fmt: skip
 
 
 def planned_commands(
