@@ -69,20 +69,29 @@ CONDITIONS: dict[str, Condition] = {
 
 
 @contextmanager
-def process(args: Sequence[str], log: Path, env: dict[str, str] | None = None) -> Iterator[None]:
-    """A child process for the duration of the block (SIGTERM, then SIGKILL after 10 s)."""
-    with log.open("w") as out:
+def process(
+    args: Sequence[str], log: Path, env: dict[str, str] | None = None
+) -> Iterator[subprocess.Popen[bytes]]:
+    """A child process (its output appended to ``log``) for the duration of the block,
+    then ``stop``ped."""
+    with log.open("a") as out:
         p = subprocess.Popen(list(args), stdout=out, stderr=subprocess.STDOUT, cwd=ROOT,
                              env={**os.environ, **(env or {})})  # fmt: skip
         try:
-            yield
+            yield p
         finally:
-            p.terminate()
-            try:
-                p.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                p.kill()
-                p.wait()
+            stop(p)
+
+
+def stop(p: subprocess.Popen[bytes]) -> None:
+    """SIGTERM, then SIGKILL after 10 s, unless it has already exited."""
+    if p.poll() is None:
+        p.terminate()
+        try:
+            p.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
 
 
 @contextmanager

@@ -30,8 +30,9 @@ from gcs_ppf.tools.observer import (
     resample,
     tracks_on_common_clock,
 )
+from tests.checks import wait_for
 from tests.conftest import EXAMPLES
-from tests.integration.test_service_sitl import _finished, _vehicle_count, wait_for
+from tests.integration.test_service_sitl import _finished, _vehicle_count
 
 BINARY = os.environ.get("ARDUPLANE_SITL", "")
 SPEEDUP = float(os.environ.get("ARDUPLANE_SITL_SPEEDUP", "5"))

@@ -11,7 +11,8 @@ from pymavlink import mavutil
 
 from gcs_ppf.service.store import Store
 from gcs_ppf.tools.demo import http_json as http
-from tests.integration.test_service_sitl import MISSION, SPEEDUP, fly, wait_for
+from tests.checks import wait_for
+from tests.integration.test_service_sitl import MISSION, SPEEDUP, fly
 
 
 def mission_time(api: str, mid: int) -> float:

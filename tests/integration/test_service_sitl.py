@@ -33,20 +33,11 @@ from gcs_ppf.tools.observer import (
     tracks_enu,
 )
 from gcs_ppf.tools.observer import formation_offsets as observer_formation_offsets
+from tests.checks import wait_for
 from tests.conftest import EXAMPLES
 
 SPEEDUP = 10
 MISSION = EXAMPLES / "paper_table3.json"
-
-
-def wait_for(predicate: Any, timeout_s: float, what: str) -> Any:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.1)
-    raise AssertionError(f"timed out waiting for {what}")
 
 
 @dataclass

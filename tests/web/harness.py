@@ -10,17 +10,21 @@ import socket
 import subprocess
 import sys
 import tempfile
-import time
 import urllib.error
 import urllib.request
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 from selenium import webdriver
 from selenium.webdriver.chrome.service import Service as ChromeService
 from selenium.webdriver.chrome.webdriver import WebDriver
+
+from gcs_ppf.tools.campaign import process, stop
+from tests.checks import wait_for
+
+__all__ = ["process", "stop", "wait_for"]  # with the rest below, for the page's tests
 
 ROOT = Path(__file__).resolve().parents[2]
 CHROMIUM = os.environ.get("GCS_PPF_CHROMIUM", "/usr/bin/chromium")
@@ -30,7 +34,6 @@ CHROMIUM_FLAGS = (
     "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
     "--disable-background-networking", "--disable-component-update", "--disable-sync",
 )  # fmt: skip
-T = TypeVar("T")
 
 
 def chromium_missing() -> str | None:
@@ -75,30 +78,6 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-@contextmanager
-def process(
-    args: list[str], log: Path, env: dict[str, str] | None = None
-) -> Iterator[subprocess.Popen[bytes]]:
-    """``args`` running (output to ``log``) for the body's duration; terminated after."""
-    with log.open("a") as out:
-        p = subprocess.Popen(args, stdout=out, stderr=subprocess.STDOUT, cwd=ROOT,
-                             env={**os.environ, **(env or {})})  # fmt: skip
-        try:
-            yield p
-        finally:
-            stop(p)
-
-
-def stop(p: subprocess.Popen[bytes]) -> None:
-    if p.poll() is None:
-        p.terminate()
-        try:
-            p.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            p.kill()
-            p.wait()
-
-
 def serve_args(port: int, db: Path, links: Sequence[str] = ()) -> list[str]:
     args = [sys.executable, "-m", "gcs_ppf.cli", "serve", "--port", str(port), "--db", str(db)]
     for url in links:
@@ -139,20 +118,6 @@ def wait_serving(api: str, p: subprocess.Popen[bytes], log: Path, timeout_s: flo
         wait_for(ready, timeout_s, "the service")
     except AssertionError as exc:
         raise AssertionError(f"{exc}\n{log.read_text()[-3000:]}") from None
-
-
-def wait_for(
-    predicate: Callable[[], T | None], timeout_s: float, what: str, every_s: float = 0.2
-) -> T:
-    """``predicate()``'s first truthy value within ``timeout_s``; AssertionError if none."""
-    deadline = time.monotonic() + timeout_s
-    while True:
-        value = predicate()
-        if value:
-            return value
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout_s:g} s waiting for {what}")
-        time.sleep(every_s)
 
 
 def screenshot(driver: WebDriver, name: str) -> Path:
