@@ -60,13 +60,23 @@ async def fly(station: Station, run: Run) -> None:
 async def launch_fleet(station: Station, run: Run) -> None:
     """Every vehicle flying in GUIDED (``gcs_ppf.service.launch``: those on the ground taken off
     in TAKEOFF mode to their TKOFF_ALT first, every arm and mode change confirmed);
-    parameters not answered yet are asked for again first."""
+    parameters not answered yet are asked for again first.  A vehicle lost meanwhile is
+    left out and the run told (``vehicle_lost``); the leader lost ends it at the first tick."""
     ids = [v.id for v in run.mission.vehicles]
     for vid in ids:
         await station.fleet.request_airframe_params(vid, missing_only=True)
+
+    def is_lost(vid: int) -> bool:
+        vehicle = station.fleet.by_id.get(vid)
+        return vehicle is not None and vehicle.lost
+
+    def on_lost(vid: int) -> None:  # as ``losses`` would say it at the first tick
+        run.lost_ids.add(vid)
+        station.event(run, "vehicle_lost", vid)
+
     await launch.launch(
         station.fleet, ids, station.settings.takeoff_alt_m, station.events_of(run),
-        takeoff_dist_m=station.settings.takeoff_dist_m,
+        takeoff_dist_m=station.settings.takeoff_dist_m, is_lost=is_lost, on_lost=on_lost,
     )  # fmt: skip
 
 

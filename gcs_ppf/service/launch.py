@@ -19,8 +19,10 @@ What it relies on (ArduPlane 4.7; measured on its SITL, ``../shared/arduplane-tr
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import time
+from collections.abc import Awaitable, Callable
 
 from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import PlaneMode
@@ -43,6 +45,16 @@ ON_GROUND_ALT_M = 5.0
 """Below this height above home a vehicle is on the ground (whatever its speed)."""
 TAKEOFF_DONE_FRACTION = 0.9
 """A vehicle taking off is switched to GUIDED once at this fraction of its TKOFF_ALT."""
+LOST_POLL_S = 0.1
+"""How often (our seconds) a vehicle being launched is looked at for the watchdog's verdict."""
+
+
+def never_lost(vehicle_id: int) -> bool:
+    return False
+
+
+def ignore_lost(vehicle_id: int) -> None:
+    return None
 
 
 def on_ground(t: VehicleTelemetry) -> bool:
@@ -149,10 +161,39 @@ async def launch(
     event: EventSink,
     retry: Retry = DEFAULT_RETRY,
     takeoff_dist_m: float | None = None,
+    is_lost: Callable[[int], bool] = never_lost,
+    on_lost: Callable[[int], None] = ignore_lost,
 ) -> None:
     """Every vehicle flying in GUIDED: those on the ground taken off (``take_off``), the
     others armed if they are not; all at once, then each switched to GUIDED (confirmed).
-    The first failure cancels the rest and is raised (``CommandFailed``)."""
+    The first failure cancels the rest and is raised (``CommandFailed``).  A vehicle the
+    watchdog finds lost meanwhile (``is_lost``) is left out at once, its commands stopped,
+    and ``on_lost`` told: whether the run goes on without it is the run's to decide (a
+    wingman dying during a launch slowed by a busy machine failed the whole run after five
+    sends of GUIDED to it, 15 s, under two CPU burners)."""
+    left_out: set[int] = set()
+
+    async def unless_lost(step: Callable[[int], Awaitable[None]], vid: int) -> None:
+        if vid in left_out:
+            return
+        task = asyncio.ensure_future(step(vid))
+        try:
+            while not task.done() and not is_lost(vid):
+                await asyncio.wait({task}, timeout=LOST_POLL_S)
+            if task.done():
+                try:
+                    task.result()  # done: its failure, if it failed
+                    return
+                except CommandFailed:
+                    if not is_lost(vid):
+                        raise
+        finally:
+            if not task.done():
+                task.cancel()
+                with contextlib.suppress(asyncio.CancelledError, CommandFailed):
+                    await task
+        left_out.add(vid)
+        on_lost(vid)
 
     async def airborne(vid: int) -> None:
         t = fleet.telemetry(vid)
@@ -170,6 +211,6 @@ async def launch(
         try:
             async with asyncio.TaskGroup() as tg:
                 for vid in vehicle_ids:
-                    tg.create_task(step(vid))
+                    tg.create_task(unless_lost(step, vid))
         except* CommandFailed as group:
             raise group.exceptions[0] from None

@@ -256,3 +256,33 @@ def test_one_vehicle_failing_fails_the_launch_with_its_own_error() -> None:
     with pytest.raises(CommandFailed) as failed:
         run(launch.launch(FakeFleet(good, bad), [1, 2], 50.0, event, FAST))
     assert failed.value.vehicle_id == 2
+
+
+def test_a_vehicle_lost_during_the_launch_is_left_out_and_the_others_go_guided() -> None:
+    """Wingman 2 goes silent after its ACK (its HEARTBEAT never shows GUIDED) and the
+    watchdog finds it lost: its commands stop at once, the run is told, and the launch of
+    the others completes instead of failing on it after every resend."""
+    good = FakePlane(1, 100.0)
+    dead = FakePlane(2, 100.0)
+    dead.script[commands.MAV_CMD_DO_SET_MODE] = ["unshown"] * 10
+    lost_at = time.monotonic() + 0.05
+    told: list[int] = []
+    events, event = recorder()
+    run(launch.launch(FakeFleet(good, dead), [1, 2], 50.0, event, FAST,
+                      is_lost=lambda vid: vid == 2 and time.monotonic() > lost_at,
+                      on_lost=told.append))  # fmt: skip
+    assert told == [2]
+    assert good.t.custom_mode == PlaneMode.GUIDED
+    assert not any(kind == "command_failed" for kind, *_ in events)
+    assert commands_sent(dead, commands.MAV_CMD_DO_SET_MODE) < FAST.attempts
+
+
+def test_a_vehicle_failing_and_not_lost_still_fails_the_launch() -> None:
+    good = FakePlane(1, 100.0)
+    bad = FakePlane(2, 100.0)
+    bad.script[commands.MAV_CMD_DO_SET_MODE] = ["unshown"] * 10
+    _, event = recorder()
+    with pytest.raises(CommandFailed) as failed:
+        run(launch.launch(FakeFleet(good, bad), [1, 2], 50.0, event, FAST,
+                          is_lost=lambda vid: False, on_lost=lambda vid: None))  # fmt: skip
+    assert failed.value.vehicle_id == 2
