@@ -22,7 +22,9 @@ the planner's margins).
 
 from __future__ import annotations
 
+import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -41,6 +43,11 @@ STEP_S = 0.125
 ROLLED_IN_RAD = math.radians(0.5)
 #: A replacement that is not safe either must beat the command by this much (m).
 BETTER_BY_M = 1.0
+ESCAPE_COMMIT_M = 10.0
+"""An escape in force is kept unless another does better by this much (m) or has the slack
+it lacks: choosing afresh each tick among escapes of nearly equal margin, a wingman flying
+at 100 m/s turned left and right by turns every half second, ×10 on a lossy link, and went
+71 m into an obstacle."""
 SLACK_S = 0.5
 """A command counts as recoverable only with this many seconds of flight (× its speed) to
 spare beyond the keep-out: slack for what the prediction does not know (a late tick, a lost
@@ -324,13 +331,15 @@ def escape_altitudes(
 
 
 def assure(
-    motions: list[Motion], commands: list[Command], hold_s: float, keep: KeepOut
-) -> list[Verdict]:
+    motions: list[Motion], commands: list[Command], hold_s: float, keep: KeepOut,
+    escaping: Sequence[Command | None] | None = None,
+) -> list[Verdict]:  # fmt: skip
     """Each vehicle's command, in priority order (the leader first): kept if recoverable
     with ``SLACK_S`` to spare, else the nearest course that is (``ESCAPE_OFFSETS`` off the
     command, at one of ``escape_altitudes``), else the best there is if it beats the
     command by ``BETTER_BY_M``.  A vehicle yields to those before it, and to those after it
-    that it is ``overtaking``."""
+    that it is ``overtaking``.  ``escaping`` (per vehicle, the escape it was sent last, or
+    None) is tried first and kept within ``ESCAPE_COMMIT_M``."""
     verdicts: list[Verdict] = []
     paths: list[Track] = []
     for i, (m, c) in enumerate(zip(motions, commands, strict=True)):
@@ -344,17 +353,22 @@ def assure(
         slack = SLACK_S * m.speed_m_s
         if planned < slack:
             best: tuple[float, Command, Track] | None = None
-            candidates = (
-                Command(_wrap(c.course_rad + offset), z)
-                for offset in (0.0, *ESCAPE_OFFSETS)
-                for z in escape_altitudes(m, c, reason, hold_s, keep)
+            previous = None if escaping is None else escaping[i]
+            candidates = itertools.chain(
+                () if previous is None else (previous,),
+                (
+                    Command(_wrap(c.course_rad + offset), z)
+                    for offset in (0.0, *ESCAPE_OFFSETS)
+                    for z in escape_altitudes(m, c, reason, hold_s, keep)
+                ),
             )
             for candidate in candidates:
                 s, _, p = score(m, candidate, hold_s, keep, near)
                 if s >= slack:
                     best = (s, candidate, p)
                     break
-                if best is None or s > best[0]:
+                kept = 0.0 if best is None or best[1] != previous else ESCAPE_COMMIT_M
+                if best is None or s > best[0] + kept:
                     best = (s, candidate, p)
             assert best is not None
             if best[0] >= slack or best[0] > planned + BETTER_BY_M:

@@ -108,22 +108,28 @@ async def command_fleet(
     hold_s: float,
     commanded_speed: dict[int, float],
     event: Callable[..., None],
+    escaping: dict[int, assurance.Command],
 ) -> dict[int, assurance.Verdict]:
     """Send every active vehicle its commands for this tick, each assured first; returns
-    each one's verdict (the command it was sent)."""
+    each one's verdict (the command it was sent).  ``escaping`` holds each vehicle's escape
+    in force (kept by the assurance within its commitment), updated here."""
     mission = orders.mission
     turn_accel = mission.limits.v_max * mission.limits.max_yaw_rate  # the plan limits turns
     planned = planned_commands(g, states, airframes, orders, turn_accel)
     idx = [i for i, vid in enumerate(g.ids) if vid in active]
     motions = [motion(states[g.ids[i]], airframes[i], mission) for i in idx]
     wanted = [assurance.Command(planned[i].course_rad, planned[i].z_m) for i in idx]
-    verdicts = assurance.assure(motions, wanted, hold_s, keep)
+    previous = [escaping.get(g.ids[i]) for i in idx]
+    verdicts = assurance.assure(motions, wanted, hold_s, keep, previous)
     for i, m, v in zip(idx, motions, verdicts, strict=True):
         vid = g.ids[i]
         if v.replaced:
+            escaping[vid] = v.command
             event("assurance_override", vid, keep_out=v.reason,
                   planned_margin_m=round(v.margin_m, 1), sent_margin_m=round(v.chosen_margin_m, 1),
                   course_deg=round(90.0 - math.degrees(v.command.course_rad), 1))  # fmt: skip
+        else:
+            escaping.pop(vid, None)
         await _send_course(fleet, vid, planned[i], v, m, orders, g.guided_point_m[i])
         await _send_speed(fleet, vid, g, i, airframes[i], commanded_speed)
     return {g.ids[i]: v for i, v in zip(idx, verdicts, strict=True)}

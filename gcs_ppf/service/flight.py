@@ -263,7 +263,7 @@ async def plan_and_command(
                         run.fleet_lag)  # fmt: skip
     verdicts = await commanding.command_fleet(
         station.fleet, g, active, states, ordered, run.orders, keep, hold_s,
-        run.commanded_speed, station.events_of(run),
+        run.commanded_speed, station.events_of(run), run.escaping,
     )  # fmt: skip
     run.sent_course.update({vid: v.command.course_rad for vid, v in verdicts.items()})
 

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs_ppf.guidance import lag, obedience, safety_monitor
+from gcs_ppf.guidance import assurance, lag, obedience, safety_monitor
 from gcs_ppf.guidance.online import Guidance
 from gcs_ppf.mission import Mission
 from gcs_ppf.service import commanding
@@ -65,6 +65,8 @@ class Run:
     commanded_speed: dict[int, float] = field(default_factory=dict)
     ended_vehicle_s: float | None = None
     """The fleet's vehicle time when the run ended (``service.station.Station.fleet_time_s``)."""
+    escaping: dict[int, assurance.Command] = field(default_factory=dict)
+    """Each vehicle's escape in force (the run-time assurance's last replacement)."""
     sent_course: dict[int, float] = field(default_factory=dict)
     """The course (ICS yaw, rad) each vehicle was last sent."""
     leader_pos: Any = None  # ICS position at the last tick

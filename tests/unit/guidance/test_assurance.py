@@ -215,3 +215,21 @@ def test_the_overtaking_vehicle_gives_way_whatever_its_priority() -> None:
     assert verdicts[0].reason == "teammate"
     abreast = Motion((0.0, 141.0, 150.0), 0.0, 28.0, 0.3, 5.0, 5.0, 1.5)
     assert not overtaking(replace(fast, speed_m_s=28.0), abreast)
+
+
+def test_an_escape_in_force_is_kept_rather_than_its_mirror() -> None:
+    """A sphere dead ahead and no escape with the slack left: escaping to either side is as
+    good.  Chosen afresh, the first in the search's order; with an escape in force to the
+    other side, that one is kept (turning left and right by turns, a wingman flew into an
+    obstacle)."""
+    walls = sphere(200.0, 0.0, 150.0, 100.0)
+    m = plane(0.0, 0.0, 150.0, 0.0)
+    [fresh] = assure([m], [Command(0.0, 150.0)], hold_s=1.0, keep=keep(walls))
+    assert fresh.replaced
+    mirror = Command(-fresh.command.course_rad, fresh.command.z_m)
+    assert fresh.chosen_margin_m < SLACK_S * SPEED
+    assert score(m, mirror, 1.0, keep(walls), [])[0] == pytest.approx(fresh.chosen_margin_m)
+    [kept] = assure([m], [Command(0.0, 150.0)], hold_s=1.0, keep=keep(walls), escaping=[mirror])
+    assert kept.command == mirror
+    [none] = assure([m], [Command(0.0, 150.0)], hold_s=1.0, keep=keep(walls), escaping=[None])
+    assert none.command == fresh.command
