@@ -29,7 +29,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from gcs_ppf.guidance import prediction
 from gcs_ppf.guidance.airframe import G_M_S2
+from gcs_ppf.guidance.prediction import STEP_S
 from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from gcs_ppf.planning.scene import FloatArray, Obstacles
 
@@ -37,10 +39,6 @@ from gcs_ppf.planning.scene import FloatArray, Obstacles
 ESCAPE_OFFSETS = tuple(
     math.radians(d) for d in (30, -30, 60, -60, 90, -90, 120, -120, 150, -150, 180)
 )
-#: Seconds between predicted samples (the roll loop's lag is ~0.2 s: integrated exactly).
-STEP_S = 0.125
-#: An escape's bank this near full (rad) is flown on as a circle.
-ROLLED_IN_RAD = math.radians(0.5)
 #: A replacement that is not safe either must beat the command by this much (m).
 BETTER_BY_M = 1.0
 ESCAPE_COMMIT_M = 10.0
@@ -128,106 +126,34 @@ def _wrap(a: float) -> float:
     return (a + math.pi) % (2.0 * math.pi) - math.pi
 
 
-@dataclass(slots=True)
-class _Flight:
-    """Where the predicted vehicle is: position, yaw and bank (+ left)."""
-
-    x: float
-    y: float
-    z: float
-    yaw: float
-    bank: float
-
-
-def _step(m: Motion, f: _Flight, bank_demand: float, z_demand: float, dt: float) -> None:
-    """``dt`` seconds of flight: the bank towards its demand (first order, rate limited),
-    the turn it gives, the altitude towards ``z_demand`` within the climb and sink limits."""
-    gap = bank_demand - f.bank
-    if m.roll_lag_s > 0.0:
-        gap *= 1.0 - math.exp(-dt / m.roll_lag_s)
-    limit = m.roll_rate_rad_s * dt
-    bank = f.bank + max(-limit, min(limit, gap))
-    rate = 0.5 * (m.yaw_rate_for(f.bank) + m.yaw_rate_for(bank))
-    f.bank = bank
-    mid = f.yaw + 0.5 * rate * dt
-    f.yaw += rate * dt
-    f.x += m.speed_m_s * math.cos(mid) * dt
-    f.y += m.speed_m_s * math.sin(mid) * dt
-    f.z += max(-m.sink_m_s * dt, min(m.climb_m_s * dt, z_demand - f.z))
-
-
-def _start(m: Motion) -> _Flight:
-    x, y, z = m.pos_m
-    return _Flight(x, y, z, m.yaw_rad, m.bank_for(m.yaw_rate_rad_s))
-
-
-def _fly_hold(m: Motion, c: Command, hold_s: float) -> tuple[FloatArray, _Flight]:
-    k = max(1, math.ceil(hold_s / STEP_S))
-    dt = hold_s / k
-    f = _start(m)
-    most = m.bank_for(m.turn_rate_rad_s)
-    out = np.empty((k + 1, 3))
-    out[0] = (f.x, f.y, f.z)
-    for i in range(1, k + 1):
-        wanted = _wrap(c.course_rad - f.yaw) / max(m.heading_tau_s, dt)  # GUIDED's P demand
-        _step(m, f, max(-most, min(most, m.bank_for(wanted))), c.z_m, dt)
-        out[i] = (f.x, f.y, f.z)
-    return out, f
+def motion_vector(m: Motion) -> FloatArray:
+    """``m`` as ``prediction``'s vector."""
+    return np.array([*m.pos_m, m.yaw_rad, m.speed_m_s, m.turn_rate_rad_s, m.climb_m_s,
+                     m.sink_m_s, m.heading_tau_s, m.yaw_rate_rad_s, m.roll_lag_s,
+                     m.roll_rate_rad_s])  # fmt: skip
 
 
 def hold_path(m: Motion, c: Command, hold_s: float) -> tuple[FloatArray, float]:
     """Positions [k,3] (from now, every ``STEP_S`` or less) while the vehicle flies ``c``
     for ``hold_s``, and its yaw at the end."""
-    path, f = _fly_hold(m, c, hold_s)
-    return path, f.yaw
+    path, end = prediction.fly_hold(motion_vector(m), c.course_rad, c.z_m, hold_s)
+    return path, float(end[prediction.YAW])
 
 
 def advance(m: Motion, c: Command, dt_s: float) -> Motion:
     """The vehicle ``dt_s`` later, flying ``c`` as predicted (its position, yaw and turn)."""
-    path, f = _fly_hold(m, c, dt_s)
+    vector = motion_vector(m)
+    path, end = prediction.fly_hold(vector, c.course_rad, c.z_m, dt_s)
     x, y, z = (float(v) for v in path[-1])
-    return replace(m, pos_m=(x, y, z), yaw_rad=_wrap(f.yaw), yaw_rate_rad_s=m.yaw_rate_for(f.bank))
+    turning = prediction.yaw_rate_for(vector, end[prediction.BANK])
+    return replace(m, pos_m=(x, y, z), yaw_rad=_wrap(float(end[prediction.YAW])),
+                   yaw_rate_rad_s=float(turning))  # fmt: skip
 
 
 def escape_s(m: Motion) -> float:
     """The longest an escape takes: a half turn at the full rate, after rolling from full
     bank one way to full bank the other."""
-    roll_over = 2.0 * m.bank_for(m.turn_rate_rad_s) / m.roll_rate_rad_s + 3.0 * m.roll_lag_s
-    return math.pi / max(m.turn_rate_rad_s, 1e-6) + roll_over
-
-
-def escape_arcs(m: Motion, end: _Flight) -> list[tuple[FloatArray, FloatArray]]:
-    """The two escapes flown from ``end``: full bank to the left and to the right, rolled
-    into from the bank it has, until the vehicle has turned 180°, level.  Each as positions
-    [k,3] every ``STEP_S`` and their times [k] from the escape's start.  The roll-in is
-    integrated; once the bank is within ``ROLLED_IN_RAD`` of full, the rest is a circle."""
-    most = m.bank_for(m.turn_rate_rad_s)
-    steps = math.ceil(escape_s(m) / STEP_S) + 1
-    arcs = []
-    for side in (1.0, -1.0):
-        f = _Flight(end.x, end.y, end.z, end.yaw, end.bank)
-        out = [(f.x, f.y, f.z)]
-        n = 0
-        while n < steps and abs(side * most - f.bank) > ROLLED_IN_RAD:
-            _step(m, f, side * most, end.z, STEP_S)
-            out.append((f.x, f.y, f.z))
-            n += 1
-        left = math.pi - side * (f.yaw - end.yaw)  # still to turn
-        rate = abs(m.yaw_rate_for(f.bank))
-        if left > 0.0 and rate > 1e-9:
-            r = m.speed_m_s / rate
-            turned = rate * STEP_S * np.arange(1, math.ceil(left / (rate * STEP_S)) + 1)
-            turned = np.minimum(turned, left)
-            cx = f.x - side * r * math.sin(f.yaw)
-            cy = f.y + side * r * math.cos(f.yaw)
-            a = f.yaw - side * math.pi / 2.0 + side * turned
-            circle = np.column_stack([cx + r * np.cos(a), cy + r * np.sin(a),
-                                      np.full(turned.shape[0], f.z)])  # fmt: skip
-            path = np.vstack([np.array(out), circle])
-        else:
-            path = np.array(out)
-        arcs.append((path, STEP_S * np.arange(path.shape[0], dtype=float)))
-    return arcs
+    return float(prediction.escape_s(motion_vector(m)))
 
 
 @dataclass(frozen=True, slots=True)
@@ -239,25 +165,35 @@ class Track:
     velocity_m_s: FloatArray
 
 
-def margin(path: FloatArray, keep: KeepOut, others: FloatArray | None) -> tuple[float, str | None]:
-    """How far ``path`` [k,3] stays outside every keep-out (m; negative: inside), and which
-    keep-out is nearest.  ``others`` [n,k,3] are teammates' positions at the same instants."""
-    best, reason = math.inf, None
+REASONS = {prediction.OBSTACLE: "obstacle", prediction.GROUND: "ground",
+           prediction.TEAMMATE: "teammate"}  # fmt: skip
+
+
+@dataclass(frozen=True, slots=True)
+class _Near:
+    """The teammates one vehicle yields to, as ``prediction.score`` takes them."""
+
+    held: FloatArray  # [n,k+1,3]
+    velocity: FloatArray  # [n,3]
+
+    @staticmethod
+    def of(tracks: Sequence[Track], hold_s: float) -> _Near:
+        k = max(1, math.ceil(hold_s / STEP_S)) + 1
+        if not tracks:
+            return _Near(np.zeros((0, k, 3)), np.zeros((0, 3)))
+        return _Near(np.stack([t.path for t in tracks]), np.stack([t.velocity_m_s for t in tracks]))
+
+
+def _score(
+    m: Motion, vector: FloatArray, c: Command, hold_s: float, keep: KeepOut, near: _Near
+) -> tuple[float, str | None, Track]:
     obs = keep.obstacles
-    if obs.radius.shape[0]:
-        gap = np.linalg.norm(path[:, None] - obs.center[None], axis=-1) - obs.radius[None]
-        d = float(gap.min()) - keep.safe_distance_obstacle
-        if d < best:
-            best, reason = d, "obstacle"
-    if keep.ground_z_m is not None:
-        d = float(path[:, 2].min()) - keep.ground_z_m - keep.safe_distance_obstacle
-        if d < best:
-            best, reason = d, "ground"
-    if others is not None and others.shape[0]:
-        d = float(np.linalg.norm(others - path[None], axis=-1).min()) - keep.safe_distance_uav
-        if d < best:
-            best, reason = d, "teammate"
-    return best, reason
+    ground = math.nan if keep.ground_z_m is None else keep.ground_z_m
+    s, reason, path, yaw = prediction.score(
+        vector, c.course_rad, c.z_m, hold_s, obs.center, obs.radius,
+        keep.safe_distance_obstacle, ground, near.held, near.velocity, keep.safe_distance_uav,
+    )  # fmt: skip
+    return float(s), REASONS.get(reason), Track(path, m.velocity(float(yaw)))
 
 
 def score(
@@ -265,22 +201,7 @@ def score(
 ) -> tuple[float, str | None, Track]:
     """A command's margin: along its hold, then along the better of its two escapes (the
     teammates carried straight on meanwhile); with the vehicle's predicted track."""
-    path, end = _fly_hold(m, c, hold_s)
-    held_others = np.stack([o.path for o in others]) if others else None  # same instants
-    held, reason = margin(path, keep, held_others)
-    escapes = []
-    for arc, t in escape_arcs(m, end):
-        ahead = None
-        if others:
-            ends = np.stack([o.path[-1] for o in others])[:, None, :]
-            velocities = np.stack([o.velocity_m_s for o in others])[:, None, :]
-            ahead = ends + velocities * t[None, :, None]
-        escapes.append(margin(arc, keep, ahead))
-    escape, escape_reason = max(escapes, key=lambda e: e[0])
-    track = Track(path, m.velocity(end.yaw))
-    if escape < held:
-        return escape, escape_reason, track
-    return held, reason, track
+    return _score(m, motion_vector(m), c, hold_s, keep, _Near.of(others, hold_s))
 
 
 def overtaking(a: Motion, b: Motion) -> bool:
@@ -348,7 +269,8 @@ def assure(
             straight_track(o, hold_s) for o in motions[i + 1 :]
             if overtaking(m, o) and within_reach(m, o, hold_s, keep)
         ]  # fmt: skip
-        planned, reason, path = score(m, c, hold_s, keep, near)
+        vector, prepared = motion_vector(m), _Near.of(near, hold_s)
+        planned, reason, path = _score(m, vector, c, hold_s, keep, prepared)
         chosen, chosen_margin, chosen_path = c, planned, path
         slack = SLACK_S * m.speed_m_s
         if planned < slack:
@@ -363,7 +285,7 @@ def assure(
                 ),
             )
             for candidate in candidates:
-                s, _, p = score(m, candidate, hold_s, keep, near)
+                s, _, p = _score(m, vector, candidate, hold_s, keep, prepared)
                 if s >= slack:
                     best = (s, candidate, p)
                     break
@@ -378,3 +300,12 @@ def assure(
                                 planned, chosen_margin))  # fmt: skip
         paths.append(chosen_path)
     return verdicts
+
+
+def warm_up() -> None:
+    """Load the compiled prediction (numba's cache, or compile it) before any run, so that
+    no tick pays for it."""
+    m = Motion((0.0, 0.0, 100.0), 0.0, 25.0, 0.3, 5.0, 5.0)
+    sphere = Obstacles(np.array([[500.0, 0.0, 100.0]]), np.array([100.0]), np.zeros((1, 3)))
+    keep = KeepOut(sphere, 0.0, 25.0, 50.0)
+    assure([m, replace(m, pos_m=(0.0, 300.0, 100.0))], [Command(0.0, 100.0)] * 2, 1.0, keep)

@@ -16,7 +16,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from gcs_ppf.geodesy import enu_to_geodetic
+from gcs_ppf.geodesy import enu_to_geodetic, enu_to_geodetic_many
 from gcs_ppf.guidance import assurance, holding, slew
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import Guidance, VehicleState
@@ -121,7 +121,10 @@ async def command_fleet(
     wanted = [assurance.Command(planned[i].course_rad, planned[i].z_m) for i in idx]
     previous = [escaping.get(g.ids[i]) for i in idx]
     verdicts = assurance.assure(motions, wanted, hold_s, keep, previous)
-    for i, m, v in zip(idx, motions, verdicts, strict=True):
+    points = [_course_point(planned[i], v, m, orders, g.guided_point_m[i])
+              for i, m, v in zip(idx, motions, verdicts, strict=True)]  # fmt: skip
+    lats, lons, alts = enu_to_geodetic_many(np.array(points).reshape(-1, 3), mission.origin)
+    for k, (i, m, v) in enumerate(zip(idx, motions, verdicts, strict=True)):
         vid = g.ids[i]
         if v.replaced:
             escaping[vid] = v.command
@@ -130,29 +133,41 @@ async def command_fleet(
                   course_deg=round(90.0 - math.degrees(v.command.course_rad), 1))  # fmt: skip
         else:
             escaping.pop(vid, None)
-        await _send_course(fleet, vid, planned[i], v, m, orders, g.guided_point_m[i])
+        where = (float(lats[k]), float(lons[k]), float(alts[k]))
+        await _send_course(fleet, vid, planned[i], v, m, orders, where)
         await _send_speed(fleet, vid, g, i, airframes[i], commanded_speed)
     return {g.ids[i]: v for i, v in zip(idx, verdicts, strict=True)}
 
 
+def _course_point(
+    cmd: slew.SlewCommand, v: assurance.Verdict, m: assurance.Motion, orders: Orders,
+    guided_point: np.ndarray,
+) -> tuple[float, float, float]:  # fmt: skip
+    """Where a vehicle's command points (ICS): the guided point (an escape's point
+    ``ESCAPE_POINT_M`` along its course), or in course guidance, above the vehicle at the
+    altitude it is sent."""
+    if orders.guidance_mode == "point":
+        if v.replaced:
+            return (m.pos_m[0] + ESCAPE_POINT_M * math.cos(v.command.course_rad),
+                    m.pos_m[1] + ESCAPE_POINT_M * math.sin(v.command.course_rad),
+                    v.command.z_m)  # fmt: skip
+        x, y, z = (float(c) for c in guided_point)
+        return x, y, z
+    return m.pos_m[0], m.pos_m[1], v.command.z_m
+
+
 async def _send_course(
     fleet: Sender, vid: int, cmd: slew.SlewCommand, v: assurance.Verdict, m: assurance.Motion,
-    orders: Orders, guided_point: np.ndarray,
+    orders: Orders, where: tuple[float, float, float],
 ) -> None:  # fmt: skip
-    origin = orders.mission.origin
+    """The vehicle's course and altitude commands (``where``: ``_course_point`` on WGS-84)."""
+    lat, lon, alt = where
     if orders.guidance_mode == "point":
-        x, y, z = (float(c) for c in guided_point)
-        if v.replaced:
-            x = m.pos_m[0] + ESCAPE_POINT_M * math.cos(v.command.course_rad)
-            y = m.pos_m[1] + ESCAPE_POINT_M * math.sin(v.command.course_rad)
-            z = v.command.z_m
-        lat, lon, alt = enu_to_geodetic(x, y, z, origin)
         await fleet.send(vid, commands.reposition(vid, lat, lon, alt))
         return
     accel = cmd.lateral_accel_m_s2
     if v.replaced:  # an escape turns as hard as the airframe can
         accel = max(accel, m.speed_m_s * m.turn_rate_rad_s)
-    _, _, alt = enu_to_geodetic(m.pos_m[0], m.pos_m[1], v.command.z_m, origin)
     course_deg = 90.0 - math.degrees(v.command.course_rad)  # ENU yaw → compass
     await fleet.send(vid, commands.guided_change_heading(vid, course_deg, accel))
     rate = 0.0 if v.replaced else cmd.rate_m_s

@@ -388,7 +388,9 @@ class MavlinkLink:
             bytes_out=self._stats.bytes_out + len(frame),
             messages_out=self._stats.messages_out + 1,
         )
-        if writer is not None:
+        if writer is not None and writer.transport.get_write_buffer_size() > 0:
+            # Only a peer that is behind is waited for (the rest is written already); a
+            # timeout armed on every send cost a twentieth of a tick at ×10.
             try:
                 async with asyncio.timeout(self._send_timeout_s):
                     await writer.drain()

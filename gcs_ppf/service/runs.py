@@ -21,6 +21,7 @@ import contextlib
 from collections.abc import AsyncIterator
 from typing import Any
 
+from gcs_ppf.guidance import assurance
 from gcs_ppf.guidance.online import warm_up
 from gcs_ppf.mission import Mission, Obstacle
 from gcs_ppf.service import commanding, ending, flight
@@ -53,8 +54,10 @@ class FormationService:
     @contextlib.asynccontextmanager
     async def running(self) -> AsyncIterator[FormationService]:
         """Run the background tasks (links, heartbeats, watchdog) for the body's duration;
-        the planner's kernel is loaded first, before any telemetry can queue behind it."""
+        the planner's and the assurance's kernels are loaded first, before any telemetry can
+        queue behind them."""
         warm_up(self.settings.planner_dt_s)
+        assurance.warm_up()
         async with asyncio.TaskGroup() as tg:
             self._tasks = tg
             background = [

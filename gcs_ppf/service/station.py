@@ -15,6 +15,9 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Any
 
+import numpy as np
+
+from gcs_ppf.geodesy import geodetic_to_enu_many
 from gcs_ppf.service.confirmation import EventSink
 from gcs_ppf.service.fleet import Fleet, Vehicle
 from gcs_ppf.service.run import Run
@@ -61,12 +64,21 @@ class Station:
         return partial(self.event, run)
 
     def located(self, run: Run) -> Iterator[tuple[Vehicle, tuple[float, float, float]]]:
-        """The run's vehicles that have reported a position, with it in the ICS."""
+        """The run's vehicles that have reported a position, with it in the ICS (all
+        converted in one call)."""
+        found: list[tuple[Vehicle, tuple[float, float, float]]] = []
         for v in run.mission.vehicles:
             vehicle = self.fleet.by_id.get(v.id)
-            pos = None if vehicle is None else Fleet.vehicle_enu(vehicle, run.mission)
-            if vehicle is not None and pos is not None:
-                yield vehicle, pos
+            if vehicle is None:
+                continue
+            t = vehicle.telemetry
+            if t.lat_deg is not None and t.lon_deg is not None and t.alt_amsl_m is not None:
+                found.append((vehicle, (t.lat_deg, t.lon_deg, t.alt_amsl_m)))
+        if not found:
+            return
+        enu = geodetic_to_enu_many(np.array([g for _, g in found]), run.mission.origin)
+        for (vehicle, _), (e, n, u) in zip(found, enu.tolist(), strict=True):
+            yield vehicle, (e, n, u)
 
     def fleet_time_s(self) -> float | None:
         """The latest vehicle time any vehicle still heard has reported (seconds)."""

@@ -1,0 +1,208 @@
+"""The run-time assurance's prediction, compiled: where a vehicle flies holding a command,
+its two escape turns from there, and how far a predicted path stays outside the keep-outs.
+
+Pure, ``@njit`` (numba) on plain floats and arrays: ``gcs_ppf.guidance.assurance`` packs a
+``Motion`` into the vector ``m`` below (``motion_vector``) and reads the results back.
+Interpreted, one command's score (its hold and both escapes) took 0.2–0.4 ms, and a vehicle
+in trouble tries up to 36 of them: 7 ms a tick for each one escaping, at the very moment
+the tick had to be on time (×10 under load the service's loop then fell seconds behind its
+telemetry and the escapes came late).  The model is the one ``assurance`` documents.
+
+``m``: x, y, z, yaw, speed, turn rate, climb, sink, heading τ, yaw rate, roll lag, roll rate.
+A predicted flight ``f``: x, y, z, yaw, bank (+ left).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from gcs_ppf.guidance.airframe import G_M_S2
+from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
+from gcs_ppf.planning.scene import FloatArray
+
+X, Y, Z, YAW, SPEED, TURN, CLIMB, SINK, TAU, YAW_RATE, ROLL_LAG, ROLL_RATE = range(12)
+MOTION_SIZE = 12
+BANK = 4  # in a predicted flight, after x, y, z, yaw
+
+STEP_S = 0.125
+"""Seconds between predicted samples (the roll loop's lag is ~0.2 s: integrated exactly)."""
+ROLLED_IN_RAD = math.radians(0.5)
+"""An escape's bank this near full (rad) is flown on as a circle."""
+_LIFT = TURN_EFFICIENCY * G_M_S2
+
+NO_KEEP_OUT, OBSTACLE, GROUND, TEAMMATE = 0, 1, 2, 3
+"""Which keep-out a margin is to (``margin``'s second result)."""
+
+
+@njit(cache=True)
+def wrap(a: float) -> float:
+    """An angle in [−π, π)."""
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+
+@njit(cache=True)
+def bank_for(m: FloatArray, yaw_rate_rad_s: float) -> float:
+    """The bank (rad, + left) that turns at ``yaw_rate_rad_s`` (a coordinated turn, at the
+    airframe's measured ``TURN_EFFICIENCY``)."""
+    return math.atan(yaw_rate_rad_s * max(m[SPEED], 1e-6) / _LIFT)
+
+
+@njit(cache=True)
+def yaw_rate_for(m: FloatArray, bank_rad: float) -> float:
+    """The turn (rad/s, + left) that ``bank_rad`` gives."""
+    return float(_LIFT * math.tan(bank_rad) / max(m[SPEED], 1e-6))
+
+
+@njit(cache=True)
+def step(m: FloatArray, f: FloatArray, bank_demand: float, z_demand: float, dt: float) -> None:
+    """``dt`` seconds of flight, ``f`` in place: the bank towards its demand (first order,
+    rate limited), the turn it gives, the altitude towards ``z_demand`` within the climb and
+    sink limits."""
+    gap = bank_demand - f[BANK]
+    if m[ROLL_LAG] > 0.0:
+        gap *= 1.0 - math.exp(-dt / m[ROLL_LAG])
+    limit = m[ROLL_RATE] * dt
+    bank = f[BANK] + max(-limit, min(limit, gap))
+    rate = 0.5 * (yaw_rate_for(m, f[BANK]) + yaw_rate_for(m, bank))
+    f[BANK] = bank
+    mid = f[YAW] + 0.5 * rate * dt
+    f[YAW] += rate * dt
+    f[X] += m[SPEED] * math.cos(mid) * dt
+    f[Y] += m[SPEED] * math.sin(mid) * dt
+    f[Z] += max(-m[SINK] * dt, min(m[CLIMB] * dt, z_demand - f[Z]))
+
+
+@njit(cache=True)
+def fly_hold(
+    m: FloatArray, course: float, z: float, hold_s: float
+) -> tuple[FloatArray, FloatArray]:
+    """Positions [k+1,3] (from now, every ``STEP_S`` or less) while the vehicle flies the
+    course and altitude for ``hold_s``, under GUIDED's P-only heading demand (the course
+    error over τ, at most the airframe's bank), and the predicted flight at the end."""
+    k = max(1, math.ceil(hold_s / STEP_S))
+    dt = hold_s / k
+    f = np.empty(5)
+    f[X], f[Y], f[Z], f[YAW] = m[X], m[Y], m[Z], m[YAW]
+    f[BANK] = bank_for(m, m[YAW_RATE])
+    most = bank_for(m, m[TURN])
+    out = np.empty((k + 1, 3))
+    out[0] = f[:3]
+    for i in range(1, k + 1):
+        wanted = wrap(course - f[YAW]) / max(m[TAU], dt)
+        step(m, f, max(-most, min(most, bank_for(m, wanted))), z, dt)
+        out[i] = f[:3]
+    return out, f
+
+
+@njit(cache=True)
+def escape_s(m: FloatArray) -> float:
+    """The longest an escape takes: a half turn at the full rate, after rolling from full
+    bank one way to full bank the other."""
+    roll_over = 2.0 * bank_for(m, m[TURN]) / m[ROLL_RATE] + 3.0 * m[ROLL_LAG]
+    return float(math.pi / max(m[TURN], 1e-6) + roll_over)
+
+
+@njit(cache=True)
+def escape_arc(m: FloatArray, end: FloatArray, side: float) -> FloatArray:
+    """The escape flown from ``end`` at full bank to ``side`` (+1 left, −1 right), rolled
+    into from the bank it has, until the vehicle has turned 180°, level: positions [k,3],
+    ``STEP_S`` apart.  Once the bank is within ``ROLLED_IN_RAD`` of full, a circle."""
+    most = bank_for(m, m[TURN])
+    steps = math.ceil(escape_s(m) / STEP_S) + 1
+    rolled = np.empty((steps + 1, 3))
+    f = end.copy()
+    rolled[0] = f[:3]
+    n = 0
+    while n < steps and abs(side * most - f[BANK]) > ROLLED_IN_RAD:
+        step(m, f, side * most, end[Z], STEP_S)
+        n += 1
+        rolled[n] = f[:3]
+    left = math.pi - side * (f[YAW] - end[YAW])  # still to turn
+    rate = abs(yaw_rate_for(m, f[BANK]))
+    if not (left > 0.0 and rate > 1e-9):
+        return rolled[: n + 1].copy()
+    r = m[SPEED] / rate
+    count = math.ceil(left / (rate * STEP_S))
+    out = np.empty((n + 1 + count, 3))
+    out[: n + 1] = rolled[: n + 1]
+    cx = f[X] - side * r * math.sin(f[YAW])
+    cy = f[Y] + side * r * math.cos(f[YAW])
+    for i in range(count):
+        a = f[YAW] - side * math.pi / 2.0 + side * min(rate * STEP_S * (i + 1), left)
+        out[n + 1 + i, 0] = cx + r * math.cos(a)
+        out[n + 1 + i, 1] = cy + r * math.sin(a)
+        out[n + 1 + i, 2] = f[Z]
+    return out
+
+
+@njit(cache=True)
+def margin(
+    path: FloatArray, centers: FloatArray, radii: FloatArray, safe_obstacle: float,
+    ground_z: float, mates_at: FloatArray, mates_velocity: FloatArray, safe_uav: float,
+) -> tuple[float, int]:  # fmt: skip
+    """How far ``path`` [k,3] (``STEP_S`` apart) stays outside every keep-out (m; negative:
+    inside), and which one is nearest (``OBSTACLE``, ``GROUND``, ``TEAMMATE``).  A sphere's
+    keep-out is its surface plus ``safe_obstacle``; the ground's (``ground_z``, NaN: none)
+    the same above it; a teammate's ``safe_uav`` around where it is at each instant:
+    ``mates_at`` [n,k,3] (its last instant held on, for a teammate given only where it
+    starts) + ``mates_velocity`` [n,3] × the instant's time (zero for paths given instant
+    by instant)."""
+    best, reason = math.inf, NO_KEEP_OUT
+    if radii.shape[0]:
+        gap = math.inf
+        for i in range(path.shape[0]):
+            for j in range(radii.shape[0]):
+                d = math.sqrt((path[i, 0] - centers[j, 0]) ** 2 + (path[i, 1] - centers[j, 1]) ** 2
+                              + (path[i, 2] - centers[j, 2]) ** 2) - radii[j]  # fmt: skip
+                gap = min(gap, d)
+        if gap - safe_obstacle < best:
+            best, reason = gap - safe_obstacle, OBSTACLE
+    if not math.isnan(ground_z):
+        low = path[:, 2].min()
+        if low - ground_z - safe_obstacle < best:
+            best, reason = low - ground_z - safe_obstacle, GROUND
+    if mates_at.shape[0]:
+        gap = math.inf
+        for j in range(mates_at.shape[0]):
+            for i in range(path.shape[0]):
+                k = min(i, mates_at.shape[1] - 1)
+                t = STEP_S * i
+                d = math.sqrt(
+                    (path[i, 0] - mates_at[j, k, 0] - mates_velocity[j, 0] * t) ** 2
+                    + (path[i, 1] - mates_at[j, k, 1] - mates_velocity[j, 1] * t) ** 2
+                    + (path[i, 2] - mates_at[j, k, 2] - mates_velocity[j, 2] * t) ** 2
+                )
+                gap = min(gap, d)
+        if gap - safe_uav < best:
+            best, reason = gap - safe_uav, TEAMMATE
+    return best, reason
+
+
+@njit(cache=True)
+def score(
+    m: FloatArray, course: float, z: float, hold_s: float, centers: FloatArray,
+    radii: FloatArray, safe_obstacle: float, ground_z: float, mates_held: FloatArray,
+    mates_velocity: FloatArray, safe_uav: float,
+) -> tuple[float, int, FloatArray, float]:  # fmt: skip
+    """A command's margin: along its hold (the teammates along theirs, ``mates_held``
+    [n,k+1,3] at the same instants), then along the better of its two escapes (the
+    teammates carried straight on from their hold's end at ``mates_velocity`` [n,3]); with
+    the hold's path and its yaw at the end."""
+    path, end = fly_hold(m, course, z, hold_s)
+    still = np.zeros_like(mates_velocity)
+    held, reason = margin(path, centers, radii, safe_obstacle, ground_z, mates_held, still,
+                          safe_uav)  # fmt: skip
+    ends = mates_held[:, -1:, :].copy()
+    escape, escape_reason = -math.inf, NO_KEEP_OUT
+    for side in (1.0, -1.0):
+        arc = escape_arc(m, end, side)
+        e, r = margin(arc, centers, radii, safe_obstacle, ground_z, ends, mates_velocity,
+                      safe_uav)  # fmt: skip
+        if e > escape:
+            escape, escape_reason = e, r
+    if escape < held:
+        return escape, escape_reason, path, end[YAW]
+    return held, reason, path, end[YAW]
