@@ -41,6 +41,11 @@ SIGNING_EPOCH_S = 1420070400
 #: this long for the vehicle to see it (with 200 steps, 4 s of vehicle time, measured flown
 #: closed loop: commands took up to 5–6 s to act, and vehicles flew into obstacles).
 MAX_STEPS_UNREAD = 5
+MAX_CATCH_UP_S = 0.1
+"""Wall seconds a SITL behind its schedule may catch up; beyond that its clock slips, as
+ArduPilot's SITL does (``Aircraft::sync_frame_time``, SIM_Aircraft.cpp: the sleep debt is
+kept above −1e5 µs).  With 0.25 s, ×10 under two CPU burners, a vehicle flew 2.5 s of its
+time in one burst while the starved service could not answer, 15 m into a keep-out."""
 
 
 def signing_key(text: str) -> bytes:
@@ -266,14 +271,14 @@ async def pace(
     duration_s: float | None = None,
 ) -> None:
     """Advance the simulation so that sim time = speedup × wall time (falling behind if the
-    CPU cannot keep up, never bursting to catch up by more than 0.25 s of wall time)."""
+    CPU cannot keep up, never bursting to catch up by more than ``MAX_CATCH_UP_S``)."""
     loop = asyncio.get_running_loop()
     t0 = loop.time()
     while not stop.is_set():
         now = loop.time()
         target = (now - t0) * speedup
-        if target - sim.sim_s > 0.25 * speedup:  # too far behind: let wall time slip
-            t0 += (target - sim.sim_s) / speedup - 0.25
+        if target - sim.sim_s > MAX_CATCH_UP_S * speedup:  # too far behind: the clock slips
+            t0 += (target - sim.sim_s) / speedup - MAX_CATCH_UP_S
             target = (now - t0) * speedup
         batch = 0
         while sim.sim_s + DT_S <= target + 1e-9 and batch < MAX_STEPS_UNREAD:
