@@ -47,6 +47,10 @@ class Retry:
     climb_timeout_s: float = 120.0
     """Wait for a vehicle taking off to reach its takeoff altitude."""
     poll_s: float = 0.02
+    copies: int = 1
+    """Sends of each attempt, ``poll_s`` apart: for an idempotent command that must act
+    soon, the loss of one copy on a lossy radio costs nothing (with 20 % loss, three copies
+    all lost 0.8 % of the time instead of 20 %)."""
 
 
 DEFAULT_RETRY = Retry()
@@ -122,7 +126,10 @@ async def confirmed_command(
         first_sent = sent if first_sent is None else first_sent
         if attempt > 1:
             event("command_resent", vehicle_id, command=what, attempt=attempt, after=last_result)
-        await fleet.send(vehicle_id, make())
+        for copy in range(retry.copies):
+            if copy:
+                await asyncio.sleep(retry.poll_s)
+            await fleet.send(vehicle_id, make())
         since = first_sent
 
         def acked(since: float = since) -> bool:

@@ -3,8 +3,20 @@ two climbs or descents to the holding circles cross."""
 
 from __future__ import annotations
 
-from gcs_ppf.guidance.online import VehicleState
-from gcs_ppf.service.commanding import stack_level
+import asyncio
+from typing import Any
+
+import numpy as np
+import pytest
+
+from gcs_ppf.guidance import assurance
+from gcs_ppf.guidance.airframe import Airframe
+from gcs_ppf.guidance.online import VehicleState, guidance, scene_now
+from gcs_ppf.mavlink import commands
+from gcs_ppf.mavlink.telemetry import VehicleTelemetry
+from gcs_ppf.mission import Mission
+from gcs_ppf.planning.scene import Obstacles, scene_from_mission
+from gcs_ppf.service.commanding import Orders, command_fleet, stack_level
 
 
 def state(z: float) -> VehicleState:
@@ -25,3 +37,43 @@ def test_vehicles_at_one_height_get_distinct_levels_by_id() -> None:
     assert sorted(stack_level(v, states) for v in states) == [0, 1, 2]
     assert stack_level(2, states) == 0
     assert stack_level(7, states) == 2
+
+
+def test_a_vehicle_whose_command_is_replaced_by_an_escape_is_told_to_fly_its_slowest() -> None:
+    """The planner flies the leader straight at a sphere 650 m ahead at 200 m/s (its keep-out
+    and the turn it needs are within the hold): the assurance replaces the course, and the
+    speed sent is the mission's v_min (the tightest turn), not the plan's."""
+    mission = Mission.model_validate({
+        "target": [8000.0, 0.0, 300.0],
+        "limits": {"v_init": 200.0, "v_min": 100.0, "v_max": 300.0},
+        "vehicles": [{"id": 1, "role": "leader", "position": [0.0, 0.0, 300.0],
+                      "pitch": 0.0, "yaw": 0.0}],
+    })  # fmt: skip
+    states = {1: VehicleState((0.0, 0.0, 300.0), 0.0, 0.0, 200.0)}
+    scene = scene_now(mission, states, {1}, scene_from_mission(mission).obstacles)
+    g = guidance(scene, lookahead_s=1.0, dt=0.1)
+    sphere = Obstacles(np.array([[650.0, 0.0, 300.0]]), np.array([150.0]), np.zeros((1, 3)))
+    keep = assurance.KeepOut(sphere, None, 25.0, 50.0)
+    fleet = Recorder()
+    verdicts = asyncio.run(command_fleet(
+        fleet, g, {1}, states, [Airframe()], Orders(mission, "course", 1.0), keep, 1.0, {},
+        lambda *a, **k: None, {},
+    ))  # fmt: skip
+    assert verdicts[1].replaced
+    speeds = [m.param2 for m in fleet.sent if m.get_type() == "COMMAND_LONG"
+              and m.command == commands.MAV_CMD_DO_CHANGE_SPEED]  # fmt: skip
+    assert speeds == [pytest.approx(100.0)]
+    assert g.speed_m_s[0] > 150.0  # the plan's own speed was not the one sent
+
+
+class Recorder:
+    """A fleet of one vehicle that reports no airspeed and records what it is sent."""
+
+    def __init__(self) -> None:
+        self.sent: list[Any] = []
+
+    def telemetry(self, system_id: int) -> VehicleTelemetry | None:
+        return VehicleTelemetry(system_id=system_id, component_id=1)
+
+    async def send(self, system_id: int, msg: Any) -> None:
+        self.sent.append(msg)

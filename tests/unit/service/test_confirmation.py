@@ -4,6 +4,7 @@ confirmed by its ACK alone, and ``confirm_all`` reports a vehicle's failure with
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import partial
 
 import pytest
@@ -88,3 +89,17 @@ def test_confirm_all_stops_a_vehicles_later_orders_after_its_failure() -> None:
     failed = run(confirmation.confirm_all(FakeFleet(plane), [hold(1), altitude], event, FAST))
     assert failed == {1}
     assert sends(plane, commands.MAV_CMD_GUIDED_CHANGE_ALTITUDE) == 0
+
+
+def test_copies_get_a_command_through_a_link_that_loses_some_in_one_attempt() -> None:
+    """A hold sent three copies at a time acts at the first attempt when two are lost."""
+    plane = FakePlane(1, 100.0, armed=True, mode=PlaneMode.GUIDED)
+    plane.script[REPOSITION] = ["lost", "lost", "ok"]
+    events, event = recorder()
+    o = hold(1)
+    retry = replace(FAST, copies=3)
+    attempts = run(confirmation.confirmed_command(
+        FakeFleet(plane), 1, o.make, o.command, None, o.what, event, retry))  # fmt: skip
+    assert attempts == 1
+    assert sends(plane, REPOSITION) == 3
+    assert events == []
