@@ -4,6 +4,7 @@ two climbs or descents to the holding circles cross."""
 from __future__ import annotations
 
 import asyncio
+import math
 from typing import Any
 
 import numpy as np
@@ -16,7 +17,7 @@ from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.scene import Obstacles, scene_from_mission
-from gcs_ppf.service.commanding import Orders, command_fleet, stack_level
+from gcs_ppf.service.commanding import Orders, command_fleet, motion, stack_level
 
 
 def state(z: float) -> VehicleState:
@@ -77,3 +78,22 @@ class Recorder:
 
     async def send(self, system_id: int, msg: Any) -> None:
         self.sent.append(msg)
+
+
+def test_the_assurance_counts_on_the_climb_the_pitch_limit_gives_at_the_speed_flown() -> None:
+    """The paper's airframe (TECS_CLMB_MAX = v_max·sin 20° = 102.6 m/s, 20° of pitch) at
+    100 m/s climbs 34 m/s, not 102.6; ArduPlane's (5 m/s, 25°) at 25 m/s climbs 5 m/s."""
+    mission = Mission.model_validate({
+        "target": [8000.0, 0.0, 300.0],
+        "vehicles": [{"id": 1, "role": "leader", "position": [0.0, 0.0, 300.0],
+                      "pitch": 0.0, "yaw": 0.0}],
+    })  # fmt: skip
+    paper = Airframe(climb_max_m_s=102.6, sink_max_m_s=126.8, pitch_max_deg=20.0,
+                     pitch_min_deg=-25.0)  # fmt: skip
+    m = motion(VehicleState((0.0, 0.0, 300.0), 0.0, 0.0, 100.0), paper, mission)
+    assert m.climb_m_s == pytest.approx(100.0 * math.sin(math.radians(20.0)))
+    assert m.sink_m_s == pytest.approx(100.0 * math.sin(math.radians(25.0)))
+    plane = Airframe(climb_max_m_s=5.0, sink_max_m_s=5.0, pitch_max_deg=25.0, pitch_min_deg=-20.0)
+    m = motion(VehicleState((0.0, 0.0, 300.0), 0.0, 0.0, 25.0), plane, mission)
+    assert m.climb_m_s == pytest.approx(5.0)
+    assert m.sink_m_s == pytest.approx(5.0)
