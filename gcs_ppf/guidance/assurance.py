@@ -130,20 +130,22 @@ def motion_vector(m: Motion) -> FloatArray:
     """``m`` as ``prediction``'s vector."""
     return np.array([*m.pos_m, m.yaw_rad, m.speed_m_s, m.turn_rate_rad_s, m.climb_m_s,
                      m.sink_m_s, m.heading_tau_s, m.yaw_rate_rad_s, m.roll_lag_s,
-                     m.roll_rate_rad_s])  # fmt: skip
+                     m.roll_rate_rad_s], dtype=np.float64)  # fmt: skip
 
 
 def hold_path(m: Motion, c: Command, hold_s: float) -> tuple[FloatArray, float]:
     """Positions [k,3] (from now, every ``STEP_S`` or less) while the vehicle flies ``c``
     for ``hold_s``, and its yaw at the end."""
-    path, end = prediction.fly_hold(motion_vector(m), c.course_rad, c.z_m, hold_s)
+    path, end = prediction.fly_hold(
+        motion_vector(m), float(c.course_rad), float(c.z_m), float(hold_s)
+    )
     return path, float(end[prediction.YAW])
 
 
 def advance(m: Motion, c: Command, dt_s: float) -> Motion:
     """The vehicle ``dt_s`` later, flying ``c`` as predicted (its position, yaw and turn)."""
     vector = motion_vector(m)
-    path, end = prediction.fly_hold(vector, c.course_rad, c.z_m, dt_s)
+    path, end = prediction.fly_hold(vector, float(c.course_rad), float(c.z_m), float(dt_s))
     x, y, z = (float(v) for v in path[-1])
     turning = prediction.yaw_rate_for(vector, end[prediction.BANK])
     return replace(m, pos_m=(x, y, z), yaw_rad=_wrap(float(end[prediction.YAW])),
@@ -181,19 +183,27 @@ class _Near:
         k = max(1, math.ceil(hold_s / STEP_S)) + 1
         if not tracks:
             return _Near(np.zeros((0, k, 3)), np.zeros((0, 3)))
-        return _Near(np.stack([t.path for t in tracks]), np.stack([t.velocity_m_s for t in tracks]))
+        held = np.stack([t.path for t in tracks]).astype(np.float64)
+        return _Near(held, np.stack([t.velocity_m_s for t in tracks]).astype(np.float64))
 
 
 def _score(
     m: Motion, vector: FloatArray, c: Command, hold_s: float, keep: KeepOut, near: _Near
 ) -> tuple[float, str | None, Track]:
     obs = keep.obstacles
-    ground = math.nan if keep.ground_z_m is None else keep.ground_z_m
-    s, reason, path, yaw = prediction.score(
-        vector, c.course_rad, c.z_m, hold_s, obs.center, obs.radius,
-        keep.safe_distance_obstacle, ground, near.held, near.velocity, keep.safe_distance_uav,
+    ground = math.nan if keep.ground_z_m is None else float(keep.ground_z_m)
+    s, reason, path, yaw = prediction.score(  # one signature: no compiling in flight
+        vector, float(c.course_rad), float(c.z_m), float(hold_s), _floats(obs.center),
+        _floats(obs.radius), float(keep.safe_distance_obstacle), ground, near.held,
+        near.velocity, float(keep.safe_distance_uav),
     )  # fmt: skip
     return float(s), REASONS.get(reason), Track(path, m.velocity(float(yaw)))
+
+
+def _floats(a: FloatArray) -> FloatArray:
+    """``a`` as contiguous float64 (integer radii in a test's spheres made numba compile a
+    second version of the prediction, seconds of a tick had it happened in flight)."""
+    return np.ascontiguousarray(a, dtype=np.float64)
 
 
 def score(
@@ -309,3 +319,5 @@ def warm_up() -> None:
     sphere = Obstacles(np.array([[500.0, 0.0, 100.0]]), np.array([100.0]), np.zeros((1, 3)))
     keep = KeepOut(sphere, 0.0, 25.0, 50.0)
     assure([m, replace(m, pos_m=(0.0, 300.0, 100.0))], [Command(0.0, 100.0)] * 2, 1.0, keep)
+    advance(m, Command(0.0, 100.0), 1.0)
+    escape_s(m)

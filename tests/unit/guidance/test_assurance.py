@@ -233,3 +233,21 @@ def test_an_escape_in_force_is_kept_rather_than_its_mirror() -> None:
     assert kept.command == mirror
     [none] = assure([m], [Command(0.0, 150.0)], hold_s=1.0, keep=keep(walls), escaping=[None])
     assert none.command == fresh.command
+
+
+def test_after_warm_up_nothing_is_compiled_in_flight() -> None:
+    """The service warms the compiled prediction up before any run; a tick's calls, with
+    integer or float inputs, then compile nothing more (seconds of a tick otherwise)."""
+    from gcs_ppf.guidance import assurance, prediction
+
+    assurance.warm_up()
+    compiled = {
+        f: len(getattr(prediction, f).signatures) for f in ("score", "fly_hold", "escape_s")
+    }
+    m = Motion((0, 0, 100), 0, 25, 0.3, 5, 5)
+    walls = Obstacles(np.array([[500, 0, 100]]), np.array([100]), np.zeros((1, 3)))
+    assure([m, m], [Command(0, 100)] * 2, 1, KeepOut(walls, 0, 25, 50))
+    hold_path(m, Command(0, 100), 1)
+    advance(m, Command(0, 100), 2)
+    assurance.escape_s(m)
+    assert {f: len(getattr(prediction, f).signatures) for f in compiled} == compiled
