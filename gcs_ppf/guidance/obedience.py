@@ -67,6 +67,13 @@ class Obedience:
         ack = report.last_ack_result
         return report.guided and (ack is None or ack in OBEYED) and report.converging
 
+    def restart(self) -> None:
+        """Forget since when vehicles have not obeyed (those flagged stay flagged): after
+        a gap in the ground station's own ticks longer than the bound, what a vehicle did
+        meanwhile is no evidence against it (×10 under load, ticks 3.7 s of vehicle time
+        apart flagged an obeying leader and failed the run)."""
+        self.since_s.clear()
+
     def update(self, now_s: float, reports: list[Report]) -> tuple[list[int], list[int]]:
         """One tick at vehicle time ``now_s``: the vehicles newly flagged, and those that
         obey again."""

@@ -26,7 +26,7 @@ from gcs_ppf.planning.scene import Obstacles, obstacles_from_mission
 from gcs_ppf.service import commanding, launch
 from gcs_ppf.service.ending import end
 from gcs_ppf.service.fleet import Vehicle, planning_states
-from gcs_ppf.service.run import Run, RunState, changes, min_of
+from gcs_ppf.service.run import NOT_RESPONDING_S, Run, RunState, changes, min_of
 from gcs_ppf.service.station import Station
 from gcs_ppf.service.watch import watch_safety
 
@@ -165,6 +165,8 @@ def check_obedience(
         reports.append(obedience.Report(
             v.system_id, guided, ack.result if ack else None, error, turn or 0.0
         ))  # fmt: skip
+    if run.tick_gaps_s and run.tick_gaps_s[-1] > NOT_RESPONDING_S:
+        run.obedience.restart()  # no evidence across our own stall
     flagged, cleared = run.obedience.update(run.mission_time_s, reports)
     by_id = {v.system_id: v.telemetry for v, _ in located}
     for vid in flagged:

@@ -78,3 +78,17 @@ def test_a_vehicle_on_its_course_or_turning_towards_it_obeys(
 def test_a_vehicle_turning_away_from_its_course_does_not_obey() -> None:
     r = Report(4, True, ACCEPTED, course_error_rad=math.radians(60.0), turn_rate_rad_s=-0.2)
     assert not Obedience.obeys(r)
+
+
+def test_a_restart_forgets_the_evidence_but_keeps_the_flags() -> None:
+    """After the ground station's own stall, a vehicle's clock starts again; one already
+    flagged stays flagged until it obeys."""
+    ob = Obedience(bound_s=3.0)
+    ob.update(0.0, [Report(2, True, ACCEPTED, math.radians(90.0)), Report(3, False, None)])
+    assert ob.update(3.0, [Report(3, False, None)]) == ([3], [])
+    ob.restart()
+    stuck = Report(2, True, ACCEPTED, math.radians(90.0))  # 90° off and not turning
+    assert ob.update(3.7, [stuck]) == ([], [])  # 3.7 s since 0.0, but no evidence before
+    assert ob.update(6.6, [stuck]) == ([], [])
+    assert ob.update(6.7, [stuck]) == ([2], [])  # 3.0 s of evidence since the restart
+    assert ob.not_responding == {2, 3}
