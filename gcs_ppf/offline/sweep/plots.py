@@ -16,7 +16,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
-from matplotlib.ticker import NullFormatter, ScalarFormatter
+from matplotlib.ticker import NullFormatter, StrMethodFormatter
 
 from gcs_ppf.offline.plots import _save
 from gcs_ppf.offline.sweep.rows import Outcome, SceneRow
@@ -85,7 +85,7 @@ def _histograms(ax: Axes, rows: Sequence[SceneRow], field: str, safe: Sequence[f
     for s in sorted(set(safe)):  # a limit as in the paper's figures: a red dashed line
         ax.axvline(s, color="red", linestyle="--", linewidth=1.0, label=f"safe distance {s:g} m")
     ax.set_yscale("log")  # the tail near the safe distance shows
-    ax.yaxis.set_major_formatter(ScalarFormatter())
+    ax.yaxis.set_major_formatter(StrMethodFormatter("{x:.0f}"))
     ax.yaxis.set_minor_formatter(NullFormatter())
     ax.set_ylabel("scenes")
     ax.legend(fontsize=8)
