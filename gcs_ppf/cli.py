@@ -1,4 +1,5 @@
-"""The `gcs-ppf` command line: plan (``gcs_ppf.offline.command``), serve, demo, arduplane-sitl."""
+"""The `gcs-ppf` command line: plan (``gcs_ppf.offline.command``), sweep
+(``gcs_ppf.offline.sweep.command``), serve, demo, arduplane-sitl."""
 
 from __future__ import annotations
 
@@ -10,6 +11,8 @@ from pathlib import Path
 
 from gcs_ppf.mission import MissionError, load_mission_file
 from gcs_ppf.offline.command import EXIT_BAD_INPUT, plan_command
+from gcs_ppf.offline.sweep.command import add_arguments as add_sweep_arguments
+from gcs_ppf.offline.sweep.command import sweep_command
 
 log = logging.getLogger("gcs_ppf")
 
@@ -36,6 +39,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--sweep-dt", action="store_true", help="also time the plan for Δt = 0.1 … 0.005 s (Fig. 9)"
     )
     plan.add_argument("--no-plots", action="store_true", help="write metrics and CSV only")
+    sweep = sub.add_parser(
+        "sweep", help="plan many random scenes of a family (pool or Ray): table, summary, plots"
+    )
+    add_sweep_arguments(sweep)
     demo = sub.add_parser("demo", help="fly a mission live: built-in SITL + service (make run)")
     demo.add_argument("mission", type=Path, help="mission document (JSON)")
     demo.add_argument("--speedup", type=float, default=1.0, help="SITL time factor")
@@ -94,6 +101,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if args.command == "plan":
         return plan_command(args)
+    if args.command == "sweep":
+        return sweep_command(args)
     if args.command == "serve":
         return serve_command(args)
     if args.command == "arduplane-sitl":

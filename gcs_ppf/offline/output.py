@@ -51,7 +51,7 @@ def write_json(data: Any, path: Path) -> None:
     path.write_text(json.dumps(data, indent=2, allow_nan=False) + "\n")
 
 
-def _replace_json(data: Any, path: Path) -> None:
+def replace_json(data: Any, path: Path) -> None:
     """Write ``path`` through a scratch file and a rename: readers see old or new, whole."""
     scratch = path.with_name(f".{path.name}.partial")
     write_json(data, scratch)
@@ -111,6 +111,15 @@ def write_plan(
         write_trajectory_csv(trajectory, d / "trajectory.csv")
 
     write_atomically(out_dir, fill)
+    errors = draw_figures(out_dir, figures)
+    if errors:
+        replace_json({**metrics, "plot_errors": errors}, out_dir / "metrics.json")
+    return errors
+
+
+def draw_figures(out_dir: Path, figures: Iterable[tuple[str, Draw]]) -> dict[str, str]:
+    """Draw each figure into ``out_dir``, each to a scratch name then renamed (a failed one
+    leaves no file); returns the errors of those that failed (file name → error)."""
     errors: dict[str, str] = {}
     for name, draw in figures:
         scratch = out_dir / f".partial-{name}"  # keeps the extension that picks the format
@@ -122,6 +131,4 @@ def write_plan(
         finally:
             with contextlib.suppress(FileNotFoundError):
                 scratch.unlink()
-    if errors:
-        _replace_json({**metrics, "plot_errors": errors}, out_dir / "metrics.json")
     return errors
