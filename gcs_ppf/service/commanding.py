@@ -17,7 +17,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from gcs_ppf.geodesy import enu_to_geodetic, enu_to_geodetic_many
-from gcs_ppf.guidance import assurance, holding, slew
+from gcs_ppf.guidance import assurance, holding, slew, speed_reference
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import Guidance, VehicleState
 from gcs_ppf.mavlink import commands
@@ -92,8 +92,9 @@ def planned_commands(
             px, py, _ = states[vid].pos_m
             out.append(slew.SlewCommand(math.atan2(y - py, x - px), 0.0, z, 0.0))
             continue
-        out.append(slew.slew_command(g, i, airframes[i], states[vid].pos_m[2], turn_accel_m_s2,
-                                     orders.lookahead_s))  # fmt: skip
+        s = states[vid]
+        out.append(slew.slew_command(g, i, airframes[i], s.pos_m[2], turn_accel_m_s2,
+                                     orders.lookahead_s, s.yaw_rad))  # fmt: skip
     return out
 
 
@@ -178,13 +179,16 @@ async def _send_speed(
     fleet: Sender, vid: int, g: Guidance, i: int, airframe: Airframe,
     commanded_speed: dict[int, float],
 ) -> None:  # fmt: skip
-    """DO_CHANGE_SPEED when the airspeed to fly changes by half a metre per second."""
+    """DO_CHANGE_SPEED when the airspeed to fly (``speed_reference.speed_to_command``, over
+    the averaged airspeed / ground speed ratio) changes by ``SPEED_DEADBAND_M_S``."""
     t = fleet.telemetry(vid)
     if t is None:
         return
-    ahead = g.speed_m_s if g.speed_ahead_m_s is None else g.speed_ahead_m_s
-    speed = slew.airspeed_command(float(ahead[i]), t.airspeed_m_s, t.groundspeed_m_s, airframe)
-    if abs(commanded_speed.get(vid, -1.0) - speed) >= 0.5:
+    planned = speed_reference.speed_to_command(g, i)
+    speed = slew.airspeed_command(
+        planned, t.airspeed_m_s, t.groundspeed_m_s, airframe, t.speed_ratio_mean
+    )
+    if abs(commanded_speed.get(vid, -1.0) - speed) >= speed_reference.SPEED_DEADBAND_M_S:
         commanded_speed[vid] = speed
         await fleet.send(vid, commands.change_speed(vid, speed))
 
