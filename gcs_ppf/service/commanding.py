@@ -84,7 +84,13 @@ def planned_commands(
     turn_accel_m_s2: float,
 ) -> list[slew.SlewCommand]:  # fmt: skip
     """Each vehicle's course and altitude as the plan asks (in ``g``'s order); in point
-    guidance the course is the bearing to the guided point."""
+    guidance the course is the bearing to the guided point.  The course lead is cut against
+    the correction (``slew.opposing_lead_rad``) in missions at ArduPlane's scale
+    (``speed_reference.follows_speed_plan``), where the cancellation it removes was
+    measured; at the paper's 100–300 m/s the P-controller's and the pursuit's time
+    constants are far apart and the lead is flown as before."""
+    lim = orders.mission.limits
+    cut = speed_reference.follows_speed_plan(lim.accel, lim.decel)
     out = []
     for i, vid in enumerate(g.ids):
         if orders.guidance_mode == "point":
@@ -94,7 +100,7 @@ def planned_commands(
             continue
         s = states[vid]
         out.append(slew.slew_command(g, i, airframes[i], s.pos_m[2], turn_accel_m_s2,
-                                     orders.lookahead_s, s.yaw_rad))  # fmt: skip
+                                     orders.lookahead_s, s.yaw_rad if cut else None))  # fmt: skip
     return out
 
 
@@ -117,6 +123,7 @@ async def command_fleet(
     mission = orders.mission
     turn_accel = mission.limits.v_max * mission.limits.max_yaw_rate  # the plan limits turns
     planned = planned_commands(g, states, airframes, orders, turn_accel)
+    follows = speed_reference.follows_speed_plan(mission.limits.accel, mission.limits.decel)
     idx = [i for i, vid in enumerate(g.ids) if vid in active]
     motions = [motion(states[g.ids[i]], airframes[i], mission) for i in idx]
     wanted = [assurance.Command(planned[i].course_rad, planned[i].z_m) for i in idx]
@@ -136,7 +143,7 @@ async def command_fleet(
             escaping.pop(vid, None)
         where = (float(lats[k]), float(lons[k]), float(alts[k]))
         await _send_course(fleet, vid, planned[i], v, m, orders, where)
-        await _send_speed(fleet, vid, g, i, airframes[i], commanded_speed)
+        await _send_speed(fleet, vid, g, i, airframes[i], commanded_speed, follows)
     return {g.ids[i]: v for i, v in zip(idx, verdicts, strict=True)}
 
 
@@ -177,18 +184,23 @@ async def _send_course(
 
 async def _send_speed(
     fleet: Sender, vid: int, g: Guidance, i: int, airframe: Airframe,
-    commanded_speed: dict[int, float],
+    commanded_speed: dict[int, float], follows: bool = True,
 ) -> None:  # fmt: skip
     """DO_CHANGE_SPEED when the airspeed to fly (``speed_reference.speed_to_command``, over
-    the averaged airspeed / ground speed ratio) changes by ``SPEED_DEADBAND_M_S``."""
+    the averaged airspeed / ground speed ratio) changes by ``SPEED_DEADBAND_M_S``; the
+    legacy lead and deadband where the vehicles do not follow the plan's speed
+    (``speed_reference.follows_speed_plan``)."""
     t = fleet.telemetry(vid)
     if t is None:
         return
-    planned = speed_reference.speed_to_command(g, i)
+    lead, deadband = speed_reference.SPEED_COMMAND_LEAD_S, speed_reference.SPEED_DEADBAND_M_S
+    if not follows:
+        lead, deadband = speed_reference.LEGACY_COMMAND_LEAD_S, speed_reference.LEGACY_DEADBAND_M_S
+    planned = speed_reference.speed_to_command(g, i, lead)
     speed = slew.airspeed_command(
         planned, t.airspeed_m_s, t.groundspeed_m_s, airframe, t.speed_ratio_mean
     )
-    if abs(commanded_speed.get(vid, -1.0) - speed) >= speed_reference.SPEED_DEADBAND_M_S:
+    if abs(commanded_speed.get(vid, -1.0) - speed) >= deadband:
         commanded_speed[vid] = speed
         await fleet.send(vid, commands.change_speed(vid, speed))
 

@@ -250,13 +250,16 @@ async def plan_and_command(
     telemetry_interval_s = 1.0 / settings.stream_rate_hz
     lagging_s = telemetry_interval_s + run.fleet_lag.total_s  # what the margins must cover
     # planned from the speeds the last plan had reached by now, not the measured ones
-    planning = speed_reference.reference_states(states, run.speed_plan, run.mission_time_s)
+    follows = speed_reference.follows_speed_plan(lim.accel, lim.decel)
+    reference = run.speed_plan if follows else None
+    planning = speed_reference.reference_states(states, reference, run.mission_time_s)
     g, ordered = tick_plan.plan(
         mission, planning, active, obstacles, ground, airframes,
         tick_plan.Tuning.of(settings), lagging_s, run.last,
     )  # fmt: skip
-    run.formation_held = speed_reference.formation_holds(g, lim.target_accuracy, run.formation_held)
-    if run.formation_held:  # the leader keeps its speed (``speed_reference.leader_held``)
+    held = follows and speed_reference.formation_holds(g, lim.target_accuracy, run.formation_held)
+    run.formation_held = held
+    if held:  # the leader keeps its speed (``speed_reference.leader_held``)
         g = speed_reference.leader_held(g, lim.v_max, lim.v_min, lim.decel)
     run.speed_plan = speed_reference.SpeedPlan.of(g, run.mission_time_s)
     for kind, vehicle_id in changes(run, g):  # what changed since the last tick

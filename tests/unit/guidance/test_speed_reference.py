@@ -14,6 +14,7 @@ from gcs_ppf.guidance.speed_reference import (
     REFERENCE_BOUND_M_S,
     SPEED_COMMAND_LEAD_S,
     SpeedPlan,
+    follows_speed_plan,
     formation_holds,
     leader_held,
     reference_speed,
@@ -136,3 +137,8 @@ def test_the_leader_of_a_held_formation_keeps_its_speed_below_v_max() -> None:
     assert fast.speed_plan_m_s is not None
     assert speed_to_command(fast, 0) == pytest.approx(27.5 - 0.8 * SPEED_COMMAND_LEAD_S)
     assert fast.speed_plan_m_s[-1, 0] == pytest.approx(28.0 - HOLD_RESERVE_M_S)
+
+
+def test_only_missions_at_arduplanes_scale_are_flown_from_the_reference() -> None:
+    assert follows_speed_plan(0.6, 0.8)  # examples/arduplane_*.json
+    assert not follows_speed_plan(10.0, 40.0)  # the paper's Table 1
