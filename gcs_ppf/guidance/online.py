@@ -95,6 +95,8 @@ class Guidance:
     leader_arrives_within_lookahead: bool
     resolving: list[bool] = field(default_factory=list)  # vertical conflict resolution
     speed_ahead_m_s: FloatArray | None = None  # [N] planned speed speed_lead_s on
+    speed_plan_t_s: FloatArray | None = None  # [K] 0 and the plan's record times
+    speed_plan_m_s: FloatArray | None = None  # [K,N] the planned speeds then (the start's first)
 
 
 def scene_now(
@@ -217,7 +219,10 @@ def guidance(
     commanding, so a plan replanned every tick from the measured speed would never be flown
     faster or slower; but the speed ``lookahead_s`` (3 s) on overshoots — flown on Table 2's
     level scene a wingman passed its slot by 180 m while the leader sped up (the formation
-    formed in 2 of 4 runs; 4 of 4 at 1 s, worst wingman 2.4–8.0 m at best).
+    formed in 2 of 4 runs; 4 of 4 at 1 s, worst wingman 2.4–8.0 m at best).  The service
+    now plans each tick from the speeds the previous plan reached (``speed_plan_t_s``,
+    ``speed_plan_m_s``; ``gcs_ppf.guidance.speed_reference``), so the plan's speed changes are
+    flown whatever the deadband, and commands the plan's speed a quarter second on.
 
     The guided point is the planned position ``lookahead_s`` ahead carried ``carrot_m``
     further along the planned heading, at the planned altitude.  A fixed wing in GUIDED flies
@@ -252,6 +257,8 @@ def guidance(
         local_target_distance_m=[None, *_slot_distances_m(scene)],
         leader_arrives_within_lookahead=run.arrived,
         speed_ahead_m_s=tr.speed[_record_at(len(tr), speed_lead_s, dt)].copy(),
+        speed_plan_t_s=np.concatenate([[0.0], tr.t]),
+        speed_plan_m_s=np.concatenate([scene.fleet.speed[None], tr.speed]),
     )
 
 

@@ -65,11 +65,37 @@ def course_command_rad(
     speed_m_s: float,
     guided_p: float | None,
     roll_limit_deg: float | None = None,
+    current_course_rad: float | None = None,
 ) -> float:
     """The course to command (ICS yaw, rad, counter-clockwise: a positive turn rate turns
-    left): the planned one led by ``course_lead_rad``."""
+    left): the planned one led by ``course_lead_rad``, the lead cut (``opposing_lead_rad``)
+    where it turns against the way from ``current_course_rad`` to the planned course."""
     lead = course_lead_rad(turn_rate_rad_s, speed_m_s, guided_p, roll_limit_deg)
+    if current_course_rad is not None:
+        correction = math.remainder(planned_course_rad - current_course_rad, math.tau)
+        lead = opposing_lead_rad(lead, correction)
     return math.remainder(planned_course_rad + lead, math.tau)
+
+
+def opposing_lead_rad(lead_rad: float, correction_rad: float) -> float:
+    """The lead kept when the vehicle is ``correction_rad`` off the planned course (planned
+    − current): whole when it turns the same way as the correction; against it, less by
+    the correction's size, and nothing once the correction is as large.
+
+    The lead is the bank for the turn the plan makes ``lead_s`` on, for a vehicle already
+    on the planned course.  A plan re-made every tick from the vehicle's state turns onto
+    its new course at once (assumption 2) and then, closing on a point ahead, turns back
+    the way it came; the vehicle, not yet turned, was sent the turn back as well.  A wingman
+    pursuing its slot ``v/ω`` ahead turns back at the rate ArduPlane's P-controller turns
+    towards it (both ~3.3 s at 28 m/s with GUIDED_P 5000 and ω = 0.3 rad/s), so the two
+    cancelled whatever the error: on real ArduPlane the wingmen of a formation takeoff of 5
+    flew 7–8 m inside their slots for 30 s, planned 4.4° outwards, sent 1.0–1.4° inwards
+    (a lead of 5.4° for the turn back).  Cut by the correction instead, the command stays
+    on the correction's side until the vehicle has turned half-way, and in a steady turn
+    (where the correction is the small lag the lead takes out) it barely changes."""
+    if lead_rad * correction_rad >= 0.0:
+        return lead_rad
+    return math.copysign(max(abs(lead_rad) - abs(correction_rad), 0.0), lead_rad)
 
 
 def lateral_accel_limit(
@@ -135,9 +161,11 @@ def slew_command(
     current_z_m: float,
     plan_accel_limit_m_s2: float,
     horizon_s: float,
+    current_course_rad: float | None = None,
 ) -> SlewCommand:
-    """Vehicle ``i`` of ``g``'s course (led for its P-controller when it reports GUIDED_P)
-    and altitude: with TECS limits known, param3 = 0 and the demand shaped
+    """Vehicle ``i`` of ``g``'s course (led for its P-controller when it reports GUIDED_P,
+    the lead cut against the turn from ``current_course_rad``, ``opposing_lead_rad``) and
+    altitude: with TECS limits known, param3 = 0 and the demand shaped
     (``altitude_demand``, the planned altitude ``horizon_s`` ahead); without, the planned
     altitude at the planned vertical speed (how ArduPlane-like simulators without TECS
     were flown).  A vertical resolution is flown as fast as possible, unshaped (the guard
@@ -145,7 +173,12 @@ def slew_command(
     speed = float(g.speed_m_s[i])
     turn = float(g.turn_rate_rad_s[i])
     course = course_command_rad(
-        float(g.course_rad[i]), turn, speed, airframe.guided_p, airframe.roll_limit_deg
+        float(g.course_rad[i]),
+        turn,
+        speed,
+        airframe.guided_p,
+        airframe.roll_limit_deg,
+        current_course_rad,
     )
     accel = lateral_accel_limit(turn, speed, plan_accel_limit_m_s2, airframe.roll_limit_deg)
     planned_z = float(g.guided_point_m[i, 2])
@@ -165,6 +198,7 @@ def airspeed_command(
     airspeed_m_s: float | None,
     groundspeed_m_s: float | None,
     airframe: Airframe,
+    speed_ratio: float | None = None,
 ) -> float:
     """The airspeed to command (DO_CHANGE_SPEED) for a planned speed over the ground.
 
@@ -175,10 +209,12 @@ def airspeed_command(
     airspeed).  Commanded as is, a plan that slows a vehicle down is never flown: the
     vehicle keeps flying faster than planned, and the next plan starts from that speed.  So
     the planned speed is scaled by the vehicle's own airspeed / groundspeed (VFR_HUD; 1 when
-    unknown or implausible) and kept within AIRSPEED_MIN..AIRSPEED_MAX (ArduPlane FAILS a
-    speed outside them)."""
+    unknown or implausible; ``speed_ratio``, the averaged ratio, when given) and kept within
+    AIRSPEED_MIN..AIRSPEED_MAX (ArduPlane FAILS a speed outside them)."""
     ratio = 1.0
-    if airspeed_m_s is not None and groundspeed_m_s is not None and groundspeed_m_s > 1.0:
+    if speed_ratio is not None and 0.5 <= speed_ratio <= 2.0:
+        ratio = speed_ratio
+    elif airspeed_m_s is not None and groundspeed_m_s is not None and groundspeed_m_s > 1.0:
         measured = airspeed_m_s / groundspeed_m_s
         if 0.5 <= measured <= 2.0:
             ratio = measured

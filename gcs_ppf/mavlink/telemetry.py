@@ -20,6 +20,15 @@ UINT16_UNKNOWN = 0xFFFF
 """GLOBAL_POSITION_INT.hdg when the heading is unknown."""
 COURSE_RATE_SMOOTHING = 0.5
 """Weight of the newest measurement in the course rate (an exponential average)."""
+SPEED_RATIO_SMOOTHING_S = 10.0
+"""Time constant (vehicle seconds) of the averaged airspeed / ground speed ratio that
+turns a planned ground speed into the airspeed to command (``gcs_ppf.guidance.slew``).  The
+ratio is the air's density at the vehicle's height, which changes slowly; VFR_HUD's
+instantaneous one swung 0.915–0.98 with TECS's ±3 m/s vertical oscillation on real
+ArduPlane, ±0.9 m/s of commanded airspeed at 27 m/s, each swing a throttle step (22 ↔ 97 %)
+that fed the oscillation."""
+SPEED_RATIO_MIN_GROUNDSPEED_M_S = 5.0
+"""Below this ground speed a VFR_HUD is left out of the ratio (on the runway)."""
 FLIGHT_PATH_SMOOTHING_S = 2.0
 """Time constant (vehicle seconds) of the averaged vertical speed the flight path is planned
 from.  ArduPlane's TECS holds a height with a ±2–4 m/s oscillation of the vertical speed
@@ -103,6 +112,11 @@ class VehicleTelemetry:
     groundspeed_m_s: float | None = None
     climb_m_s: float | None = None
     """VFR_HUD.climb (positive up)."""
+    speed_ratio_mean: float | None = None
+    """VFR_HUD.airspeed / .groundspeed averaged over ``SPEED_RATIO_SMOOTHING_S`` (samples
+    flying faster than ``SPEED_RATIO_MIN_GROUNDSPEED_M_S`` over the ground, ratio 0.5–2)."""
+    hud_boot_ms: int | None = None
+    """Vehicle time of the latest VFR_HUD (the latest ``time_boot_ms`` when it came)."""
     time_boot_ms: int | None = None
     """Vehicle time: ``time_boot_ms`` of the most recent message carrying one."""
     system_time_boot_ms: int | None = None
@@ -225,11 +239,31 @@ def _attitude(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[
     return {"roll_rad": float(msg.roll), "pitch_rad": float(msg.pitch), "yaw_rad": float(msg.yaw)}
 
 
+def _speed_ratio_mean(tel: VehicleTelemetry, airspeed: float, groundspeed: float) -> float | None:
+    """The airspeed / ground speed ratio averaged over ``SPEED_RATIO_SMOOTHING_S`` of vehicle
+    time (VFR_HUD carries no time of its own: the vehicle's latest; restarted after a gap of
+    more than 2 s); a sample on the ground or implausible is left out."""
+    if groundspeed <= SPEED_RATIO_MIN_GROUNDSPEED_M_S or not 0.5 <= airspeed / groundspeed <= 2.0:
+        return tel.speed_ratio_mean
+    ratio = airspeed / groundspeed
+    previous = tel.speed_ratio_mean
+    if previous is None or tel.hud_boot_ms is None or tel.time_boot_ms is None:
+        return ratio
+    dt = (tel.time_boot_ms - tel.hud_boot_ms) / 1000.0
+    if not 0.0 <= dt <= 2.0:
+        return ratio
+    a = 1.0 - math.exp(-dt / SPEED_RATIO_SMOOTHING_S)
+    return a * ratio + (1.0 - a) * previous
+
+
 def _vfr_hud(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:
+    airspeed, groundspeed = float(msg.airspeed), float(msg.groundspeed)
     return {
-        "airspeed_m_s": float(msg.airspeed),
-        "groundspeed_m_s": float(msg.groundspeed),
+        "airspeed_m_s": airspeed,
+        "groundspeed_m_s": groundspeed,
         "climb_m_s": float(msg.climb),
+        "speed_ratio_mean": _speed_ratio_mean(tel, airspeed, groundspeed),
+        "hud_boot_ms": tel.time_boot_ms,
     }
 
 

@@ -17,7 +17,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from gcs_ppf.geodesy import enu_to_geodetic, enu_to_geodetic_many
-from gcs_ppf.guidance import assurance, holding, slew
+from gcs_ppf.guidance import assurance, holding, slew, speed_reference
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import Guidance, VehicleState
 from gcs_ppf.mavlink import commands
@@ -94,7 +94,13 @@ def planned_commands(
     turn_accel_m_s2: float,
 ) -> list[slew.SlewCommand]:  # fmt: skip
     """Each vehicle's course and altitude as the plan asks (in ``g``'s order); in point
-    guidance the course is the bearing to the guided point."""
+    guidance the course is the bearing to the guided point.  The course lead is cut against
+    the correction (``slew.opposing_lead_rad``) in missions at ArduPlane's scale
+    (``speed_reference.follows_speed_plan``), where the cancellation it removes was
+    measured; at the paper's 100–300 m/s the P-controller's and the pursuit's time
+    constants are far apart and the lead is flown as before."""
+    lim = orders.mission.limits
+    cut = speed_reference.follows_speed_plan(lim.accel, lim.decel)
     out = []
     for i, vid in enumerate(g.ids):
         if orders.guidance_mode == "point":
@@ -102,8 +108,9 @@ def planned_commands(
             px, py, _ = states[vid].pos_m
             out.append(slew.SlewCommand(math.atan2(y - py, x - px), 0.0, z, 0.0))
             continue
-        out.append(slew.slew_command(g, i, airframes[i], states[vid].pos_m[2], turn_accel_m_s2,
-                                     orders.lookahead_s))  # fmt: skip
+        s = states[vid]
+        out.append(slew.slew_command(g, i, airframes[i], s.pos_m[2], turn_accel_m_s2,
+                                     orders.lookahead_s, s.yaw_rad if cut else None))  # fmt: skip
     return out
 
 
@@ -126,6 +133,7 @@ async def command_fleet(
     mission = orders.mission
     turn_accel = mission.limits.v_max * mission.limits.max_yaw_rate  # the plan limits turns
     planned = planned_commands(g, states, airframes, orders, turn_accel)
+    follows = speed_reference.follows_speed_plan(mission.limits.accel, mission.limits.decel)
     idx = [i for i, vid in enumerate(g.ids) if vid in active]
     ahead = g.speed_m_s if g.speed_ahead_m_s is None else g.speed_ahead_m_s
     motions = [motion(states[g.ids[i]], airframes[i], mission, float(ahead[i])) for i in idx]
@@ -146,8 +154,8 @@ async def command_fleet(
             escaping.pop(vid, None)
         where = (float(lats[k]), float(lons[k]), float(alts[k]))
         await _send_course(fleet, vid, planned[i], v, m, orders, where)
-        wanted_speed = mission.limits.v_min if v.replaced else float(ahead[i])
-        await _send_speed(fleet, vid, wanted_speed, airframes[i], commanded_speed)
+        slowest = mission.limits.v_min if v.replaced else None
+        await _send_speed(fleet, vid, g, i, airframes[i], commanded_speed, follows, slowest)
     return {g.ids[i]: v for i, v in zip(idx, verdicts, strict=True)}
 
 
@@ -187,20 +195,28 @@ async def _send_course(
 
 
 async def _send_speed(
-    fleet: Sender, vid: int, ground_speed_m_s: float, airframe: Airframe,
-    commanded_speed: dict[int, float],
+    fleet: Sender, vid: int, g: Guidance, i: int, airframe: Airframe,
+    commanded_speed: dict[int, float], follows: bool = True, slowest_m_s: float | None = None,
 ) -> None:  # fmt: skip
-    """DO_CHANGE_SPEED when the airspeed to fly changes by half a metre per second: the
-    plan's speed ahead, or the slowest during an escape (the tightest turn; the assurance
-    predicts it at the speed the vehicle has, or is told, whichever is faster: Table 3, ×5
-    on a lossy link, a leader accelerating from 102 to 160 m/s through an escape turned
-    wider than predicted, each tick's margin 5–10 m less than the last, and went 17.6 m
-    into a sphere)."""
+    """DO_CHANGE_SPEED when the airspeed to fly (``speed_reference.speed_to_command``, over
+    the averaged airspeed / ground speed ratio) changes by ``SPEED_DEADBAND_M_S``; the
+    legacy lead and deadband where the vehicles do not follow the plan's speed
+    (``speed_reference.follows_speed_plan``).  During an escape, ``slowest_m_s`` instead
+    (the tightest turn; the assurance predicts it at the speed the vehicle has, or is told,
+    whichever is faster: Table 3, ×5 on a lossy link, a leader accelerating from 102 to
+    160 m/s through an escape turned wider than predicted, each tick's margin 5–10 m less
+    than the last, and went 17.6 m into a sphere)."""
     t = fleet.telemetry(vid)
     if t is None:
         return
-    speed = slew.airspeed_command(ground_speed_m_s, t.airspeed_m_s, t.groundspeed_m_s, airframe)
-    if abs(commanded_speed.get(vid, -1.0) - speed) >= 0.5:
+    lead, deadband = speed_reference.SPEED_COMMAND_LEAD_S, speed_reference.SPEED_DEADBAND_M_S
+    if not follows:
+        lead, deadband = speed_reference.LEGACY_COMMAND_LEAD_S, speed_reference.LEGACY_DEADBAND_M_S
+    planned = speed_reference.speed_to_command(g, i, lead) if slowest_m_s is None else slowest_m_s
+    speed = slew.airspeed_command(
+        planned, t.airspeed_m_s, t.groundspeed_m_s, airframe, t.speed_ratio_mean
+    )
+    if abs(commanded_speed.get(vid, -1.0) - speed) >= deadband:
         commanded_speed[vid] = speed
         await fleet.send(vid, commands.change_speed(vid, speed))
 

@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from gcs_ppf.guidance import assurance, lag, obedience, tick_plan
+from gcs_ppf.guidance import assurance, lag, obedience, speed_reference, tick_plan
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import VehicleState, clearance, home_ground, separations
 from gcs_ppf.guidance.tick_plan import passes_within, traffic_radius_m
@@ -242,18 +242,28 @@ async def plan_and_command(
     station: Station, run: Run, located: Located, states: dict[int, VehicleState],
     active: set[int], obstacles: Obstacles, ground: float | None,
 ) -> None:  # fmt: skip
-    """The tick's plan (``tick_plan.plan``, events for what changed) sent to the vehicles
-    it commands, every command through the run-time assurance."""
+    """The tick's plan (``tick_plan.plan`` from the speeds the last plan reached,
+    ``speed_reference``; events for what changed) sent to the vehicles it commands, every
+    command through the run-time assurance."""
     mission = run.mission
     settings = station.settings
     airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
     lim = mission.limits
     telemetry_interval_s = 1.0 / settings.stream_rate_hz
     lagging_s = telemetry_interval_s + run.fleet_lag.total_s  # what the margins must cover
+    # planned from the speeds the last plan had reached by now, not the measured ones
+    follows = speed_reference.follows_speed_plan(lim.accel, lim.decel)
+    reference = run.speed_plan if follows else None
+    planning = speed_reference.reference_states(states, reference, run.mission_time_s)
     g, ordered = tick_plan.plan(
-        mission, states, active, obstacles, ground, airframes,
+        mission, planning, active, obstacles, ground, airframes,
         tick_plan.Tuning.of(settings), lagging_s, run.last,
     )  # fmt: skip
+    held = follows and speed_reference.formation_holds(g, lim.target_accuracy, run.formation_held)
+    run.formation_held = held
+    if held:  # the leader keeps its speed (``speed_reference.leader_held``)
+        g = speed_reference.leader_held(g, lim.v_max, lim.v_min, lim.decel)
+    run.speed_plan = speed_reference.SpeedPlan.of(g, run.mission_time_s)
     for kind, vehicle_id in changes(run, g):  # what changed since the last tick
         station.event(run, kind, vehicle_id)
     run.last = g

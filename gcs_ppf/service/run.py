@@ -13,6 +13,7 @@ import numpy as np
 
 from gcs_ppf.guidance import assurance, lag, obedience, safety_monitor
 from gcs_ppf.guidance.online import Guidance
+from gcs_ppf.guidance.speed_reference import SpeedPlan
 from gcs_ppf.mission import Mission
 from gcs_ppf.service import commanding
 from gcs_ppf.service.store import StoredRun
@@ -57,6 +58,10 @@ class Run:
     start_vehicle_time_s: float | None = None
     mission_time_s: float = 0.0
     last: Guidance | None = None
+    speed_plan: SpeedPlan | None = None
+    """The speeds the last tick planned, which the next plans from (``speed_reference``)."""
+    formation_held: bool = False
+    """The formation is held: the leader keeps its speed (``speed_reference.leader_held``)."""
     min_separation_m: float | None = None
     min_clearance_m: float | None = None
     formed: bool = False

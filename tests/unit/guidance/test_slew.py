@@ -17,6 +17,7 @@ from gcs_ppf.guidance.slew import (
     course_lead_rad,
     lateral_accel_limit,
     needed_bank_rad,
+    opposing_lead_rad,
     sendable_altitude,
     slew_command,
 )
@@ -58,16 +59,18 @@ def test_in_a_steady_turn_the_lead_makes_the_p_controller_bank_what_the_turn_nee
 def test_a_course_ramp_is_followed_behind_without_the_lead_and_on_it_with() -> None:
     """Closed loop (kinematics at 50 Hz, roll following its demand in 0.25 s): the course
     turning at 0.2 rad/s at 22 m/s is flown about v·ψ̇/(g·K) behind without the lead (the
-    7–8° of the issue), within a fraction of a degree with it."""
+    7–8° of the issue), within a fraction of a degree with it (also when the lead is cut
+    against the correction from the vehicle's course)."""
     speed, turn_rate, dt = 22.0, 0.2, 0.02
 
-    def steady_lag_deg(feed_forward: bool) -> float:
+    def steady_lag_deg(feed_forward: bool, cut: bool = False) -> float:
         course, bank, t = 0.0, 0.0, 0.0
         lags = []
         for _ in range(int(60.0 / dt)):
             planned = turn_rate * t
             gp = GUIDED_P if feed_forward else None
-            command = course_command_rad(planned, turn_rate, speed, gp, ROLL_LIMIT_DEG)
+            now = course if cut else None
+            command = course_command_rad(planned, turn_rate, speed, gp, ROLL_LIMIT_DEG, now)
             error = math.remainder(command - course, math.tau)
             demand = p_controller_bank_rad(error, GUIDED_P, 10.0, ROLL_LIMIT_DEG)
             bank += (demand - bank) * dt / 0.25
@@ -81,6 +84,49 @@ def test_a_course_ramp_is_followed_behind_without_the_lead_and_on_it_with() -> N
     assert steady_lag_deg(False) == pytest.approx(expected, rel=0.05)
     assert expected > 5.0
     assert abs(steady_lag_deg(True)) < 0.3
+    assert abs(steady_lag_deg(True, cut=True)) < 0.3  # the lead turns the correction's way
+
+
+def test_a_lead_against_the_correction_is_cut_by_the_correction() -> None:
+    assert opposing_lead_rad(0.1, 0.02) == 0.1  # the same way: whole
+    assert opposing_lead_rad(0.1, 0.0) == 0.1
+    assert opposing_lead_rad(0.1, -0.04) == pytest.approx(0.06)
+    assert opposing_lead_rad(-0.1, 0.04) == pytest.approx(-0.06)
+    assert opposing_lead_rad(0.1, -0.1) == 0.0
+    assert opposing_lead_rad(0.1, -0.3) == 0.0  # never turned into a lead the other way
+    plain = course_command_rad(0.5, -0.02, 28.0, GUIDED_P, ROLL_LIMIT_DEG)
+    assert course_command_rad(0.5, -0.02, 28.0, GUIDED_P, ROLL_LIMIT_DEG, 0.5) == plain
+    cut = course_command_rad(0.5, -0.02, 28.0, GUIDED_P, ROLL_LIMIT_DEG, 0.45)
+    assert 0.45 < cut < 0.5  # still on the correction's side of the vehicle
+
+
+def _pursuit_error_m(cut: bool, seconds: float = 40.0) -> float:
+    """A wingman ``e`` m beside its slot, flown closed loop (ArduPlane's P-controller, the
+    roll following its demand in 0.25 s, 50 Hz) on a plan re-made every step: PPF's course
+    towards the slot one turn time (v/ω) ahead, and that plan's turn rate, the turn back
+    as it closes.  Returns the error left after ``seconds``."""
+    speed, omega, dt = 28.0, 0.3, 0.02
+    ahead = speed / omega
+    error, course, bank = 8.0, 0.0, 0.0  # error to the left; course from the formation's
+    for _ in range(int(seconds / dt)):
+        planned = math.atan2(error, ahead)
+        turn = -speed * math.sin(planned) * ahead / (ahead**2 + error**2)
+        command = course_command_rad(
+            planned, turn, speed, GUIDED_P, ROLL_LIMIT_DEG, course if cut else None
+        )
+        demand = p_controller_bank_rad(command - course, GUIDED_P, 8.4, ROLL_LIMIT_DEG)
+        bank += (demand - bank) * dt / 0.25
+        course += TURN_EFFICIENCY * G_M_S2 * math.tan(bank) / speed * dt
+        error -= speed * math.sin(course) * dt
+    return error
+
+
+def test_a_wingman_beside_its_slot_closes_on_it_when_the_turn_back_is_not_led() -> None:
+    """Real ArduPlane: wingmen flew 7–8 m inside their slots for 30 s, the correction
+    planned (4.4°) cancelled by the lead for the plan's turn back (5.4°).  The same in
+    this closed loop: led as planned the error stays; cut, it is taken out."""
+    assert _pursuit_error_m(cut=False) > 6.0
+    assert abs(_pursuit_error_m(cut=True)) < 1.0
 
 
 def test_no_lead_without_guided_p_and_the_bank_capped_at_the_roll_limit() -> None:
@@ -172,3 +218,8 @@ def test_the_airspeed_commanded_flies_the_planned_speed_over_the_ground() -> Non
     within = Airframe(airspeed_min_m_s=12.0, airspeed_max_m_s=25.0)
     assert airspeed_command(8.0, 20.0, 20.0, within) == 12.0  # ArduPlane would FAIL 8
     assert airspeed_command(40.0, 20.0, 20.0, within) == 25.0
+
+
+def test_an_averaged_ratio_is_used_before_the_instants() -> None:
+    assert airspeed_command(20.0, 22.0, 23.0, ARDUPLANE, 0.94) == pytest.approx(20.0 * 0.94)
+    assert airspeed_command(20.0, 22.0, 22.0, ARDUPLANE, 3.0) == pytest.approx(20.0)  # implausible

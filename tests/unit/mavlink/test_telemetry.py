@@ -226,3 +226,33 @@ def test_the_flight_path_is_the_vertical_speed_averaged_over_tecs_oscillations()
     assert tel.vd_mean_m_s == pytest.approx(-2.0, abs=0.01)
     tel = apply(tel, _climbing(200_000, 4.0), 3.0)
     assert tel.vd_mean_m_s == 4.0
+
+
+def _hud(airspeed: float, groundspeed: float) -> MAVLinkMessage:
+    return _wire(mavlink2.MAVLink_vfr_hud_message(airspeed, groundspeed, 0, 50, 650.0, 0.0))
+
+
+def test_the_airspeed_ratio_is_averaged_and_leaves_out_the_runway() -> None:
+    """VFR_HUD's airspeed / groundspeed swung 0.915–0.98 with TECS's vertical oscillation
+    (real ArduPlane, 27 m/s): averaged over 10 s it stays near its mean; samples on the
+    runway (under 5 m/s over the ground) are left out; a gap of more than 2 s restarts it."""
+    tel = apply(None, _heartbeat(), 0.0)
+    tel = apply(tel, _hud(0.6, 0.1), 0.0)  # at rest: no ratio
+    assert tel.speed_ratio_mean is None
+    ratios = []
+    for k in range(600):  # 60 s at 5 Hz of VFR_HUD, the vehicle's clock from ATTITUDE
+        boot_ms = 1000 + 200 * k
+        tel = apply(tel, _wire(mavlink2.MAVLink_attitude_message(boot_ms, 0, 0, 0, 0, 0, 0)), k)
+        ratio = 0.9475 + 0.0325 * math.sin(2.0 * math.pi * k * 0.2 / 2.0)
+        tel = apply(tel, _hud(27.0 * ratio, 27.0), k)
+        if k >= 300:
+            assert tel.speed_ratio_mean is not None
+            ratios.append(tel.speed_ratio_mean)
+    assert max(ratios) - min(ratios) < 0.1 * 0.065  # the swing down to a tenth
+    assert float(np.mean(ratios)) == pytest.approx(0.9475, abs=0.002)
+    before = tel.speed_ratio_mean
+    tel = apply(tel, _hud(0.5, 0.2), 601)  # slowed to the ground: left out
+    assert tel.speed_ratio_mean == before
+    tel = apply(tel, _wire(mavlink2.MAVLink_attitude_message(200_000, 0, 0, 0, 0, 0, 0)), 602)
+    tel = apply(tel, _hud(20.0, 25.0), 602)
+    assert tel.speed_ratio_mean == pytest.approx(0.8)
