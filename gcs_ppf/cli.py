@@ -71,22 +71,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def freeze_what_is_loaded(planner_dt_s: float) -> None:
-    """The compiled kernels loaded (the service loads them again at start, from memory),
-    then everything so far left out of the garbage collector's full passes
-    (``gc.freeze``): in flight at ×10 a full pass over the libraries and kernels held the
-    service's event loop up to 290 ms (3 s of the vehicles' time, 4 runs); since, at most
-    126 ms in 2 runs."""
-    import gc
-
-    from gcs_ppf.guidance import assurance, online
-
-    online.warm_up(planner_dt_s)
-    assurance.warm_up()
-    gc.collect()
-    gc.freeze()
-
-
 def serve_command(args: argparse.Namespace) -> int:
     import uvicorn
     from pydantic import ValidationError
@@ -103,9 +87,7 @@ def serve_command(args: argparse.Namespace) -> int:
         print(f"gcs-ppf: error: settings: {field}: {first['msg']}", file=sys.stderr)
         return EXIT_BAD_INPUT
     log.info("serving on http://%s:%d (docs at /docs)", settings.host, settings.port)
-    app = create_app(settings)
-    freeze_what_is_loaded(settings.planner_dt_s)
-    uvicorn.run(app, host=settings.host, port=settings.port, log_level="info")
+    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level="info")
     return 0
 
 
