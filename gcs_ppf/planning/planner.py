@@ -85,6 +85,25 @@ def initial_record(scene: Scene, t0: float = 0.0) -> Trajectory:
     )
 
 
+def _room_for_records(
+    k: int, n: int
+) -> tuple[
+    FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, StateArray, BoolArray, BoolArray
+]:
+    """Empty arrays for ``k`` records of ``n`` vehicles: t, pos, pitch, yaw, speed, state,
+    avoiding, formed (as in ``Trajectory``)."""
+    return (
+        np.empty(k),
+        np.empty((k, n, 3)),
+        np.empty((k, n)),
+        np.empty((k, n)),
+        np.empty((k, n)),
+        np.empty((k, n), dtype=np.int8),
+        np.empty((k, n), dtype=bool),
+        np.empty((k, n), dtype=bool),
+    )
+
+
 def advance(
     scene: Scene,
     dt: float,
@@ -113,14 +132,9 @@ def advance(
     n = fleet.ids.shape[0]
     chunks = -(-n_steps // chunk_steps) if chunk_steps else 1
     k = n_steps // record_every + chunks + 1  # (only the records written are returned)
-    rec_t = np.empty(k)
-    rec_pos = np.empty((k, n, 3))
-    rec_pitch = np.empty((k, n))
-    rec_yaw = np.empty((k, n))
-    rec_speed = np.empty((k, n))
-    rec_state = np.empty((k, n), dtype=np.int8)
-    rec_avoiding = np.empty((k, n), dtype=bool)
-    rec_formed = np.empty((k, n), dtype=bool)
+    rec_t, rec_pos, rec_pitch, rec_yaw, rec_speed, rec_state, rec_avoiding, rec_formed = (
+        _room_for_records(k, n)
+    )
     f, o, code = fleet, obstacles, PPF if method == "ppf" else APF
     if chunk_steps is None:
         steps, records, elapsed, arrived = run_fleet(

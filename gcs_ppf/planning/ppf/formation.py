@@ -190,10 +190,8 @@ def attraction(
     # A wingman within the target accuracy of G has no way to pass anyone on.
     way2 = (gx - px) ** 2 + (gy - py) ** 2 + (gz - pz) ** 2
     last = mate_start[i + 1] if i > 0 and way2 > lim.target_accuracy**2 else mate_start[i]
+    own = influence_radius(vi, omega, lim.safe_distance_uav) + vi * dt
     farthest = CROSSING_REACH * lim.safe_distance_uav
-    own = 0.0
-    if last > mate_start[i]:
-        own = influence_radius(vi, omega, lim.safe_distance_uav) + vi * dt
     for c in range(mate_start[i], last):
         k = mates[c]
         dx, dy, dz = px - pos[k, 0], py - pos[k, 1], pz - pos[k, 2]
