@@ -424,10 +424,11 @@ def refine_teammates(
     that are ``_within_reach`` over the next ``horizon_steps`` steps, into ``near`` (room
     for ``mate_start[N]``) in CSR form (``near_start[N+1]``), in the same order.
 
-    A list built for a longer horizon that covers these steps holds every teammate that
-    can matter in them, so the shorter list does too, and a step decides with it exactly
-    as with the longer one; it is shorter because the velocities can change less over
-    fewer steps (in a formation of 500, 4 of 23 teammates a vehicle over 5 steps)."""
+    A list built for a longer horizon that covers these steps (``MATE_REFINE_STEPS``
+    divides ``NEIGHBOUR_LIST_STEPS`` in ``rollout``) holds every teammate that can matter
+    in them, so the shorter list does too, and a step decides with it exactly as with the
+    longer one; it is shorter because the velocities can change less over fewer steps (in
+    the formation of 500, 7.5 of 23.7 teammates a vehicle over 5 steps)."""
     bound, change, own, other, vel, _ = _mate_bounds(pitch, yaw, speed, lim, dt, horizon_steps)
     count = 0
     for i in range(pos.shape[0]):
