@@ -32,9 +32,13 @@ class PlanRun:
     metrics: dict[str, Any]
 
 
+PROGRESS_CHUNKS = 10  # chunks planned between two progress reports
+
+
 def warm_up(scene: Scene, dt: float, method: Method) -> None:
     """Compile (or load from numba's cache) the kernel, so that timing excludes it."""
     advance(scene, dt, 1, method=method)
+    advance(scene, dt, 1, method=method, chunk_steps=1)
 
 
 def flight_context(mission: Mission, scene: Scene) -> FlightContext:
@@ -56,7 +60,9 @@ def plan_mission(
     progress: Progress | None = None,
     chunk_s: float = 1.0,
 ) -> PlanRun:
-    """Plan ``mission`` until the leader reaches its target or ``planner.max_time``."""
+    """Plan ``mission`` until the leader reaches its target or ``planner.max_time``, in
+    chunks of ``chunk_s`` of flight (``advance`` with ``chunk_steps``: record times are
+    summed chunk by chunk), reporting ``progress`` every ``PROGRESS_CHUNKS`` chunks."""
     method = method or mission.planner.method
     dt = dt or mission.planner.dt
     scene = scene_from_mission(mission)
@@ -66,14 +72,14 @@ def plan_mission(
     parts = [initial_record(scene)]
     state, t, steps, wall, arrived = scene, 0.0, 0, 0.0, False
     while steps < total_steps and not arrived:
-        n = min(chunk, total_steps - steps)
+        n = min(PROGRESS_CHUNKS * chunk, total_steps - steps)
         start = time.perf_counter()
-        result = advance(state, dt, n, method=method, t0=t)
+        result = advance(state, dt, n, method=method, t0=t, chunk_steps=chunk)
         wall += time.perf_counter() - start
         parts.append(result.trajectory)
         state, arrived = result.scene, result.arrived
         steps += result.steps
-        t += result.elapsed_s
+        t = result.t_s
         if progress is not None:
             progress(t)
     trajectory = Trajectory.concatenate(parts)

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gcs_ppf.planning.ppf.neighbours import MATES_ALL_PAIRS, MATES_AUTO, MATES_GRID
-from gcs_ppf.planning.rollout import APF, PPF, run_fleet
+from gcs_ppf.planning.rollout import APF, PPF, run_chunks, run_fleet
 from gcs_ppf.planning.scene import BoolArray, FloatArray, IntArray, Scene
 
 Method = Literal["ppf", "apf"]
@@ -57,13 +57,15 @@ class Trajectory:
 @dataclass(frozen=True)
 class Advance:
     """Result of ``advance``: the scene afterwards, what was recorded, and whether the
-    leader arrived (then ``elapsed_s`` stops at the arrival instant)."""
+    leader arrived (then ``elapsed_s`` stops at the arrival instant); ``t_s`` is the time
+    of the scene afterwards (``t0`` plus ``elapsed_s``, chunk by chunk with ``chunk_steps``)."""
 
     scene: Scene
     trajectory: Trajectory
     arrived: bool
     steps: int
     elapsed_s: float
+    t_s: float
 
 
 def initial_record(scene: Scene, t0: float = 0.0) -> Trajectory:
@@ -83,6 +85,25 @@ def initial_record(scene: Scene, t0: float = 0.0) -> Trajectory:
     )
 
 
+def _room_for_records(
+    k: int, n: int
+) -> tuple[
+    FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, StateArray, BoolArray, BoolArray
+]:
+    """Empty arrays for ``k`` records of ``n`` vehicles: t, pos, pitch, yaw, speed, state,
+    avoiding, formed (as in ``Trajectory``)."""
+    return (
+        np.empty(k),
+        np.empty((k, n, 3)),
+        np.empty((k, n)),
+        np.empty((k, n)),
+        np.empty((k, n)),
+        np.empty((k, n), dtype=np.int8),
+        np.empty((k, n), dtype=bool),
+        np.empty((k, n), dtype=bool),
+    )
+
+
 def advance(
     scene: Scene,
     dt: float,
@@ -92,36 +113,48 @@ def advance(
     record_every: int = 1,
     t0: float = 0.0,
     mates: MateSearch = "auto",
+    chunk_steps: int | None = None,
 ) -> Advance:
     """Run ``n_steps`` planner steps of ``dt`` seconds from ``scene`` (stopping early when
     the leader reaches the target).  Records every ``record_every``-th step and the last;
     record times are ``t0`` plus the flight time since the start.  ``mates`` is how PPF
     finds the teammates each vehicle checks for conflicts (``nearby_teammates``); every
-    choice gives the same plan."""
-    if dt <= 0.0 or n_steps < 0 or record_every < 1:
-        raise ValueError("advance: dt > 0, n_steps >= 0 and record_every >= 1 are required")
+    choice gives the same plan.  With ``chunk_steps``, the result is exactly that of calls
+    of ``chunk_steps`` steps one after the other, each from the last one's scene and time
+    (``t_s``), their trajectories joined: the same plan, recorded from each chunk's start,
+    its times the same floating-point sums (``run_chunks``), in one call."""
+    if dt <= 0.0 or n_steps < 0 or record_every < 1 or (chunk_steps or 1) < 1:
+        raise ValueError(
+            "advance: dt > 0, n_steps >= 0, record_every >= 1 and chunk_steps >= 1 are required"
+        )
     fleet = scene.fleet.copy()
     obstacles = scene.obstacles.copy()
     n = fleet.ids.shape[0]
-    k = n_steps // record_every + 2
-    rec_t = np.zeros(k)
-    rec_pos = np.zeros((k, n, 3))
-    rec_pitch = np.zeros((k, n))
-    rec_yaw = np.zeros((k, n))
-    rec_speed = np.zeros((k, n))
-    rec_state = np.zeros((k, n), dtype=np.int8)
-    rec_avoiding = np.zeros((k, n), dtype=bool)
-    rec_formed = np.zeros((k, n), dtype=bool)
-    steps, records, elapsed, arrived = run_fleet(
-        fleet.pos, fleet.pitch, fleet.yaw, fleet.speed, fleet.slot, fleet.rank,
-        fleet.active, obstacles.center, obstacles.radius, obstacles.velocity,
-        scene.target, scene.limits, float(dt), PPF if method == "ppf" else APF,
-        int(n_steps), int(record_every), rec_t, rec_pos, rec_pitch, rec_yaw, rec_speed,
-        rec_state, rec_avoiding, rec_formed, _MATE_SEARCH[mates],
-    )  # fmt: skip
+    chunks = -(-n_steps // chunk_steps) if chunk_steps else 1
+    k = n_steps // record_every + chunks + 1  # (only the records written are returned)
+    rec_t, rec_pos, rec_pitch, rec_yaw, rec_speed, rec_state, rec_avoiding, rec_formed = (
+        _room_for_records(k, n)
+    )
+    f, o, code = fleet, obstacles, PPF if method == "ppf" else APF
+    if chunk_steps is None:
+        steps, records, elapsed, arrived = run_fleet(
+            f.pos, f.pitch, f.yaw, f.speed, f.slot, f.rank, f.active, o.center, o.radius,
+            o.velocity, scene.target, scene.limits, float(dt), code, int(n_steps),
+            int(record_every), rec_t, rec_pos, rec_pitch, rec_yaw, rec_speed, rec_state,
+            rec_avoiding, rec_formed, _MATE_SEARCH[mates],
+        )  # fmt: skip
+        t_s, times = t0 + elapsed, t0 + rec_t[:records]
+    else:
+        steps, records, t_s, arrived = run_chunks(
+            f.pos, f.pitch, f.yaw, f.speed, f.slot, f.rank, f.active, o.center, o.radius,
+            o.velocity, scene.target, scene.limits, float(dt), code, int(n_steps),
+            int(record_every), int(chunk_steps), float(t0), rec_t, rec_pos, rec_pitch, rec_yaw,
+            rec_speed, rec_state, rec_avoiding, rec_formed, _MATE_SEARCH[mates],
+        )  # fmt: skip
+        elapsed, times = t_s - t0, rec_t[:records]
     trajectory = Trajectory(
         ids=fleet.ids.copy(),
-        t=t0 + rec_t[:records],
+        t=times,
         pos=rec_pos[:records],
         pitch=rec_pitch[:records],
         yaw=rec_yaw[:records],
@@ -131,4 +164,4 @@ def advance(
         formed=rec_formed[:records],
     )
     after = Scene(fleet=fleet, obstacles=obstacles, target=scene.target, limits=scene.limits)
-    return Advance(after, trajectory, bool(arrived), int(steps), float(elapsed))
+    return Advance(after, trajectory, bool(arrived), int(steps), float(elapsed), float(t_s))

@@ -39,7 +39,9 @@ class Fleet:
     active: BoolArray
 
     def copy(self) -> Fleet:
-        return Fleet(*(np.array(getattr(self, f)) for f in self.__dataclass_fields__))
+        a = np.array
+        return Fleet(a(self.ids), a(self.pos), a(self.pitch), a(self.yaw), a(self.speed),
+                     a(self.slot), a(self.rank), a(self.active))  # fmt: skip
 
     def index_of(self, vehicle_id: int) -> int:
         hits = np.flatnonzero(self.ids == vehicle_id)

@@ -178,8 +178,7 @@ def attraction(
     higher priority within ``CROSSING_REACH`` safe distances (and within reach of
     ``teammate_conflict``, so that they are in its list
     ``mates[mate_start[i]:mate_start[i+1]]``); of those the way passes too close to, the
-    first along the way decides.  (Scalars rather than arrays where it can: every array
-    argument of an inlined group costs two atomic reference counts a call.)
+    first along the way decides.
     """
     px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
@@ -192,12 +191,15 @@ def attraction(
     way2 = (gx - px) ** 2 + (gy - py) ** 2 + (gz - pz) ** 2
     last = mate_start[i + 1] if i > 0 and way2 > lim.target_accuracy**2 else mate_start[i]
     own = influence_radius(vi, omega, lim.safe_distance_uav) + vi * dt
+    farthest = CROSSING_REACH * lim.safe_distance_uav
     for c in range(mate_start[i], last):
         k = mates[c]
         dx, dy, dz = px - pos[k, 0], py - pos[k, 1], pz - pos[k, 2]
-        reach = min(own + speed[k] * AVOIDANCE_TURN_ANGLE / omega,
-                    CROSSING_REACH * lim.safe_distance_uav)  # fmt: skip
-        if dx * dx + dy * dy + dz * dz > reach * reach:
+        d2 = dx * dx + dy * dy + dz * dz
+        if d2 > farthest * farthest:  # (beyond the reach below whatever the speeds)
+            continue
+        reach = min(own + speed[k] * AVOIDANCE_TURN_ANGLE / omega, farthest)
+        if d2 > reach * reach:
             continue
         s, vx, vy, vz = crossing_point(
             px, py, pz, gx, gy, gz, pos[k, 0], pos[k, 1], pos[k, 2], ux, uy, uz, clearance, lead

@@ -200,7 +200,7 @@ def lowest_climb(height: float, speed: float, lim: KernelLimits) -> float:
     return min(-height / rho, math.sin(MAX_FOLLOW_PITCH))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def limit_climb(
     dx: float,
     dy: float,
@@ -305,8 +305,7 @@ def away_from_obstacles(
     obstacle (the vehicle sandwiched between the two).  The obstacle is the certain danger:
     the turn never makes the closing on it worse when the other way does not.
     """
-    o = math.sqrt(ox * ox + oy * oy + oz * oz)
-    if o == 0.0 or f_yaw == 0.0:
+    if ox * ox + oy * oy + oz * oz == 0.0 or f_yaw == 0.0:
         return f_yaw
     cp = math.cos(pitch)
     now = cp * (math.cos(yaw) * ox + math.sin(yaw) * oy) + math.sin(pitch) * oz

@@ -38,9 +38,11 @@ def escape_local_minimum(fvx: float, fvy: float, fvz: float, repelled: bool) -> 
     """Local minimum (Eq. 20): a repulsion within ``LOCAL_MINIMUM_ANGLE`` of antiparallel to
     the velocity leaves no turn to take, so F_add = ε₁ along +z_v makes the vehicle pull up
     (state s2).  Takes the field F_v in the VCS; returns (F_v^z, state s1 or s2)."""
+    if not (repelled and fvx < 0.0):
+        return fvz, S1_FOLLOW
     f_norm = math.sqrt(fvx * fvx + fvy * fvy + fvz * fvz)
     lateral = math.sqrt(fvy * fvy + fvz * fvz)
-    if repelled and fvx < 0.0 and lateral <= f_norm * math.sin(LOCAL_MINIMUM_ANGLE):
+    if lateral <= f_norm * math.sin(LOCAL_MINIMUM_ANGLE):
         return fvz + EPSILON_1, S2_LOCAL_MINIMUM
     return fvz, S1_FOLLOW
 
@@ -123,13 +125,14 @@ def trend_matrix(
     to climb, and the ground's limit is on the flight-path angle.  So are an airframe's
     limits (a leader climbing at 20° while it turned kept pitching up to 45° on F_v^z).
     """
-    elevation = math.atan2(fvz, math.sqrt(fvx * fvx + fvy * fvy))
     wanted = math.sqrt(fvx * fvx + fvy * fvy + fvz * fvz)
     azimuth = math.atan2(fvy, fvx) if abs(fvy) > SIDEWAYS_EPS * wanted else 0.0
     if fvx < 0.0 or abs(pitch) > MAX_FOLLOW_PITCH or lowest > -1.0 or airframe_limited(lim):
         elevation = math.atan2(dz, math.sqrt(dx * dx + dy * dy)) - pitch
         if fvx < 0.0 and azimuth == 0.0:
             azimuth = math.pi
+    else:
+        elevation = math.atan2(fvz, math.sqrt(fvx * fvx + fvy * fvy))
     return trend(elevation, lim.max_pitch_rate, dt), trend(azimuth, lim.max_yaw_rate, dt)
 
 
