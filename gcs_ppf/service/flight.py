@@ -45,6 +45,7 @@ Located = list[tuple[Vehicle, tuple[float, float, float]]]
 async def fly(station: Station, run: Run) -> None:
     """The run from launch to its end; an error fails the run, never the service."""
     try:
+        await station.kernels_loaded()  # no tick compiles or loads a kernel
         await launch_fleet(station, run)
         run.state = RunState.RUNNING
         station.store.update_run(run.record.id, RunState.RUNNING)

@@ -48,7 +48,10 @@ class FormationService:
         self._runs: dict[int, Run] = {}  # mission id → its current or last run
         self._subscribers: set[asyncio.Queue[dict[str, Any]]] = set()
         self._tasks: asyncio.TaskGroup | None = None
-        self._station = Station(settings, store, self.fleet, self._runs, self._spawn, self._publish)
+        self._station = Station(
+            settings, store, self.fleet, self._runs, self._spawn, self._publish,
+            self._kernels_loaded,
+        )  # fmt: skip
         for stale in store.interrupted_runs():  # a previous process stopped mid-flight
             store.update_run(stale.id, RunState.FAILED, ended=True, outcome="service restarted")
 
@@ -59,9 +62,10 @@ class FormationService:
     async def running(self) -> AsyncIterator[FormationService]:
         """Run the background tasks (links, heartbeats, watchdog) for the body's duration.
         The links come up at once; the planner's and the assurance's kernels load meanwhile
-        in a thread (``load_kernels``), and a run starts only once they have (loaded first,
+        in a thread (``load_kernels``), and a run launches only once they have (loaded first,
         under two CPU burners a vehicle set to die 3 s after its SITL started was dead
-        before the service heard it)."""
+        before the service heard it; awaited in the start request, a cold cache held it
+        past an HTTP client's timeout)."""
         async with asyncio.TaskGroup() as tg:
             self._tasks = tg
             background = [
@@ -86,6 +90,10 @@ class FormationService:
                 for task in background:
                     task.cancel()
                 self._tasks = None
+
+    async def _kernels_loaded(self) -> None:
+        if self._kernels is not None:
+            await asyncio.shield(self._kernels)
 
     def _spawn(self, coro: Any) -> asyncio.Task[Any]:
         if self._tasks is None:
@@ -124,9 +132,9 @@ class FormationService:
         return next((r for r in self._runs.values() if r.state not in FINISHED), None)
 
     async def start(self, mission_id: int) -> dict[str, Any]:
+        """A run created and answered at once (``starting``); it launches the fleet once the
+        kernels are loaded (``flight.fly``), so that no tick compiles or loads one."""
         stored = self.mission(mission_id)
-        if self._kernels is not None:
-            await asyncio.shield(self._kernels)  # no tick compiles or loads a kernel
         active = self._active_run()
         if active is not None:
             raise Conflict(

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
-from collections.abc import Callable, Coroutine, Iterator
+from collections.abc import Awaitable, Callable, Coroutine, Iterator
 from dataclasses import dataclass
 from functools import partial
 from typing import Any
@@ -40,6 +40,8 @@ class Station:
     """A task in the service's task group."""
     publish: Callable[[], None]
     """A snapshot to every live-stream subscriber."""
+    kernels_loaded: Callable[[], Awaitable[None]]
+    """Returns once the planner's and the assurance's compiled kernels are loaded."""
 
     def event(self, run: Run, kind: str, vehicle_id: int | None = None, **detail: Any) -> None:
         """One of the run's events, stored and logged."""
