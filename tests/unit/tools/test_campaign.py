@@ -26,3 +26,13 @@ def test_a_relative_mission_file_is_made_absolute(
     assert p.is_absolute()
     assert p == tmp_path / "m.json"
     assert os.path.samefile(p, tmp_path / "m.json")
+
+
+def test_help_lists_the_conditions(capsys: pytest.CaptureFixture[str]) -> None:
+    """A condition's label holds a per cent sign, which argparse expands in help texts."""
+    from gcs_ppf.tools.campaign import main
+
+    with pytest.raises(SystemExit) as exited:
+        main(["--help"])
+    assert exited.value.code == 0
+    assert "20 % loss" in capsys.readouterr().out
