@@ -50,14 +50,20 @@ def vehicle_lag(
 
 
 def hold_s(
-    tick_gaps_s: Iterable[float], tick_period_s: float, telemetry_interval_s: float, lag: Lag
+    tick_gaps_s: Iterable[float],
+    tick_period_s: float,
+    telemetry_interval_s: float,
+    lag: Lag,
+    starvation_s: float = 0.0,
 ) -> float:
     """How long a vehicle may fly the command it is sent now (vehicle seconds): until the
     next tick's command acts, the tick coming as late as the latest ticks came
     (``tick_gaps_s``: a ground station starved of CPU ticked 1.5–3 s of vehicle time apart
-    at 5×, where the period is 0.1 s), from a state as old as a telemetry interval, and
-    that command as late as this one."""
-    gap = max(max(tick_gaps_s, default=0.0), tick_period_s)
+    at 5×, where the period is 0.1 s) and at least ``starvation_s`` late (the service's
+    allowance for being starved, in vehicle seconds: a first stall comes after ticks on
+    time), from a state as old as a telemetry interval, and that command as late as this
+    one."""
+    gap = max(max(tick_gaps_s, default=0.0), tick_period_s + starvation_s)
     return gap + telemetry_interval_s + lag.command_delay_s
 
 

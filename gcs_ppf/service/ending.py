@@ -56,6 +56,6 @@ async def hold(station: Station, run: Run, states: dict[int, VehicleState], stac
     orders = commanding.hold_orders(
         run.orders, states, airframes, run.mission_time_s, stacked, event, heard
     )
-    rate = max([v.clock.rate for v in fleet.by_id.values()] or [1.0])
-    await confirmation.confirm_all(fleet, orders, event, commanding.hold_retry(rate))
+    retry = commanding.hold_retry(fleet.clock_rate())
+    await confirmation.confirm_all(fleet, orders, event, retry)
     await watch_after_end(station, run)

@@ -280,10 +280,13 @@ class Fleet:
                 ours = now - v.last_heard_s
                 log.warning("vehicle %d lost (silent %.1f s of its time, %.2f s of ours)",
                             v.system_id, v.clock.vehicle_seconds(ours), ours)  # fmt: skip
-            rate = max((v.clock.rate for v in self.by_id.values()), default=1.0)
-            period = max(0.01, WATCHDOG_PERIOD_S / rate)
+            period = max(0.01, WATCHDOG_PERIOD_S / self.clock_rate())
             expected = time.monotonic() + period
             await asyncio.sleep(period)
+
+    def clock_rate(self) -> float:
+        """The fastest vehicle clock's seconds per ours (a SITL's speed-up; 1 if none)."""
+        return max((v.clock.rate for v in self.by_id.values()), default=1.0)
 
     def vehicles(self) -> list[dict[str, Any]]:
         now = time.monotonic()

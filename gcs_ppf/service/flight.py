@@ -272,8 +272,9 @@ async def plan_and_command(
         obstacles, mission.ground if mission.ground is not None else ground,
         lim.safe_distance_obstacle, lim.safe_distance_uav,
     )  # fmt: skip
+    starvation_s = settings.starvation_allowance_s * station.fleet.clock_rate()
     hold_s = lag.hold_s(run.tick_gaps_s, 1.0 / settings.tick_hz, telemetry_interval_s,
-                        run.fleet_lag)  # fmt: skip
+                        run.fleet_lag, starvation_s)  # fmt: skip
     verdicts = await commanding.command_fleet(
         station.fleet, g, active, states, ordered, run.orders, keep, hold_s,
         run.commanded_speed, station.events_of(run), run.escaping,

@@ -70,6 +70,15 @@ class Settings(BaseSettings):
     vehicle_timeout_s: float = Field(
         default=5.0, gt=0.0, description="silence, in the vehicle's own seconds, that makes it lost"
     )
+    starvation_allowance_s: float = Field(
+        default=0.5,
+        ge=0.0,
+        le=10.0,
+        description="seconds of the service's own time it may be starved of CPU between two "
+        "ticks: every command sent must stay clear of every keep-out for that long too, in "
+        "the vehicles' time (× the SITL's speed-up; measured: 0.3-0.56 s stalls in 5 of 6 "
+        "campaign runs at x10, load about 4)",
+    )
     heartbeat_hz: float = Field(default=1.0, gt=0.0)
     telemetry_sample_hz: float = Field(default=2.0, gt=0.0)
     stream_rate_hz: float = Field(default=10.0, gt=0.0)

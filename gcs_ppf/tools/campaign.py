@@ -470,8 +470,8 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m gcs_ppf.tools.campaign", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
     p.add_argument("--runs", type=int, default=3, help="runs per mission and condition")
-    p.add_argument("--conditions", default="a,b,c,d,e",
-                   help="; ".join(f"{c.key}: {c.label}" for c in CONDITIONS.values()).replace("%", "%%"))  # fmt: skip
+    labels = "; ".join(f"{c.key}: {c.label}" for c in CONDITIONS.values())
+    p.add_argument("--conditions", default="a,b,c,d,e", help=labels.replace("%", "%%"))
     p.add_argument("--missions", nargs="+", default=list(DEFAULT_MISSIONS),
                    help="mission files, or names in examples/")  # fmt: skip
     p.add_argument("--out", type=Path, default=Path("out/campaign"))

@@ -37,3 +37,13 @@ def test_a_command_holds_until_a_tick_as_late_as_the_latest_ones_acts() -> None:
     assert hold_s([0.1, 0.1, 0.1], 0.1, 0.1, delay) == pytest.approx(0.5)
     # a stall of the ground station: the ticks came 2.5 s apart once
     assert hold_s([0.1, 2.5, 0.1], 0.1, 0.1, delay) == pytest.approx(2.5 + 0.1 + 0.3)
+
+
+def test_a_command_holds_across_the_starvation_allowed_before_any_stall_was_seen() -> None:
+    """Ticks on time say nothing of the next stall: 0.5 s of ours at 10x is 5 s of flight."""
+    delay = Lag(telemetry_age_s=0.4, command_delay_s=0.3)
+    assert hold_s([0.1] * 50, 0.1, 0.1, delay, starvation_s=5.0) == pytest.approx(
+        0.1 + 5.0 + 0.1 + 0.3
+    )
+    # a stall longer than the allowance counts as it came
+    assert hold_s([0.1, 8.0], 0.1, 0.1, delay, starvation_s=5.0) == pytest.approx(8.0 + 0.4)
