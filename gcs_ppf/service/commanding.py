@@ -272,7 +272,9 @@ def hold_orders(
     """Each vehicle to a holding circle (``gcs_ppf.guidance.holding``) that cuts no
     obstacle's keep-out (twice the safe distance), at ``HOLD_TURN_RADII`` turn radii at its
     speed: the formation's present layout translated (``_holds``), else each circle clear
-    of its teammates' by the safe distance.  The k-th
+    of its teammates' by the safe distance; flown at the mission's v_min (GUIDED keeps the
+    last DO_CHANGE_SPEED: a wingman left at 218 m/s crossed its circle's centre and swung
+    1.4 km out, into a sphere, 11 s after a Table 3 run under two CPU burners).  The k-th
     lowest vehicle now holds ``LOITER_STACK_M``·k above the target after completion
     (``stacked``), above the highest vehicle after an abort or a failure: no two circles at
     one height (held at their own heights after a failure, a leader and a wingman came to
@@ -312,6 +314,11 @@ def hold_orders(
         out.append(confirmation.Order(
             vid, partial(commands.reposition, vid, lat, lon, alt, hold.radius_m),
             commands.MAV_CMD_DO_REPOSITION, "hold: guided loiter",
+        ))  # fmt: skip
+        slowest = slew.airspeed_command(mission.limits.v_min, None, None, airframes[vid])
+        out.append(confirmation.Order(
+            vid, partial(commands.change_speed, vid, slowest),
+            commands.MAV_CMD_DO_CHANGE_SPEED, "hold: speed",
         ))  # fmt: skip
         if orders.guidance_mode == "course":  # the guided altitude outlives the course
             altitude = slew.sendable_altitude(alt)

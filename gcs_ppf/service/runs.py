@@ -20,6 +20,7 @@ import asyncio
 import contextlib
 import functools
 import gc
+import logging
 from collections.abc import AsyncIterator
 from typing import Any
 
@@ -34,6 +35,8 @@ from gcs_ppf.service.run import status as run_status
 from gcs_ppf.service.settings import Settings
 from gcs_ppf.service.station import Station
 from gcs_ppf.service.store import Store, StoredMission, StoredRun
+
+log = logging.getLogger("gcs_ppf.service.runs")
 
 __all__ = ["FINISHED", "FormationService", "RunState"]
 
@@ -93,6 +96,9 @@ class FormationService:
 
     async def _kernels_loaded(self) -> None:
         if self._kernels is not None:
+            if not self._kernels.done():
+                log.info("waiting for the planner's compiled kernels (compiled on the first "
+                         "run after an install: about 2 min on 2 cores)")  # fmt: skip
             await asyncio.shield(self._kernels)
 
     def _spawn(self, coro: Any) -> asyncio.Task[Any]:

@@ -17,7 +17,8 @@ from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.scene import Obstacles, scene_from_mission
-from gcs_ppf.service.commanding import Orders, command_fleet, motion, stack_level
+from gcs_ppf.service.commanding import Orders, command_fleet, hold_orders, motion, stack_level
+from tests.conftest import EXAMPLES
 
 
 def state(z: float) -> VehicleState:
@@ -97,3 +98,27 @@ def test_the_assurance_counts_on_the_climb_the_pitch_limit_gives_at_the_speed_fl
     m = motion(VehicleState((0.0, 0.0, 300.0), 0.0, 0.0, 25.0), plane, mission)
     assert m.climb_m_s == pytest.approx(5.0)
     assert m.sink_m_s == pytest.approx(5.0)
+
+
+def test_every_vehicle_holds_at_the_missions_slowest_speed() -> None:
+    """GUIDED keeps the last DO_CHANGE_SPEED: a wingman left at 218 m/s on its way to a
+    holding circle crossed the centre and swung 1.4 km out, into a sphere (Table 3, ×10, two
+    CPU burners). Each hold is a loiter point, then v_min (within the airframe's
+    AIRSPEED_MIN..MAX), then the altitude."""
+    mission = Mission.model_validate_json((EXAMPLES / "paper_table3.json").read_text())
+    states = {
+        v.id: VehicleState(
+            (6000.0 - 150.0 * i, 7000.0 - 120.0 * i, 300.0 + 50 * i), 0.0, 0.8, 218.0
+        )
+        for i, v in enumerate(mission.vehicles)
+    }
+    airframes = {vid: Airframe() for vid in states}
+    airframes[3] = Airframe(airspeed_min_m_s=120.0)
+    orders = hold_orders(Orders(mission, "course", 1.0), states, airframes, 100.0, True,
+                         lambda *a, **k: None, set(states))  # fmt: skip
+    for vid in states:
+        mine = [o for o in orders if o.vehicle_id == vid]
+        assert [o.what for o in mine] == ["hold: guided loiter", "hold: speed", "hold: altitude"]
+        speed = mine[1].make()
+        assert speed.command == commands.MAV_CMD_DO_CHANGE_SPEED
+        assert speed.param2 == pytest.approx(120.0 if vid == 3 else mission.limits.v_min)
