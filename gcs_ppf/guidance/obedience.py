@@ -24,10 +24,14 @@ from gcs_ppf.mavlink.enums import MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS
 from gcs_ppf.planning.scene import Obstacles
 
 OBEYED = (MAV_RESULT_ACCEPTED, MAV_RESULT_IN_PROGRESS)
-COURSE_TOLERANCE_RAD = math.radians(20.0)
-"""A course within this of the one sent is flown."""
+COURSE_TOLERANCE_RAD = math.radians(5.0)
+"""A course within this of the one sent is flown.  (20° once: the course sent is slewed at
+most ~17° ahead of the course flown, so a wingman stuck flying straight was 17.4° off for
+80 s and never flagged, campaign (d).)"""
 TURNING_RAD_S = 0.02
 """A vehicle turning towards the course sent at least this fast is converging."""
+TURN_FRACTION = 0.3
+"""... or at least this fraction of the turn an obeying one makes (``expected_turn_rad_s``)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,16 +46,22 @@ class Report:
     """The course sent minus the course flown (ICS, wrapped; None: no course sent yet)."""
     turn_rate_rad_s: float = 0.0
     """How fast it turns (ICS, +: left)."""
+    expected_turn_rad_s: float | None = None
+    """How fast an obeying vehicle turns towards the course sent (the error over its heading
+    time constant, within its turn rate); None: unknown, ``TURNING_RAD_S`` is asked."""
 
     @property
     def converging(self) -> bool:
-        """Flying the course sent, or turning towards it."""
+        """Flying the course sent, or turning towards it: at ``TURNING_RAD_S``, or at
+        ``TURN_FRACTION`` of the turn expected if that is slower (a fast vehicle a few
+        degrees off turns slowly)."""
         e = self.course_error_rad
-        return (
-            e is None
-            or abs(e) <= COURSE_TOLERANCE_RAD
-            or (e * self.turn_rate_rad_s > 0.0 and abs(self.turn_rate_rad_s) >= TURNING_RAD_S)
-        )
+        if e is None or abs(e) <= COURSE_TOLERANCE_RAD:
+            return True
+        needed = TURNING_RAD_S
+        if self.expected_turn_rad_s is not None:
+            needed = min(needed, TURN_FRACTION * self.expected_turn_rad_s)
+        return e * self.turn_rate_rad_s > 0.0 and abs(self.turn_rate_rad_s) >= needed
 
 
 @dataclass

@@ -159,12 +159,14 @@ def check_obedience(
         guided = t.custom_mode == PlaneMode.GUIDED
         s = states.get(v.system_id)
         sent = run.sent_course.get(v.system_id)
-        error = turn = None
+        error = turn = expected = None
         if s is not None and sent is not None:
             error = math.remainder(sent - s.yaw_rad, math.tau)
             turn = -t.course_rate_rad_s  # clockwise from north → ICS yaw rate
+            m = commanding.motion(s, Airframe.from_telemetry(t), run.mission)
+            expected = min(m.turn_rate_rad_s, abs(error) / max(m.heading_tau_s, 1e-3))
         reports.append(obedience.Report(
-            v.system_id, guided, ack.result if ack else None, error, turn or 0.0
+            v.system_id, guided, ack.result if ack else None, error, turn or 0.0, expected
         ))  # fmt: skip
     if run.tick_gaps_s and run.tick_gaps_s[-1] > NOT_RESPONDING_S:
         run.obedience.restart()  # no evidence across our own stall

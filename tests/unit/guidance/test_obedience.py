@@ -65,7 +65,7 @@ def test_a_vehicle_stuck_on_its_last_course_is_flagged_though_it_acks_everything
 
 @pytest.mark.parametrize(
     ("error_deg", "turn_rate"),
-    [(10.0, 0.0), (90.0, 0.2), (-90.0, -0.2), (-170.0, -0.05)],
+    [(4.0, 0.0), (90.0, 0.2), (-90.0, -0.2), (-170.0, -0.05)],
 )  # fmt: skip
 def test_a_vehicle_on_its_course_or_turning_towards_it_obeys(
     error_deg: float, turn_rate: float
@@ -92,3 +92,24 @@ def test_a_restart_forgets_the_evidence_but_keeps_the_flags() -> None:
     assert ob.update(6.6, [stuck]) == ([], [])
     assert ob.update(6.7, [stuck]) == ([2], [])  # 3.0 s of evidence since the restart
     assert ob.not_responding == {2, 3}
+
+
+def test_a_vehicle_stuck_within_the_slewed_course_lead_is_flagged() -> None:
+    """Campaign (d): the course sent is slewed at most ~17° ahead of the course flown, and
+    the stuck wingman flew 17.4° off it, straight, for 80 s (tolerance 20° then: never
+    flagged)."""
+    ob = Obedience(bound_s=3.0)
+    stuck = Report(5, True, ACCEPTED, course_error_rad=math.radians(-17.4),
+                   turn_rate_rad_s=0.0, expected_turn_rad_s=0.15)  # fmt: skip
+    assert ob.update(0.0, [stuck]) == ([], [])
+    assert ob.update(3.0, [stuck]) == ([5], [])
+
+
+def test_a_fast_vehicle_a_few_degrees_off_obeys_turning_as_slowly_as_expected() -> None:
+    """At 300 m/s a P-controller 8° off banks a few degrees: 0.01 rad/s is a third of the
+    0.03 expected, though under ``TURNING_RAD_S``; turning the wrong way never obeys."""
+    toward = Report(4, True, ACCEPTED, course_error_rad=math.radians(8.0),
+                    turn_rate_rad_s=0.01, expected_turn_rad_s=0.03)  # fmt: skip
+    assert Obedience.obeys(toward)
+    assert not Obedience.obeys(Report(4, True, ACCEPTED, math.radians(8.0), 0.005, 0.03))
+    assert not Obedience.obeys(Report(4, True, ACCEPTED, math.radians(8.0), -0.05, 0.03))
