@@ -367,7 +367,8 @@ def planned_turn_rate(
 ) -> FloatArray:
     """Yaw rate [N] (rad/s) of a plan around its record ``k``: the wrapped yaw change over
     ``window_s`` centred there (clipped to the plan, whose records ``t`` [K], ``yaw`` [K,N]
-    follow the start ``yaw0`` [N] at t = 0)."""
+    follow the start ``yaw0`` [N] at t = 0; records after the leader's arrival repeat its
+    time: a window without a time span has no turn)."""
     times = np.concatenate([[0.0], t])
     yaws = np.concatenate([yaw0[None], yaw])
     j = k + 1  # record k is after step k + 1
@@ -375,7 +376,7 @@ def planned_turn_rate(
     lo = int(np.searchsorted(times, times[j] - half, side="left"))
     hi = int(np.searchsorted(times, times[j] + half, side="right")) - 1
     lo, hi = max(0, min(lo, j)), min(len(times) - 1, max(hi, j))
-    if hi == lo:
+    if times[hi] <= times[lo]:
         return np.zeros_like(yaw0)
     change = np.remainder(yaws[hi] - yaws[lo] + np.pi, 2.0 * np.pi) - np.pi
     out: FloatArray = change / (times[hi] - times[lo])

@@ -197,7 +197,7 @@ def _crossing(
     Q's side with its part ahead of m along u dropped (above m if Q is on m's track), to
     the point ``reach`` (at most |g − p|) along it."""
     seg = g - p
-    if not seg.any():
+    if seg @ seg == 0.0:  # as the kernel: a segment whose square underflows too
         return -1.0, g
     to_m = m - p
     s = float(to_m @ seg / (seg @ seg))

@@ -140,6 +140,17 @@ def test_the_planned_turn_rate_is_the_yaw_change_around_the_lead() -> None:
     assert planned_turn_rate(np.zeros(1), t[:1], yaw[:1, :1], 0, 0.0) == pytest.approx([0.0])
 
 
+def test_a_plan_ending_on_the_arrival_instant_has_no_nan_turn() -> None:
+    """The leader arriving at a step's very start (fraction 0) records the step's time again:
+    a window over those two records has no span (0 / 0 gave NaN turn rates, with a
+    RuntimeWarning in the service's log at most arrivals)."""
+    t = np.array([0.02, 0.04, 0.04])
+    yaw = np.array([[0.1], [0.2], [0.2]])
+    rate = planned_turn_rate(np.array([0.0]), t, yaw, 2, 0.0)
+    assert np.isfinite(rate).all()
+    assert rate == pytest.approx([0.0])
+
+
 def test_the_airframes_envelope_tightens_the_planned_scene(table3: Mission) -> None:
     states = _states_at_start(table3)
     ids = {v.id for v in table3.vehicles}
