@@ -23,7 +23,7 @@ from gcs_ppf.guidance.tick_plan import passes_within, traffic_radius_m
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_HEADING
 from gcs_ppf.planning.scene import Obstacles, obstacles_from_mission
-from gcs_ppf.service import commanding, launch
+from gcs_ppf.service import commanding, confirmation, launch
 from gcs_ppf.service.ending import end
 from gcs_ppf.service.fleet import Vehicle, planning_states
 from gcs_ppf.service.run import NOT_RESPONDING_S, Run, RunState, changes, min_of
@@ -75,10 +75,41 @@ async def launch_fleet(station: Station, run: Run) -> None:
         run.lost_ids.add(vid)
         station.event(run, "vehicle_lost", vid)
 
-    await launch.launch(
-        station.fleet, ids, station.settings.takeoff_alt_m, station.events_of(run),
-        takeoff_dist_m=station.settings.takeoff_dist_m, is_lost=is_lost, on_lost=on_lost,
-    )  # fmt: skip
+    holding = hold_while_others_take_off(station, run, ids)
+    try:
+        await launch.launch(
+            station.fleet, ids, station.settings.takeoff_alt_m, station.events_of(run),
+            takeoff_dist_m=station.settings.takeoff_dist_m, is_lost=is_lost, on_lost=on_lost,
+        )  # fmt: skip
+    finally:
+        if holding is not None:
+            await holding  # its confirmations done before the run commands them
+
+
+def hold_while_others_take_off(
+    station: Station, run: Run, ids: list[int]
+) -> asyncio.Task[set[int]] | None:
+    """While some of the vehicles take off (tens of seconds of their time), the ones
+    already flying each hold on a circle (``commanding.hold_orders``: clear of every
+    obstacle and of each other, stacked above the highest) instead of flying on as they
+    were: in Table 3, wingman 2 starts on the ground, and wingmen 3 and 4 flew straight on
+    towards each other until the run began, 45.6 m apart (campaign (e), 1 of 20 runs; in
+    6 of 20 the takeoff took 10 s longer).  None when none is on the ground, or none flying."""
+    fleet = station.fleet
+    flying = set()
+    for vid in ids:
+        t = fleet.telemetry(vid)
+        if t is not None and not launch.on_ground(t):
+            flying.add(vid)
+    if not flying or len(flying) == len(ids):
+        return None
+    states, _, _ = planning_states([(v, p) for v, p in station.located(run)
+                                    if v.system_id in flying])  # fmt: skip
+    airframes = {vid: Airframe.from_telemetry(fleet.by_id[vid].telemetry) for vid in states}
+    event = station.events_of(run)
+    orders = commanding.hold_orders(run.orders, states, airframes, 0.0, False, event, set(states))
+    retry = commanding.hold_retry(fleet.clock_rate())
+    return station.spawn(confirmation.confirm_all(fleet, orders, event, retry))
 
 
 def vehicle_time_s(station: Station, run: Run) -> float | None:

@@ -75,7 +75,10 @@ def do_set_mode(
     mode = mode_from_number(float(custom))
     if mode is None:
         return MAV_RESULT_FAILED
-    ap.set_mode(mode, kin, clock, out)
+    # ArduPlane's Plane::set_mode: "don't switch modes if we are already in the correct
+    # mode" (GUIDED asked again keeps its guided point, course and speed)
+    if mode != ap.mode:
+        ap.set_mode(mode, kin, clock, out)
     return MAV_RESULT_ACCEPTED
 
 

@@ -174,6 +174,24 @@ def test_guided_change_heading_holds_a_course_until_cancelled() -> None:
     assert ap.guided_course is None
 
 
+def test_guided_asked_again_keeps_its_guided_point_and_speed_as_arduplane_does() -> None:
+    """``Plane::set_mode``: "don't switch modes if we are already in the correct mode". A
+    vehicle sent to a loiter point (DO_REPOSITION switches to GUIDED) and then told GUIDED
+    again keeps the point and the speed, rather than loitering where it is."""
+    sim = sim_of()
+    ap = sim.autopilots[0]
+    assert reposition(sim, 5000, 2000, 300) == ACCEPTED
+    assert cmd_long(sim, 178, 0, 120.0, -1) == ACCEPTED  # DO_CHANGE_SPEED
+    nav, speed = ap.nav, ap.new_airspeed_m_s
+    assert ap.mode == PlaneMode.GUIDED
+    assert speed is not None
+    assert cmd_long(sim, 176, 1, 15) == ACCEPTED  # GUIDED again
+    assert ap.nav == nav
+    assert ap.new_airspeed_m_s == speed
+    assert cmd_long(sim, 176, 1, 11) == ACCEPTED  # RTL: a new mode is entered
+    assert ap.nav != nav
+
+
 def test_heading_type_default_cancels_the_course_and_4_is_no_heading_type() -> None:
     """ArduPlane's ``handle_command_int_guided_slew_commands`` switches on MAVLink's
     HEADING_TYPE: HEADING_TYPE_DEFAULT (2 in the dialect) cancels the course
