@@ -17,12 +17,14 @@ LOCK_UPGRADE ?= --upgrade
 
 # Exactly the locked set (pip refuses anything unpinned or with another hash), then gcs-ppf
 # itself on top, editable, without dependencies, built by the locked setuptools; pip check
-# fails if a runtime dependency in pyproject.toml is one the lock does not satisfy.
+# fails if a runtime dependency in pyproject.toml is one the lock does not satisfy. Then the
+# compiled kernels are built into numba's cache, so that no first run waits minutes for them.
 $(STAMP): pyproject.toml $(LOCK)
 	python3 -m venv $(VENV)
 	$(PY) -m pip install --quiet --require-hashes -r $(LOCK)
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	$(PY) -m pip check
+	$(PY) -m gcs_ppf.service.kernels
 	touch $(STAMP)
 
 install: $(STAMP) chromium

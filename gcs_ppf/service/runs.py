@@ -18,18 +18,15 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import functools
-import gc
 import logging
 from collections.abc import AsyncIterator
 from typing import Any
 
-from gcs_ppf.guidance import assurance
-from gcs_ppf.guidance.online import warm_up
 from gcs_ppf.mission import Mission, Obstacle
 from gcs_ppf.service import commanding, ending, flight
 from gcs_ppf.service.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.service.fleet import Fleet
+from gcs_ppf.service.kernels import load_kernels
 from gcs_ppf.service.run import FINISHED, Run, RunState
 from gcs_ppf.service.run import status as run_status
 from gcs_ppf.service.settings import Settings
@@ -237,20 +234,3 @@ class FormationService:
         for q in self._subscribers:
             with contextlib.suppress(asyncio.QueueFull):
                 q.put_nowait(snap)
-
-
-def load_kernels(planner_dt_s: float) -> None:
-    """The planner's and the assurance's compiled kernels loaded (numba's cache, or
-    compiled), then, once per process, everything loaded so far left out of the garbage
-    collector's full passes (``gc.freeze``): in flight at ×10 a full pass over the
-    libraries and kernels held the event loop up to 290 ms (4 campaign runs); since, at
-    most 126 ms (2 runs)."""
-    warm_up(planner_dt_s)
-    assurance.warm_up()
-    _freeze_once()
-
-
-@functools.cache
-def _freeze_once() -> None:
-    gc.collect()
-    gc.freeze()
