@@ -107,11 +107,13 @@ def scene_now(
     margin_m: float = 0.0,
     home_ground_m: float | None = None,
     envelope: OnlineLimits | None = None,
+    teammate_margin_m: float | None = None,
 ) -> Scene:
     """The mission's scene with the vehicles where telemetry says they are.
 
     ``margin_m`` widens both safe distances: flown closed loop, an aircraft lags its plan
-    (and the leader leaves PPF for its final approach), so the plan keeps a margin for it.
+    (and the leader leaves PPF for its final approach), so the plan keeps a margin for it;
+    ``teammate_margin_m``, when given, widens the teammates' one instead.
     The ground is the mission's, or else ``home_ground_m`` (ICS z of the ground under the
     vehicles' homes, see ``home_ground``): real aircraft do not fly in free space.
     ``envelope`` (``gcs_ppf.guidance.airframe.online_limits``, from the vehicles' parameters)
@@ -124,7 +126,8 @@ def scene_now(
     base = replace(
         base,
         limits=base.limits._replace(
-            safe_distance_uav=base.limits.safe_distance_uav + margin_m,
+            safe_distance_uav=base.limits.safe_distance_uav
+            + (margin_m if teammate_margin_m is None else teammate_margin_m),
             safe_distance_obstacle=base.limits.safe_distance_obstacle + margin_m,
             ground=-math.inf if ground is None else ground,
         ),
