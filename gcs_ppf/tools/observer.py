@@ -9,11 +9,13 @@ tests and the closed-loop campaign (``gcs_ppf.tools.campaign``) judge flights wi
 
 from __future__ import annotations
 
+import random
 import socket
 import threading
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,18 +35,38 @@ PREARM_OK = 1 << 28
 MAX_GAP_S = 2.0
 
 
-def free_port_block(span: int) -> int:
-    """A base port P with P, P+10, … P+span free on 127.0.0.1 (best effort)."""
-    for _ in range(50):
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            base = int(s.getsockname()[1])
-        if base + span >= 65000:
-            continue
+PORT_OFFSETS = (0, 1, 2, 3)
+"""The ports an instance takes from its base P + 10·i: ArduPilot's SITL binds SERIAL0,
+SERIAL1 and SERIAL2 at +0, +2 and +3 (and +1 is kept free as its own layout does)."""
+LOWEST_PORT = 20000
+"""Blocks are taken from here up to the kernel's ephemeral range."""
+
+
+def ephemeral_ports() -> tuple[int, int]:
+    """The range the kernel takes outgoing connections' local ports from."""
+    try:
+        low, high = Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()
+        return int(low), int(high)
+    except (OSError, ValueError):
+        return 32768, 60999
+
+
+def free_port_block(span: int, offsets: Sequence[int] = PORT_OFFSETS) -> int:
+    """A base port P with every P + 10·k + o free on 127.0.0.1 (k = 0 … span / 10, o in
+    ``offsets``), below the ephemeral range (best effort: free when looked at).  Taken
+    from the ephemeral range and checked at P + 10·k only, a block collided with an
+    outgoing connection's port: "bind failed on port … Address already in use", and one
+    of five ArduPlane instances exited before its ports were up (session 5)."""
+    low = LOWEST_PORT
+    high = ephemeral_ports()[0] - span - max(offsets) - 1
+    rng = random.Random()
+    for _ in range(200):
+        base = rng.randrange(low, max(high, low + 1))
         try:
-            for p in range(base, base + span + 1, 10):
-                with socket.socket() as t:
-                    t.bind(("127.0.0.1", p))
+            for k in range(0, span + 1, 10):
+                for o in offsets:
+                    with socket.socket() as t:
+                        t.bind(("127.0.0.1", base + k + o))
             return base
         except OSError:
             continue

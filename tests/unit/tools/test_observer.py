@@ -2,12 +2,23 @@
 
 from __future__ import annotations
 
+import socket
+
 import numpy as np
 import pytest
 
 from gcs_ppf.frames import local_target_point
 from gcs_ppf.mission import Mission
-from gcs_ppf.tools.observer import closest_pass, judge, longest_formed_s, observed_at
+from gcs_ppf.tools.observer import (
+    LOWEST_PORT,
+    PORT_OFFSETS,
+    closest_pass,
+    ephemeral_ports,
+    free_port_block,
+    judge,
+    longest_formed_s,
+    observed_at,
+)
 
 Track = np.ndarray
 
@@ -98,3 +109,16 @@ def test_how_long_the_formation_held_is_the_longest_time_all_were_in_their_slots
     wingman = np.column_stack([t, wing, wing[:, 2]])
     held = longest_formed_s(m, {1: leader, 2: wingman}, 0.5, 19.0)
     assert held == pytest.approx(7.0, abs=0.3)
+
+
+def test_a_port_block_is_free_at_every_instances_ports_below_the_ephemeral_range() -> None:
+    """ArduPilot's SITL binds P + 10·i + 0, 2 and 3: a block checked at P + 10·i only, taken
+    from the ephemeral range, collided with an outgoing connection's port."""
+    for _ in range(20):
+        base = free_port_block(50)
+        assert base >= LOWEST_PORT
+        assert base + 50 + max(PORT_OFFSETS) < ephemeral_ports()[0]
+        for k in range(0, 51, 10):
+            for o in PORT_OFFSETS:
+                with socket.socket() as s:
+                    s.bind(("127.0.0.1", base + k + o))
