@@ -91,16 +91,14 @@ def motion(
 
 def planned_commands(
     g: Guidance, states: dict[int, VehicleState], airframes: list[Airframe], orders: Orders,
-    turn_accel_m_s2: float,
+    turn_accel_m_s2: float, cut: bool,
 ) -> list[slew.SlewCommand]:  # fmt: skip
     """Each vehicle's course and altitude as the plan asks (in ``g``'s order); in point
-    guidance the course is the bearing to the guided point.  The course lead is cut against
-    the correction (``slew.opposing_lead_rad``) in missions at ArduPlane's scale
+    guidance the course is the bearing to the guided point.  The course lead is ``cut``
+    against the correction (``slew.opposing_lead_rad``) in missions at ArduPlane's scale
     (``speed_reference.follows_speed_plan``), where the cancellation it removes was
     measured; at the paper's 100–300 m/s the P-controller's and the pursuit's time
     constants are far apart and the lead is flown as before."""
-    lim = orders.mission.limits
-    cut = speed_reference.follows_speed_plan(lim.accel, lim.decel)
     out = []
     for i, vid in enumerate(g.ids):
         if orders.guidance_mode == "point":
@@ -132,8 +130,8 @@ async def command_fleet(
     in force (kept by the assurance within its commitment), updated here."""
     mission = orders.mission
     turn_accel = mission.limits.v_max * mission.limits.max_yaw_rate  # the plan limits turns
-    planned = planned_commands(g, states, airframes, orders, turn_accel)
     follows = speed_reference.follows_speed_plan(mission.limits.accel, mission.limits.decel)
+    planned = planned_commands(g, states, airframes, orders, turn_accel, follows)
     idx = [i for i, vid in enumerate(g.ids) if vid in active]
     ahead = g.speed_m_s if g.speed_ahead_m_s is None else g.speed_ahead_m_s
     motions = [motion(states[g.ids[i]], airframes[i], mission, float(ahead[i])) for i in idx]

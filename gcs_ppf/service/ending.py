@@ -46,16 +46,25 @@ def end(
 
 
 async def hold(station: Station, run: Run, states: dict[int, VehicleState], stacked: bool) -> None:
-    """Each vehicle to its holding circle (``commanding.hold_orders``), every command
-    confirmed by its ACK and sent again while unanswered: a hold lost on a lossy link
-    left a vehicle flying its last course into an obstacle."""
+    """Every vehicle still heard to its holding circle (``confirm_holds``), then the safety
+    watch after the end."""
+    heard = {i for i, v in station.fleet.by_id.items() if not v.lost}
+    await confirm_holds(station, run, states, stacked, heard)
+    await watch_after_end(station, run)
+
+
+async def confirm_holds(
+    station: Station, run: Run, states: dict[int, VehicleState], stacked: bool, heard: set[int]
+) -> set[int]:
+    """Each of the vehicles ``heard`` to its holding circle (``commanding.hold_orders``),
+    every command confirmed by its ACK and sent again while unanswered: a hold lost on a
+    lossy link left a vehicle flying its last course into an obstacle.  Returns the ids
+    whose hold failed."""
     fleet = station.fleet
     airframes = {vid: Airframe.from_telemetry(v.telemetry) for vid, v in fleet.by_id.items()}
     event = station.events_of(run)
-    heard = {i for i, v in fleet.by_id.items() if not v.lost}
     orders = commanding.hold_orders(
         run.orders, states, airframes, run.mission_time_s, stacked, event, heard
     )
     retry = commanding.hold_retry(fleet.clock_rate())
-    await confirmation.confirm_all(fleet, orders, event, retry)
-    await watch_after_end(station, run)
+    return await confirmation.confirm_all(fleet, orders, event, retry)

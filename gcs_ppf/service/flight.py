@@ -23,8 +23,8 @@ from gcs_ppf.guidance.tick_plan import passes_within, traffic_radius_m
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_HEADING
 from gcs_ppf.planning.scene import Obstacles, obstacles_from_mission
-from gcs_ppf.service import commanding, confirmation, launch
-from gcs_ppf.service.ending import end
+from gcs_ppf.service import commanding, launch
+from gcs_ppf.service.ending import confirm_holds, end
 from gcs_ppf.service.fleet import Vehicle, planning_states
 from gcs_ppf.service.run import NOT_RESPONDING_S, Run, RunState, changes, min_of
 from gcs_ppf.service.station import Station
@@ -105,11 +105,7 @@ def hold_while_others_take_off(
         return None
     states, _, _ = planning_states([(v, p) for v, p in station.located(run)
                                     if v.system_id in flying])  # fmt: skip
-    airframes = {vid: Airframe.from_telemetry(fleet.by_id[vid].telemetry) for vid in states}
-    event = station.events_of(run)
-    orders = commanding.hold_orders(run.orders, states, airframes, 0.0, False, event, set(states))
-    retry = commanding.hold_retry(fleet.clock_rate())
-    return station.spawn(confirmation.confirm_all(fleet, orders, event, retry))
+    return station.spawn(confirm_holds(station, run, states, False, set(states)))
 
 
 def vehicle_time_s(station: Station, run: Run) -> float | None:
@@ -177,8 +173,9 @@ async def losses(station: Station, run: Run) -> bool:
 
 
 def check_obedience(
-    station: Station, run: Run, located: Located, states: dict[int, VehicleState]
-) -> bool:
+    station: Station, run: Run, located: Located, states: dict[int, VehicleState],
+    airframes: dict[int, Airframe],
+) -> bool:  # fmt: skip
     """Which vehicles obey (GUIDED, the course command ACCEPTED, the course sent flown
     or turned to): events when one stops for ``NOT_RESPONDING_S`` of vehicle time or
     comes back; True if it is the leader."""
@@ -194,7 +191,7 @@ def check_obedience(
         if s is not None and sent is not None:
             error = math.remainder(sent - s.yaw_rad, math.tau)
             turn = -t.course_rate_rad_s  # clockwise from north → ICS yaw rate
-            m = commanding.motion(s, Airframe.from_telemetry(t), run.mission)
+            m = commanding.motion(s, airframes[v.system_id], run.mission)
             expected = min(m.turn_rate_rad_s, abs(error) / max(m.heading_tau_s, 1e-3))
         reports.append(obedience.Report(
             v.system_id, guided, ack.result if ack else None, error, turn or 0.0, expected
@@ -260,7 +257,8 @@ async def tick(station: Station, run: Run) -> bool:
         end(station, run, RunState.FAILED, "planner.max_time passed before the target")
         return True
 
-    if check_obedience(station, run, located, states):
+    airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
+    if check_obedience(station, run, located, states, airframes):
         end(station, run, RunState.FAILED, "leader not responding")
         return True
     uncontrolled = run.obedience.not_responding & set(states)
@@ -268,20 +266,20 @@ async def tick(station: Station, run: Run) -> bool:
     if uncontrolled:
         traffic = obedience.as_obstacles(states, uncontrolled, traffic_radius_m(mission))
         obstacles = obedience.with_obstacles(obstacles, traffic)
-    await plan_and_command(station, run, located, states, active, obstacles, ground)
+    await plan_and_command(station, run, airframes, states, active, obstacles, ground)
     return False
 
 
 async def plan_and_command(
-    station: Station, run: Run, located: Located, states: dict[int, VehicleState],
-    active: set[int], obstacles: Obstacles, ground: float | None,
+    station: Station, run: Run, airframes: dict[int, Airframe],
+    states: dict[int, VehicleState], active: set[int], obstacles: Obstacles,
+    ground: float | None,
 ) -> None:  # fmt: skip
     """The tick's plan (``tick_plan.plan`` from the speeds the last plan reached,
     ``speed_reference``; events for what changed) sent to the vehicles it commands, every
-    command through the run-time assurance."""
+    command through the run-time assurance; ``airframes`` of the located vehicles."""
     mission = run.mission
     settings = station.settings
-    airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
     lim = mission.limits
     telemetry_interval_s = 1.0 / settings.stream_rate_hz
     lagging_s = telemetry_interval_s + run.fleet_lag.total_s  # what the margins must cover

@@ -48,6 +48,7 @@ class FormationService:
         self._runs: dict[int, Run] = {}  # mission id → its current or last run
         self._subscribers: set[asyncio.Queue[dict[str, Any]]] = set()
         self._tasks: asyncio.TaskGroup | None = None
+        self._kernels: asyncio.Task[None] | None = None  # loading them (``running``)
         self._station = Station(
             settings, store, self.fleet, self._runs, self._spawn, self._publish,
             self._kernels_loaded,
@@ -56,8 +57,6 @@ class FormationService:
             store.update_run(stale.id, RunState.FAILED, ended=True, outcome="service restarted")
 
     # Lifetime ----------------------------------------------------------------------------
-    _kernels: asyncio.Task[None] | None = None
-
     @contextlib.asynccontextmanager
     async def running(self) -> AsyncIterator[FormationService]:
         """Run the background tasks (links, heartbeats, watchdog) for the body's duration.
