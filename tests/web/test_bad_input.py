@@ -195,7 +195,14 @@ def test_keyboard_shortcuts_and_themes(page: Page) -> None:
     page.upload("table3.json", MISSION.read_text())
     wait_for(lambda: "stored as mission #1" in page.text("load-message"), 10, "the mission")
     body = page.driver.find_element(By.TAG_NAME, "body")
+    # "+" zooms the view the user sees: framed around the mission (not the page's default)
+    # even when pressed before the next frame is drawn.
+    body.send_keys("+")
+    zoomed = page.js("window.gcs.top.view.scale")
+    body.send_keys("0")
     scale = page.js("window.gcs.top.view.scale")
+    assert scale != pytest.approx(0.05)  # the default, before the mission was framed
+    assert zoomed == pytest.approx(scale * 1.4)
     body.send_keys("+")
     assert page.js("window.gcs.top.view.scale") == pytest.approx(scale * 1.4)
     body.send_keys("0")

@@ -105,6 +105,16 @@ let dirty = true;
 let lastDraw = 0;
 const touch = () => (dirty = true);
 
+const currentScene = () => (state.paused && state.frozen ? state.frozen : buildScene());
+
+/** Zooms the view the user is about to see: one still waiting to be framed (a mission just
+ * read, before the next frame is drawn) is framed first, so a quick key is not undone. */
+function zoomBy(factor) {
+  if (!top.fitted) top.scene = currentScene();
+  top.zoom(factor);
+  touch();
+}
+
 function draw() {
   requestAnimationFrame(draw);
   const t0 = performance.now();
@@ -113,7 +123,7 @@ function draw() {
   if (!dirty && t0 - lastDraw < REDRAW_MS) return;
   dirty = false;
   lastDraw = t0;
-  const scene = state.paused && state.frozen ? state.frozen : buildScene();
+  const scene = currentScene();
   top.scene = scene;
   side.scene = scene;
   top.draw();
@@ -887,8 +897,8 @@ function bind() {
   $("btn-preview").addEventListener("click", preview);
   $("btn-start").addEventListener("click", start);
   $("btn-abort").addEventListener("click", abort);
-  $("btn-zoom-in").addEventListener("click", () => top.zoom(1.4));
-  $("btn-zoom-out").addEventListener("click", () => top.zoom(1 / 1.4));
+  $("btn-zoom-in").addEventListener("click", () => zoomBy(1.4));
+  $("btn-zoom-out").addEventListener("click", () => zoomBy(1 / 1.4));
   $("btn-fit").addEventListener("click", () => top.fit());
   $("btn-follow").addEventListener("click", toggleFollow);
   $("btn-pause").addEventListener("click", togglePause);
@@ -912,7 +922,7 @@ function bind() {
     if (e.target.closest && e.target.closest("input, select, textarea") || e.ctrlKey || e.metaKey || e.altKey) return;
     const k = e.key;
     const act = {
-      "+": () => top.zoom(1.4), "=": () => top.zoom(1.4), "-": () => top.zoom(1 / 1.4),
+      "+": () => zoomBy(1.4), "=": () => zoomBy(1.4), "-": () => zoomBy(1 / 1.4),
       "0": () => top.fit(), f: toggleFollow, F: toggleFollow, " ": togglePause,
       o: () => editing() && setPlacing(!top.placing), O: () => editing() && setPlacing(!top.placing),
       Escape: () => setPlacing(false),

@@ -121,7 +121,9 @@ export class TopView {
     return [this.view.x + (sx - c.width / 2) / this.view.scale, this.view.y - (sy - c.height / 2) / this.view.scale];
   }
 
+  /** Zooms about a screen point (the centre by default); a view not yet framed is framed first. */
   zoom(factor, sx, sy) {
+    if (!this.fitted) this.fit();
     const c = this.canvas;
     const [wx, wy] = this.toWorld(sx ?? c.width / 2, sy ?? c.height / 2);
     this.view.scale = Math.min(50, Math.max(1e-4, this.view.scale * factor));
