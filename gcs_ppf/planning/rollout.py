@@ -268,8 +268,8 @@ def run_fleet(
                 close = np.empty(mates.shape[0], dtype=np.int64)
         step_start, step_mates = mate_start, mates
         if refine:
-            refine_teammates(pos, pitch, yaw, speed, rank, lim, dt, MATE_REFINE_STEPS,
-                             mate_start, mates, close_start, close)  # fmt: skip
+            refine_teammates(pos, pitch, yaw, speed, lim, dt, MATE_REFINE_STEPS, mate_start,
+                             mates, close_start, close)  # fmt: skip
             step_start, step_mates = close_start, close
         step, records, elapsed, arrived = run_steps(
             pos, pitch, yaw, speed, slot, rank, active, obs_center, obs_radius, obs_velocity,

@@ -160,7 +160,6 @@ def attraction(
     uz: float,
     pos: np.ndarray,
     speed: np.ndarray,
-    rank: np.ndarray,
     mate_start: np.ndarray,
     mates: np.ndarray,
     lim: KernelLimits,
@@ -195,8 +194,6 @@ def attraction(
     farthest = CROSSING_REACH * lim.safe_distance_uav
     for c in range(mate_start[i], last):
         k = mates[c]
-        if rank[k] >= rank[i]:  # (in the list in case i overtakes it)
-            continue
         dx, dy, dz = px - pos[k, 0], py - pos[k, 1], pz - pos[k, 2]
         d2 = dx * dx + dy * dy + dz * dz
         if d2 > farthest * farthest:  # (beyond the reach below whatever the speeds)

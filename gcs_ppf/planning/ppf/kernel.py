@@ -8,8 +8,8 @@ one module per group:
 * ``formation_targets``     Eq. 6–8 (local target points G_i), Eq. 24's condition (``formation``)
 * ``obstacle_repulsion``    Eq. 10–13: ε₁ from every obstacle whose influence radius we are in
   (``repulsion``)
-* ``teammate_conflicts``    Eq. 12–13 with teammates of higher priority, and those a vehicle
-  overtakes, as moving obstacles (``repulsion``)
+* ``teammate_conflicts``    Eq. 12–13 with teammates of higher priority as moving obstacles
+  (``repulsion``)
 * ``attraction``            Eq. 14–15: towards the target point while nothing repels
   (``formation``)
 * ``escape_local_minimum``  Eq. 20: state s2, F_add along +z_v (``steering``)
@@ -33,8 +33,7 @@ group binds cost two atomic operations, 40 % of a five-vehicle step.
 Fleet layout (structure of arrays, N vehicles, M obstacles):
 ``pos[N,3]`` ICS metres, ``pitch[N]``, ``yaw[N]`` radians, ``speed[N]`` m/s,
 ``slot[N,3]`` the wingman's place in the leader's VCS (zeros for the leader, index 0),
-``rank[N]`` avoidance priority (a vehicle avoids every active vehicle of lower rank, and
-any it overtakes),
+``rank[N]`` avoidance priority (a vehicle avoids every active vehicle of lower rank),
 ``active[N]`` (inactive vehicles are neither moved nor avoided),
 ``obs_center[M,3]``, ``obs_radius[M]``, ``obs_velocity[M,3]``.
 
@@ -65,7 +64,6 @@ from gcs_ppf.planning.ppf.primitives import (
     LOCAL_MINIMUM_ANGLE,
     MAX_AVOID_PITCH,
     MAX_FOLLOW_PITCH,
-    OVERTAKING_CONE_COS,
     S1_FOLLOW,
     S2_LOCAL_MINIMUM,
     S3_FORMATION,
@@ -88,7 +86,6 @@ from gcs_ppf.planning.ppf.primitives import (
 )
 from gcs_ppf.planning.ppf.repulsion import (
     obstacle_repulsion,
-    overtaking,
     teammate_conflict,
     teammate_conflicts,
 )
@@ -109,7 +106,6 @@ __all__ = [
     "LOCAL_MINIMUM_ANGLE",
     "MAX_AVOID_PITCH",
     "MAX_FOLLOW_PITCH",
-    "OVERTAKING_CONE_COS",
     "S1_FOLLOW",
     "S2_LOCAL_MINIMUM",
     "S3_FORMATION",
@@ -138,7 +134,6 @@ __all__ = [
     "move_obstacles",
     "obstacle_repulsion",
     "obstacles_first",
-    "overtaking",
     "slide_along_obstacles",
     "slot_to_ics",
     "speed_trend",
@@ -267,7 +262,7 @@ def fleet_step(
     points G_i (Eq. 6).  ``direction[N,3]`` and ``next_motion[N,3]`` are scratch space.
     Vehicle i considers only the obstacles ``near_obstacles[near_start[i]:near_start[i+1]]``
     (see ``nearby_obstacles``), and only the teammates ``mates[mate_start[i]:mate_start[i+1]]``
-    (see ``nearby_teammates``; every active teammate for all pairs).
+    (see ``nearby_teammates``; every active teammate of higher priority for all pairs).
     ``trig[N,7]`` holds cos θ, sin θ, cos ψ, sin ψ of every vehicle on entry
     (``attitude_trig``) and of its new attitude on return; its last columns are scratch.
     Every vehicle decides from the fleet's state at the start of the step (``rank`` through
@@ -283,19 +278,17 @@ def fleet_step(
         # Attraction (Eq. 14): the way to the target point, passing teammates.
         g = target if i == 0 else local_target[i]
         fx, fy, fz, ax, ay, az = attraction(
-            i, g[0], g[1], g[2], ux, uy, uz, pos, speed, rank, mate_start, mates, lim, dt, cy, sy
+            i, g[0], g[1], g[2], ux, uy, uz, pos, speed, mate_start, mates, lim, dt, cy, sy
         )
-        # Repulsion (Eq. 12–13): the obstacles', then the teammates' of higher priority
-        # and of those it overtakes, never pushing the vehicle into an obstacle
-        # (``obstacles_first``).
+        # Repulsion (Eq. 12–13): the obstacles', then the teammates' of higher priority,
+        # never pushing the vehicle into an obstacle (``obstacles_first``).
         ox, oy, oz, moving_obstacle = obstacle_repulsion(
             i, pos, speed, obs_center, obs_radius, obs_velocity, near_start, near_obstacles,
             lim, dt,
         )  # fmt: skip
         rx, ry, rz, mate, hold_course = teammate_conflicts(
-            i, ox, oy, oz, fx, fy, fz, pos, speed, trig, rank, mate_start, mates, formed, lim,
-            dt,
-        )  # fmt: skip
+            i, ox, oy, oz, fx, fy, fz, pos, speed, trig, mate_start, mates, formed, lim, dt
+        )
         rx, ry, rz = obstacles_first(rx, ry, rz, ox, oy, oz)
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0
         avoiding[i] = repelled

@@ -26,14 +26,13 @@ from gcs_ppf.planning.ppf.primitives import (
     AVOIDANCE_TURN_ANGLE,
     CONFLICT_HORIZON_TURNS,
     INFLUENCE_STEPS,
-    OVERTAKING_CONE_COS,
     KernelLimits,
     airframe_limited,
     influence_radius,
 )
 
 MATES_AUTO = -1  # the grid from ``GRID_MIN_VEHICLES`` vehicles on, all pairs below
-MATES_ALL_PAIRS = 0  # every active teammate, no distance bound
+MATES_ALL_PAIRS = 0  # every active teammate of higher priority, no distance bound
 MATES_GRID = 1  # those within the bound, found in a uniform grid
 GRID_MIN_VEHICLES = 16  # measured: equal at 10-16 vehicles, the grid 5 % faster at 20
 MAX_GRID_CELLS_PER_VEHICLE = 64  # cells grow until the grid has at most this many per vehicle
@@ -234,8 +233,7 @@ def _grow(items: np.ndarray, needed: int) -> np.ndarray:
 def _mates_all_pairs(
     rank: np.ndarray, active: np.ndarray, mate_start: np.ndarray, mates: np.ndarray
 ) -> np.ndarray:
-    """Every active teammate, for each active vehicle (those of lower priority in case it
-    overtakes them: ``teammate_conflicts`` tells)."""
+    """Every active teammate of higher priority (lower rank), for each active vehicle."""
     n = rank.shape[0]
     count = 0
     for i in range(n):
@@ -244,7 +242,7 @@ def _mates_all_pairs(
             continue
         mates = _grow(mates, count + n)
         for k in range(n):
-            if k != i and active[k]:
+            if k != i and active[k] and rank[k] < rank[i]:
                 mates[count] = k
                 count += 1
     mate_start[n] = count
@@ -353,49 +351,6 @@ def _within_reach(
     return bool(d2 <= reach * reach)
 
 
-@njit(cache=True, inline="always")
-def _may_overtake(
-    i: int,
-    k: int,
-    pos: np.ndarray,
-    bound: np.ndarray,
-    change: np.ndarray,
-    vel: np.ndarray,
-    lim: KernelLimits,
-    dt: float,
-    horizon_steps: int,
-) -> bool:
-    """Whether vehicle i can be ``overtaking`` teammate k at some step of the next
-    ``horizon_steps``: faster than k along k's track, and behind k within the overtaking
-    cone of its tail.  Over the time t the velocities move by at most their ``change``,
-    k's direction u turns by at most φ = (pitch rate + yaw rate)·t, and the offset d from
-    k by at most δ = (|w| + the changes)·t.  So v_i·u − |v_k| grows by at most the changes
-    plus v_i's bound·φ; −d·u by at most δ + (|d| + δ)·φ while |d| shrinks by at most δ.  A
-    teammate that stays slower or outside the cone even so is left out (a metre, 1 mm/s
-    and a relative 10⁻⁹ cover round-off)."""
-    vk = math.sqrt(vel[k, 0] ** 2 + vel[k, 1] ** 2 + vel[k, 2] ** 2)
-    if vk == 0.0:
-        return True
-    ux, uy, uz = vel[k, 0] / vk, vel[k, 1] / vk, vel[k, 2] / vk
-    t = horizon_steps * dt
-    turned = (lim.max_pitch_rate + lim.max_yaw_rate) * t
-    gain = vel[i, 0] * ux + vel[i, 1] * uy + vel[i, 2] * uz - vk
-    most_gain = gain + (change[i] + change[k] + bound[i] * turned) * (1.0 + 1e-9) + 1e-3
-    if most_gain <= 0.0:
-        return False
-    dx = pos[i, 0] - pos[k, 0]
-    dy = pos[i, 1] - pos[k, 1]
-    dz = pos[i, 2] - pos[k, 2]
-    d = math.sqrt(dx * dx + dy * dy + dz * dz)
-    behind = -(dx * ux + dy * uy + dz * uz)
-    wx = vel[k, 0] - vel[i, 0]
-    wy = vel[k, 1] - vel[i, 1]
-    wz = vel[k, 2] - vel[i, 2]
-    moved = (math.sqrt(wx * wx + wy * wy + wz * wz) + change[i] + change[k]) * t
-    most_behind = (behind + moved + (d + moved) * turned) * (1.0 + 1e-9) + 1.0
-    return bool(most_behind >= OVERTAKING_CONE_COS * (d - moved))
-
-
 @njit(cache=True)
 def _mates_grid(
     pos: np.ndarray,
@@ -410,9 +365,9 @@ def _mates_grid(
     mate_start: np.ndarray,
     mates: np.ndarray,
 ) -> np.ndarray:
-    """The active teammates ``_within_reach``, of higher priority or possibly overtaken
-    (``_may_overtake``), found in a uniform grid of cells one largest ``mate_reach`` wide
-    (a counting sort keeps each cell in index order)."""
+    """The active teammates of higher priority ``_within_reach``, found in a uniform grid
+    of cells one largest ``mate_reach`` wide (a counting sort keeps each cell in index
+    order)."""
     n = pos.shape[0]
     bound, change, own, other, vel, fastest = _mate_bounds(pitch, yaw, speed, lim, dt,
                                                            horizon_steps)  # fmt: skip
@@ -432,14 +387,10 @@ def _mates_grid(
                     c = (ax * shape[1] + ay) * shape[2] + az
                     for s in range(cell_start[c], cell_start[c + 1]):
                         k = in_cell[s]
-                        if k == i or not active[k]:
+                        if k == i or not active[k] or rank[k] >= rank[i]:
                             continue
-                        if _within_reach(
-                            i, k, pos, bound, change, own, other, vel, lim, dt, horizon_steps
-                        ) and (
-                            rank[k] < rank[i]
-                            or _may_overtake(i, k, pos, bound, change, vel, lim, dt, horizon_steps)
-                        ):
+                        if _within_reach(i, k, pos, bound, change, own, other, vel, lim, dt,
+                                         horizon_steps):  # fmt: skip
                             found[m] = k
                             m += 1
         mates = _grow(mates, count + m)
@@ -461,7 +412,6 @@ def refine_teammates(
     pitch: np.ndarray,
     yaw: np.ndarray,
     speed: np.ndarray,
-    rank: np.ndarray,
     lim: KernelLimits,
     dt: float,
     horizon_steps: int,
@@ -471,9 +421,8 @@ def refine_teammates(
     near: np.ndarray,
 ) -> None:
     """The teammates of the lists ``mates[mate_start[i]:mate_start[i+1]]`` (``nearby_teammates``)
-    still to check over the next ``horizon_steps`` steps (``_within_reach``, and of higher
-    priority or possibly overtaken: ``_may_overtake``), into ``near`` (room for
-    ``mate_start[N]``) in CSR form (``near_start[N+1]``), in the same order.
+    that are ``_within_reach`` over the next ``horizon_steps`` steps, into ``near`` (room
+    for ``mate_start[N]``) in CSR form (``near_start[N+1]``), in the same order.
 
     A list built for a longer horizon that covers these steps (``MATE_REFINE_STEPS``
     divides ``NEIGHBOUR_LIST_STEPS`` in ``rollout``) holds every teammate that can matter
@@ -486,12 +435,7 @@ def refine_teammates(
         near_start[i] = count
         for c in range(mate_start[i], mate_start[i + 1]):
             k = mates[c]
-            if _within_reach(
-                i, k, pos, bound, change, own, other, vel, lim, dt, horizon_steps
-            ) and (
-                rank[k] < rank[i]
-                or _may_overtake(i, k, pos, bound, change, vel, lim, dt, horizon_steps)
-            ):
+            if _within_reach(i, k, pos, bound, change, own, other, vel, lim, dt, horizon_steps):
                 near[count] = k
                 count += 1
     near_start[pos.shape[0]] = count
@@ -521,12 +465,12 @@ def nearby_teammates(
     mates: np.ndarray,
 ) -> np.ndarray:
     """The teammates each vehicle must look at for conflicts (Eq. 12–13,
-    ``teammate_conflicts``) in the next ``horizon_steps`` steps: active, and for
-    ``MATES_GRID`` within ``mate_reach`` and ``miss_reach`` (the influence radius, and the
-    closest approach at the relative speed it can reach; see ``teammate_conflict``) and of
-    higher priority (lower rank) or possibly overtaken (``_may_overtake``)
-    (``MATES_AUTO``: chosen by the fleet's size).  Fills ``mate_start[N+1]`` and returns
-    the list (``mates``, or a larger array when it had no room): vehicle i's mates are
+    ``teammate_conflicts``) in the next ``horizon_steps`` steps: active, of higher priority
+    (lower rank), and for ``MATES_GRID`` within ``mate_reach`` and ``miss_reach`` (the
+    influence radius, and the closest approach at the relative speed it can reach; see
+    ``teammate_conflict``) (``MATES_AUTO``: chosen by
+    the fleet's size).  Fills ``mate_start[N+1]`` and returns the list (``mates``, or a
+    larger array when it had no room): vehicle i's mates are
     ``mates[mate_start[i]:mate_start[i+1]]``, in ascending index order."""
     search = mate_search_for(search, pos.shape[0])
     if search == MATES_GRID and pos.shape[0] > 1:

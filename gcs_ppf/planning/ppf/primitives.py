@@ -34,9 +34,6 @@ MAX_AVOID_PITCH = math.pi / 3  # steepest flight path any wanted direction may h
 INFLUENCE_STEPS = 3.0  # steps of travel added to the influence radius (discrete turning)
 SIDEWAYS_EPS = 1e-9  # |F_v^y| below this fraction of |F_v| counts as 0 in Eq. 19 (round-off)
 CONFLICT_HORIZON_TURNS = 1.0  # teammate conflicts are looked for this many quarter turns ahead
-# A vehicle coming up from behind a teammate within this angle of its tail is overtaking it
-# and gives way whatever their priorities (ICAO Annex 2, 3.2.2.4: 70° of the plane of symmetry).
-OVERTAKING_CONE_COS = math.cos(math.radians(70.0))
 
 
 class KernelLimits(NamedTuple):

@@ -21,7 +21,6 @@ from gcs_ppf.planning.ppf.kernel import (
     INFLUENCE_STEPS,
     LOCAL_MINIMUM_ANGLE,
     MAX_FOLLOW_PITCH,
-    OVERTAKING_CONE_COS,
     S1_FOLLOW,
     S2_LOCAL_MINIMUM,
     S3_FORMATION,
@@ -130,27 +129,14 @@ def _obstacle_repulsion(
     return rep, moving
 
 
-def _avoided(pos: FloatArray, vel: FloatArray, rank: IntArray) -> BoolArray:
-    """[i,k] whether vehicle i avoids teammate k: k has the higher priority, or i is
-    overtaking k (faster along k's track, behind it within the overtaking cone)."""
-    d_m = pos[:, None, :] - pos[None]  # [i,k,3]: from mate k to vehicle i
-    behind = -(d_m * vel[None]).sum(-1)
-    v2 = (vel**2).sum(-1)[None]
-    gaining = (vel[:, None] * vel[None]).sum(-1) > v2
-    d2 = (d_m**2).sum(-1)
-    overtaking = gaining & (behind > 0) & (behind**2 >= OVERTAKING_CONE_COS**2 * d2 * v2)
-    avoided: BoolArray = (rank[None] < rank[:, None]) | overtaking
-    return avoided
-
-
 def _conflicts(
-    pos: FloatArray, vel: FloatArray, mate_vel: FloatArray, speed: FloatArray,
-    avoided: BoolArray, active: BoolArray, formed: BoolArray, lim: KernelLimits, dt: float,
+    pos: FloatArray, vel: FloatArray, mate_vel: FloatArray, speed: FloatArray, rank: IntArray,
+    active: BoolArray, formed: BoolArray, lim: KernelLimits, dt: float,
 ) -> tuple[BoolArray, BoolArray, FloatArray]:  # fmt: skip
-    """Teammates ``avoided`` (``_avoided``) as moving obstacles, by closest point of
-    approach within a quarter turn: [i,k] whether mate k is near (a conflict or just clear
-    of one) and a conflict for vehicle i flying ``vel[i]`` (mates at ``mate_vel``), and the
-    unit miss vectors [i,k,3]."""
+    """Teammates of higher priority as moving obstacles, by closest point of approach
+    within a quarter turn: [i,k] whether mate k is near (a conflict or just clear of one)
+    and a conflict for vehicle i flying ``vel[i]`` (mates at ``mate_vel``), and the unit
+    miss vectors [i,k,3]."""
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     d_m = pos[:, None, :] - pos[None]  # [i,k,3]: from mate k to vehicle i
     w = mate_vel[None] - vel[:, None]  # mate k relative to vehicle i
@@ -170,7 +156,7 @@ def _conflicts(
     )[:, None] + speed[None] * AVOIDANCE_TURN_ANGLE / omega
     threshold = lim.safe_distance_uav + margin
     near = (
-        avoided & active[None] & (approach > 0) & (w2 > 0)
+        (rank[None] < rank[:, None]) & active[None] & (approach > 0) & (w2 > 0)
         & (miss2 < (threshold + lim.safe_distance_uav) ** 2)
         & (d2 <= mate_radius**2) & (d2 > 0)
     )  # fmt: skip
@@ -185,16 +171,14 @@ def _repulsion(
     active: BoolArray, formed: BoolArray, obstacles: tuple[FloatArray, BoolArray],
     lim: KernelLimits, dt: float,
 ) -> Repulsion:  # fmt: skip
-    """Eq. 12–13 with the teammates of higher priority, and those overtaken, as moving
-    obstacles (``_conflicts``), added to the obstacles' repulsion (Eq. 10–13), never pushing
-    a vehicle into an obstacle (the kernel's ``obstacles_first``).  Just clear of a conflict
-    a vehicle holds course if flying ``follow`` (unit, [N,3]) at its speed would make it a
-    conflict."""
+    """Eq. 12–13 with the teammates of higher priority as moving obstacles (``_conflicts``),
+    added to the obstacles' repulsion (Eq. 10–13), never pushing a vehicle into an
+    obstacle (the kernel's ``obstacles_first``).  Just clear of a conflict a vehicle holds
+    course if flying ``follow`` (unit, [N,3]) at its speed would make it a conflict."""
     n = pos.shape[0]
     rep, moving = obstacles
-    avoided = _avoided(pos, a.vel, rank)
-    near, threat, push = _conflicts(pos, a.vel, a.vel, speed, avoided, active, formed, lim, dt)
-    _, threat_after, _ = _conflicts(pos, speed[:, None] * follow, a.vel, speed, avoided, active,
+    near, threat, push = _conflicts(pos, a.vel, a.vel, speed, rank, active, formed, lim, dt)
+    _, threat_after, _ = _conflicts(pos, speed[:, None] * follow, a.vel, speed, rank, active,
                                     formed, lim, dt)  # fmt: skip
     hold: BoolArray = np.any(near & ~threat & threat_after, axis=1)
     total = rep + EPSILON_1 * (push * threat[..., None]).sum(1)

@@ -2,7 +2,6 @@
 
 * ``obstacle_repulsion``  Eq. 10–13: ε₁ from every obstacle whose influence radius we are in
 * ``teammate_conflict``   Eq. 12–13 for one teammate of higher priority, a moving obstacle
-* ``overtaking``          whether a vehicle comes up from behind a teammate (then it gives way)
 * ``teammate_conflicts``  the same summed over the teammates a vehicle looks at
 """
 
@@ -18,7 +17,6 @@ from gcs_ppf.planning.ppf.primitives import (
     CONFLICT_HORIZON_TURNS,
     EPSILON_1,
     INFLUENCE_STEPS,
-    OVERTAKING_CONE_COS,
     KernelLimits,
     airframe_limited,
     closing_speed,
@@ -154,31 +152,6 @@ def teammate_conflict(
 
 
 @njit(cache=True, inline="always")
-def overtaking(
-    dx: float, dy: float, dz: float, wx: float, wy: float, wz: float,
-    vx: float, vy: float, vz: float,
-) -> bool:  # fmt: skip
-    """Whether a vehicle at offset (dx, dy, dz) from a teammate flying at (wx, wy, wz),
-    itself flying at (vx, vy, vz), is overtaking it: behind it within
-    ``OVERTAKING_CONE_COS`` of its tail, and faster along its track.
-
-    The paper ranks teammates (Eq. 12–13: a vehicle avoids those of higher priority), but a
-    vehicle overtaken from behind by a faster one of higher priority cannot turn out of its
-    way in time from v_min (sweep scene 7198: 41.9 m, closing at 173 m/s from behind).  As
-    in the rules of the air, the overtaking vehicle gives way too: ``teammate_conflicts``
-    treats an overtaken teammate of lower priority as one of higher priority.
-    """
-    w2 = wx * wx + wy * wy + wz * wz
-    if vx * wx + vy * wy + vz * wz <= w2:  # not gaining on it along its track
-        return False
-    behind = -(dx * wx + dy * wy + dz * wz)
-    if behind <= 0.0:
-        return False
-    d2 = dx * dx + dy * dy + dz * dz
-    return bool(behind * behind >= OVERTAKING_CONE_COS**2 * d2 * w2)
-
-
-@njit(cache=True, inline="always")
 def teammate_conflicts(
     i: int,
     rx: float,
@@ -190,7 +163,6 @@ def teammate_conflicts(
     pos: np.ndarray,
     speed: np.ndarray,
     trig: np.ndarray,
-    rank: np.ndarray,
     mate_start: np.ndarray,
     mates: np.ndarray,
     formed: np.ndarray,
@@ -198,8 +170,7 @@ def teammate_conflicts(
     dt: float,
 ) -> tuple[float, float, float, bool, bool]:
     """The repulsion (rx, ry, rz) on vehicle i with that of its teammates of higher
-    priority (lower rank) added (Eq. 12–13; each one by ``teammate_conflict``), and of
-    those of lower priority it is ``overtaking``.  Only
+    priority (lower rank) added (Eq. 12–13; each one by ``teammate_conflict``).  Only
     ``mates[mate_start[i]:mate_start[i+1]]`` are looked at (see ``nearby_teammates``);
     ``trig[:, 4:7]`` are the velocities (``unit_velocities``); ``formed`` whether each
     wingman is in its slot (a pair in formation: ``teammate_conflict``).
@@ -220,10 +191,6 @@ def teammate_conflicts(
         k = mates[c]
         dx, dy, dz = px - pos[k, 0], py - pos[k, 1], pz - pos[k, 2]
         wx, wy, wz = trig[k, 4], trig[k, 5], trig[k, 6]
-        if rank[k] >= rank[i] and not overtaking(
-            dx, dy, dz, wx, wy, wz, trig[i, 4], trig[i, 5], trig[i, 6]
-        ):
-            continue
         together = formed[i] and (k == 0 or formed[k])
         kind, mx, my, mz = teammate_conflict(
             dx, dy, dz, wx - trig[i, 4], wy - trig[i, 5], wz - trig[i, 6], vi, speed[k], lim, dt,
