@@ -30,6 +30,7 @@ EPSILON_3 = 1.0e9  # braking vector of s3, ε₃ ≫ |F_v^sx| (Eq. 24)
 LOCAL_MINIMUM_ANGLE = math.radians(1.0)  # repulsion this close to antiparallel → s2
 AVOIDANCE_TURN_ANGLE = math.pi / 2  # a moving obstacle is out-turned in a quarter turn
 MAX_FOLLOW_PITCH = math.pi / 4  # steepest flight path target following asks for
+TAN_MAX_FOLLOW_PITCH = math.tan(MAX_FOLLOW_PITCH)
 MAX_AVOID_PITCH = math.pi / 3  # steepest flight path any wanted direction may have
 INFLUENCE_STEPS = 3.0  # steps of travel added to the influence radius (discrete turning)
 SIDEWAYS_EPS = 1e-9  # |F_v^y| below this fraction of |F_v| counts as 0 in Eq. 19 (round-off)
@@ -274,15 +275,20 @@ def follow_direction(
     would stay vertical until its yaw came round.  A fixed wing climbs to a high target
     in a spiral instead, so target following asks for at most this flight-path angle
     (obstacle avoidance may still use the whole range).  With no horizontal component
-    the current heading (cos ψ, sin ψ) is kept.
+    the current heading (cos ψ, sin ψ) is kept.  Within the limit the attraction is the
+    direction itself, G/|G| (no angle is taken: ``atan2`` and its cosine and sine were a
+    sixth of the Table 3 step); steeper, the limit's elevation in G's heading.
     """
-    h = math.sqrt(gx * gx + gy * gy)
-    if h == 0.0 and gz == 0.0:
+    h2 = gx * gx + gy * gy
+    if h2 > 0.0 and gz * gz <= TAN_MAX_FOLLOW_PITCH**2 * h2:
+        g = math.sqrt(h2 + gz * gz)
+        return gx / g, gy / g, gz / g
+    if h2 == 0.0 and gz == 0.0:
         return cy, sy, 0.0
+    h = math.sqrt(h2)
     cx_, cy_ = (gx / h, gy / h) if h > 0.0 else (cy, sy)
-    elevation = min(max(math.atan2(gz, h), -MAX_FOLLOW_PITCH), MAX_FOLLOW_PITCH)
-    ce = math.cos(elevation)
-    return ce * cx_, ce * cy_, math.sin(elevation)
+    ce = math.cos(MAX_FOLLOW_PITCH)
+    return ce * cx_, ce * cy_, math.copysign(math.sin(MAX_FOLLOW_PITCH), gz)
 
 
 @njit(cache=True)
