@@ -100,6 +100,23 @@ def flight_path_limited(
 
 
 @njit(cache=True, inline="always")
+def saturated_trend(y: float, x: float, max_rate: float, dt: float) -> float:
+    """``trend(atan2(y, x), max_rate, dt)``, the angle taken only where the trend is not
+    saturated: within a step ω·Δt of straight ahead (x > 0, |y| ≤ x·tan ωΔt).  Outside it
+    the angle is at least the step, and the trend is the sign of y ≠ 0: no ``atan2`` is
+    taken while a vehicle turns at its full rate.  tan ωΔt is bounded above by ωΔt·(1 + (ωΔt)²) for ωΔt ≤ 1,
+    with a relative 10⁻⁹ for round-off: a wider gate only takes the angle more often."""
+    step = max_rate * dt
+    if (
+        y == 0.0
+        or step >= 1.0
+        or (x > 0.0 and abs(y) <= x * step * (1.0 + step * step) * (1.0 + 1e-9))
+    ):
+        return trend(math.atan2(y, x), max_rate, dt)
+    return 1.0 if y > 0.0 else -1.0
+
+
+@njit(cache=True, inline="always")
 def trend_matrix(
     fvx: float,
     fvy: float,
@@ -126,14 +143,16 @@ def trend_matrix(
     limits (a leader climbing at 20° while it turned kept pitching up to 45° on F_v^z).
     """
     wanted = math.sqrt(fvx * fvx + fvy * fvy + fvz * fvz)
-    azimuth = math.atan2(fvy, fvx) if abs(fvy) > SIDEWAYS_EPS * wanted else 0.0
-    if fvx < 0.0 or abs(pitch) > MAX_FOLLOW_PITCH or lowest > -1.0 or airframe_limited(lim):
-        elevation = math.atan2(dz, math.sqrt(dx * dx + dy * dy)) - pitch
-        if fvx < 0.0 and azimuth == 0.0:
-            azimuth = math.pi
+    sideways = abs(fvy) > SIDEWAYS_EPS * wanted
+    steep = fvx < 0.0 or abs(pitch) > MAX_FOLLOW_PITCH or lowest > -1.0 or airframe_limited(lim)
+    if not sideways:
+        f_yaw = 1.0 if steep and fvx < 0.0 else 0.0  # straight behind: round to the left
     else:
-        elevation = math.atan2(fvz, math.sqrt(fvx * fvx + fvy * fvy))
-    return trend(elevation, lim.max_pitch_rate, dt), trend(azimuth, lim.max_yaw_rate, dt)
+        f_yaw = saturated_trend(fvy, fvx, lim.max_yaw_rate, dt)
+    if steep:
+        elevation = math.atan2(dz, math.sqrt(dx * dx + dy * dy)) - pitch
+        return trend(elevation, lim.max_pitch_rate, dt), f_yaw
+    return saturated_trend(fvz, math.sqrt(fvx * fvx + fvy * fvy), lim.max_pitch_rate, dt), f_yaw
 
 
 @njit(cache=True, inline="always")
