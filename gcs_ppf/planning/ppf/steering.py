@@ -104,8 +104,9 @@ def saturated_trend(y: float, x: float, max_rate: float, dt: float) -> float:
     """``trend(atan2(y, x), max_rate, dt)``, the angle taken only where the trend is not
     saturated: within a step ω·Δt of straight ahead (x > 0, |y| ≤ x·tan ωΔt).  Outside it
     the angle is at least the step, and the trend is the sign of y ≠ 0: no ``atan2`` is
-    taken while a vehicle turns at its full rate.  tan ωΔt is bounded above by ωΔt·(1 + (ωΔt)²) for ωΔt ≤ 1,
-    with a relative 10⁻⁹ for round-off: a wider gate only takes the angle more often."""
+    taken while a vehicle turns at its full rate.  tan ωΔt is bounded above by
+    ωΔt·(1 + (ωΔt)²) for ωΔt ≤ 1, with a relative 10⁻⁹ for round-off: a wider gate only
+    takes the angle more often."""
     step = max_rate * dt
     if (
         y == 0.0

@@ -1,0 +1,49 @@
+"""The shortcuts in steering and target following give what the angles they skip give."""
+
+from __future__ import annotations
+
+import math
+
+from hypothesis import given
+from hypothesis import strategies as st
+
+from gcs_ppf.planning.ppf.primitives import MAX_FOLLOW_PITCH, follow_direction, trend
+from gcs_ppf.planning.ppf.steering import saturated_trend
+
+components = st.floats(-1e4, 1e4, allow_nan=False, allow_subnormal=False)
+steps = st.sampled_from([(math.radians(30.0), 0.01), (0.3, 0.02), (0.5, 0.1), (2.0, 1.0)])
+
+
+@given(components, components, steps)
+def test_saturated_trend_is_the_trend_of_the_angle(
+    y: float, x: float, rate_dt: tuple[float, float]
+) -> None:
+    rate, dt = rate_dt
+    assert saturated_trend(y, x, rate, dt) == trend(math.atan2(y, x), rate, dt)
+
+
+@given(components, components)
+def test_saturated_trend_near_straight_ahead_is_exact(y: float, x: float) -> None:
+    """Tiny angles (the proportional part of the trend), where the shortcut must not cut."""
+    x = abs(x) + 1.0
+    y = y * 1e-7
+    assert saturated_trend(y, x, 0.5, 0.01) == trend(math.atan2(y, x), 0.5, 0.01)
+
+
+@given(components, components, components, st.floats(-math.pi, math.pi))
+def test_follow_direction_is_the_clamped_unit_direction(
+    gx: float, gy: float, gz: float, yaw: float
+) -> None:
+    """Eq. 14 as written with angles: the elevation of G clamped to ±MAX_FOLLOW_PITCH, in
+    G's heading (the current heading when G is straight up or down)."""
+    fx, fy, fz = follow_direction(gx, gy, gz, math.cos(yaw), math.sin(yaw))
+    assert math.isclose(fx * fx + fy * fy + fz * fz, 1.0, rel_tol=1e-12)
+    h = math.hypot(gx, gy)
+    if h == 0.0 and gz == 0.0:
+        assert (fx, fy, fz) == (math.cos(yaw), math.sin(yaw), 0.0)
+        return
+    elevation = min(max(math.atan2(gz, h), -MAX_FOLLOW_PITCH), MAX_FOLLOW_PITCH)
+    hx, hy = (gx / h, gy / h) if h > 0.0 else (math.cos(yaw), math.sin(yaw))
+    expected = (math.cos(elevation) * hx, math.cos(elevation) * hy, math.sin(elevation))
+    for got, want in zip((fx, fy, fz), expected, strict=True):
+        assert math.isclose(got, want, rel_tol=1e-12, abs_tol=1e-12)
