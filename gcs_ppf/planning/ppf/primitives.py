@@ -276,8 +276,8 @@ def follow_direction(
     in a spiral instead, so target following asks for at most this flight-path angle
     (obstacle avoidance may still use the whole range).  With no horizontal component
     the current heading (cos ψ, sin ψ) is kept.  Within the limit the attraction is the
-    direction itself, G/|G| (no angle is taken: ``atan2`` and its cosine and sine were a
-    sixth of the Table 3 step); steeper, the limit's elevation in G's heading.
+    direction itself, G/|G| (no angle is taken: without ``atan2`` and its cosine and sine
+    Table 3 plans 15–20 % faster); steeper, the limit's elevation in G's heading.
     """
     h2 = gx * gx + gy * gy
     if h2 > 0.0 and gz * gz <= TAN_MAX_FOLLOW_PITCH**2 * h2:
