@@ -15,9 +15,7 @@ import time
 
 from gcs_ppf.guidance import assurance
 from gcs_ppf.guidance.online import warm_up
-
-DEFAULT_PLANNER_DT_S = 0.02
-"""``Settings.planner_dt_s``'s default (the kernels compiled do not depend on it)."""
+from gcs_ppf.service.settings import Settings
 
 
 def load_kernels(planner_dt_s: float) -> None:
@@ -39,7 +37,8 @@ def _freeze_once() -> None:
 
 def main() -> int:
     started = time.perf_counter()
-    load_kernels(DEFAULT_PLANNER_DT_S)
+    # The settings' default Δt: the kernels compiled do not depend on it.
+    load_kernels(Settings.model_fields["planner_dt_s"].default)
     print(f"compiled kernels ready in numba's cache ({time.perf_counter() - started:.1f} s)")
     return 0
 
