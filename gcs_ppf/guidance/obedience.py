@@ -9,12 +9,15 @@ now a vehicle that has not obeyed for ``bound_s`` of vehicle time is flagged, th
 treat it as an uncontrolled moving obstacle, and it is cleared once it obeys again.  An
 autopilot stuck on its last command stays in GUIDED and ACKs everything ACCEPTED (the SITL's
 ``ignore`` fault; unflagged, it was flown around by no one while two teammates entered
-obstacles): so a vehicle must also fly the course it is sent, or be turning towards it.
+obstacles): so a vehicle must also fly the course it is sent, or be turning towards it —
+any course it was sent within the lag (``courses_in_effect``): what it reports now answers
+commands sent a lag ago.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,6 +35,22 @@ TURNING_RAD_S = 0.02
 """A vehicle turning towards the course sent at least this fast is converging."""
 TURN_FRACTION = 0.3
 """... or at least this fraction of the turn an obeying one makes (``expected_turn_rad_s``)."""
+
+
+RESPONSE_S = 1.0
+"""Beyond the lag, how long a course sent may still be what a vehicle is seen answering."""
+
+
+def courses_in_effect(
+    sent: Sequence[tuple[float, float]], now_s: float, lag_s: float
+) -> list[float]:
+    """Of the courses sent (mission time, course), those a vehicle's report now may answer:
+    sent within ``lag_s`` + ``RESPONSE_S`` of ``now_s``, and the latest in any case.
+    Measured (Table 3, ×5, 300 ms, 20 % loss, ~1 s of lag): judged against the latest
+    course only, obeying wingmen were flagged ``vehicle_not_responding`` in 4 of 30 runs
+    while their escapes changed course every half second."""
+    out = [c for t, c in sent if now_s - t <= lag_s + RESPONSE_S]
+    return out if out or not sent else [sent[-1][1]]
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,20 +105,23 @@ class Obedience:
 
     def update(self, now_s: float, reports: list[Report]) -> tuple[list[int], list[int]]:
         """One tick at vehicle time ``now_s``: the vehicles newly flagged, and those that
-        obey again."""
+        obey again.  A vehicle with several reports obeys if one of them does."""
         flagged: list[int] = []
         cleared: list[int] = []
-        for r in reports:
-            if self.obeys(r):
-                self.since_s.pop(r.vehicle_id, None)
-                if r.vehicle_id in self.not_responding:
-                    self.not_responding.discard(r.vehicle_id)
-                    cleared.append(r.vehicle_id)
+        obeying: dict[int, bool] = {}
+        for r in reports:  # several of one vehicle (one per course in effect): any will do
+            obeying[r.vehicle_id] = obeying.get(r.vehicle_id, False) or self.obeys(r)
+        for vid, obeys in obeying.items():
+            if obeys:
+                self.since_s.pop(vid, None)
+                if vid in self.not_responding:
+                    self.not_responding.discard(vid)
+                    cleared.append(vid)
                 continue
-            since = self.since_s.setdefault(r.vehicle_id, now_s)
-            if now_s - since >= self.bound_s and r.vehicle_id not in self.not_responding:
-                self.not_responding.add(r.vehicle_id)
-                flagged.append(r.vehicle_id)
+            since = self.since_s.setdefault(vid, now_s)
+            if now_s - since >= self.bound_s and vid not in self.not_responding:
+                self.not_responding.add(vid)
+                flagged.append(vid)
         return flagged, cleared
 
 

@@ -2,9 +2,10 @@
 obstacles, teammates, the ground — independently of the planner's state and predictions.
 
 Pure: positions in, violations out. The service feeds it the positions the vehicles report
-(GLOBAL_POSITION_INT converted to the ICS, not carried on or planned), and records each
-violation that begins as a ``safety_violation`` event; a run with one is never a plain
-``completed`` (issue 10, "honest outcomes").
+(GLOBAL_POSITION_INT converted to the ICS, not planned), each only carried to the instant of
+the newest one (``aligned``), and records each violation that begins as a
+``safety_violation`` event; a run with one is never a plain ``completed`` (issue 10,
+"honest outcomes").
 """
 
 from __future__ import annotations
@@ -33,6 +34,22 @@ class Violation:
     def key(self) -> tuple[Kind, int, int | None]:
         """What the violation is about (a teammate pair counted once, by the lower id)."""
         return (self.kind, self.vehicle_id, self.other)
+
+
+MAX_ALIGN_S = 1.0
+"""A position is carried at most this far (vehicle seconds) towards the newest one."""
+
+
+def aligned(positions: FloatArray, velocities: FloatArray, ages_s: FloatArray) -> FloatArray:
+    """Positions [N,3] reported ``ages_s`` [N] ago (vehicle seconds), each carried along its
+    reported velocity [N,3] to the instant of the newest (at most ``MAX_ALIGN_S``): the
+    latest reports of two vehicles are not of one moment.  Measured (Table 3, ×5, 300 ms,
+    20 % loss): two wingmen's latest reports, 0.1 s apart in their time, put them 46.5 m
+    apart where, on one instant, they never came closer than 58.4 m."""
+    if len(ages_s) == 0:
+        return positions
+    behind = np.clip(np.asarray(ages_s, dtype=float) - np.min(ages_s), 0.0, MAX_ALIGN_S)
+    return positions + velocities * behind[:, None]
 
 
 def violations(

@@ -47,6 +47,10 @@ HOLD_ACK_VEHICLE_S = 2.0
 DEFAULT_PATH_SLOPE = 0.4
 #: A guided point for an escape is put this far along its course (point guidance).
 ESCAPE_POINT_M = 1500.0
+SIDE_MEMORY_S = 3.0
+"""The way a vehicle's last escape turned binds its next one for this long after it went
+back to its plan (mission seconds; ``assurance.SIDE_SWITCH_S``): a wingman flew its plan
+and escapes to either side by turns, each for a few ticks, and flew straight on."""
 
 
 class Sender(Protocol):
@@ -123,11 +127,13 @@ async def command_fleet(
     hold_s: float,
     commanded_speed: dict[int, float],
     event: Callable[..., None],
-    escaping: dict[int, assurance.Command],
+    escaping: dict[int, assurance.Escape],
+    now_s: float,
 ) -> dict[int, assurance.Verdict]:
     """Send every active vehicle its commands for this tick, each assured first; returns
     each one's verdict (the command it was sent).  ``escaping`` holds each vehicle's escape
-    in force (kept by the assurance within its commitment), updated here."""
+    in force, or the way its last one turned for ``SIDE_MEMORY_S`` after it ended (mission
+    time ``now_s``), updated here."""
     mission = orders.mission
     turn_accel = mission.limits.v_max * mission.limits.max_yaw_rate  # the plan limits turns
     follows = speed_reference.follows_speed_plan(mission.limits.accel, mission.limits.decel)
@@ -143,18 +149,31 @@ async def command_fleet(
     lats, lons, alts = enu_to_geodetic_many(np.array(points).reshape(-1, 3), mission.origin)
     for k, (i, m, v) in enumerate(zip(idx, motions, verdicts, strict=True)):
         vid = g.ids[i]
+        remember(escaping, vid, v, now_s)
         if v.replaced:
-            escaping[vid] = v.command
             event("assurance_override", vid, keep_out=v.reason,
                   planned_margin_m=round(v.margin_m, 1), sent_margin_m=round(v.chosen_margin_m, 1),
-                  course_deg=round(90.0 - math.degrees(v.command.course_rad), 1))  # fmt: skip
-        else:
-            escaping.pop(vid, None)
+                  course_deg=round(90.0 - math.degrees(v.command.course_rad), 1),
+                  turn={1: "left", -1: "right"}.get(v.side, "straight"))  # fmt: skip
         where = (float(lats[k]), float(lons[k]), float(alts[k]))
         await _send_course(fleet, vid, planned[i], v, m, orders, where)
         slowest = mission.limits.v_min if v.replaced else None
         await _send_speed(fleet, vid, g, i, airframes[i], commanded_speed, follows, slowest)
     return {g.ids[i]: v for i, v in zip(idx, verdicts, strict=True)}
+
+
+def remember(
+    escaping: dict[int, assurance.Escape], vid: int, v: assurance.Verdict, now_s: float
+) -> None:
+    """``escaping`` after ``vid``'s verdict: its escape in force, or the way the last one
+    turned, until ``SIDE_MEMORY_S`` after it ended."""
+    last = escaping.get(vid)
+    if v.replaced:
+        escaping[vid] = assurance.Escape(v.command, v.side)
+    elif last is not None and last.ended_s is None:
+        escaping[vid] = assurance.Escape(None, last.side, now_s)
+    elif last is not None and last.ended_s is not None and now_s - last.ended_s > SIDE_MEMORY_S:
+        del escaping[vid]
 
 
 def _course_point(

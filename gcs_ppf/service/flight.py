@@ -13,6 +13,7 @@ import logging
 import math
 import statistics
 import time
+from collections import deque
 
 import numpy as np
 
@@ -28,7 +29,7 @@ from gcs_ppf.service.ending import confirm_holds, end
 from gcs_ppf.service.fleet import Vehicle, planning_states
 from gcs_ppf.service.run import NOT_RESPONDING_S, Run, RunState, changes, min_of
 from gcs_ppf.service.station import Station
-from gcs_ppf.service.watch import watch_safety
+from gcs_ppf.service.watch import reported_together, watch_safety
 
 log = logging.getLogger("gcs_ppf.service.runs")  # the runs' log, under its name of old
 
@@ -37,6 +38,7 @@ COURSE_COMMAND = {  # the command each guidance mode flies by
     "point": MAV_CMD_DO_REPOSITION,
 }
 RECENT_TICKS = 20  # the tick's own work is the median of this many latest
+SENT_COURSES_KEPT = 100  # courses kept per vehicle for the obedience check (10 s at 10 Hz)
 
 Located = list[tuple[Vehicle, tuple[float, float, float]]]
 """The run's vehicles that have reported a position, with it in the ICS."""
@@ -185,17 +187,20 @@ def check_obedience(
         t = v.telemetry
         ack = t.ack(command)
         guided = t.custom_mode == PlaneMode.GUIDED
+        result = ack.result if ack else None
         s = states.get(v.system_id)
-        sent = run.sent_course.get(v.system_id)
-        error = turn = expected = None
-        if s is not None and sent is not None:
-            error = math.remainder(sent - s.yaw_rad, math.tau)
-            turn = -t.course_rate_rad_s  # clockwise from north → ICS yaw rate
-            m = commanding.motion(s, airframes[v.system_id], run.mission)
+        sent = obedience.courses_in_effect(
+            run.sent_courses.get(v.system_id, ()), run.mission_time_s, run.fleet_lag.total_s
+        )
+        if s is None or not sent:
+            reports.append(obedience.Report(v.system_id, guided, result))
+            continue
+        turn = -t.course_rate_rad_s  # clockwise from north → ICS yaw rate
+        m = commanding.motion(s, airframes[v.system_id], run.mission)
+        for course in sent:
+            error = math.remainder(course - s.yaw_rad, math.tau)
             expected = min(m.turn_rate_rad_s, abs(error) / max(m.heading_tau_s, 1e-3))
-        reports.append(obedience.Report(
-            v.system_id, guided, ack.result if ack else None, error, turn or 0.0, expected
-        ))  # fmt: skip
+            reports.append(obedience.Report(v.system_id, guided, result, error, turn, expected))
     if run.tick_gaps_s and run.tick_gaps_s[-1] > NOT_RESPONDING_S:
         run.obedience.restart()  # no evidence across our own stall
     flagged, cleared = run.obedience.update(run.mission_time_s, reports)
@@ -238,9 +243,11 @@ async def tick(station: Station, run: Run) -> bool:
     if leader_id not in states:
         return False
     # what the vehicles report, not where they are predicted to be when commands act:
-    # the target is reached, and distances kept, by the reported positions
+    # the target is reached, and distances kept, by the reported positions (the distances
+    # on one instant, as the safety monitor takes them)
     reported = {v.system_id: pos for v, pos in located}
-    positions = np.array([reported[i] for i in sorted(active)], dtype=float)
+    together = dict(zip(reported, reported_together(located).tolist(), strict=True))
+    positions = np.array([together[i] for i in sorted(active)], dtype=float)
     obstacles = obstacles_from_mission(mission).at(run.mission_time_s)
     run.min_separation_m = min_of(run.min_separation_m, separations(positions))
     run.min_clearance_m = min_of(run.min_clearance_m, clearance(positions, obstacles))
@@ -308,9 +315,11 @@ async def plan_and_command(
                         run.fleet_lag, starvation_s)  # fmt: skip
     verdicts = await commanding.command_fleet(
         station.fleet, g, active, states, ordered, run.orders, keep, hold_s,
-        run.commanded_speed, station.events_of(run), run.escaping,
+        run.commanded_speed, station.events_of(run), run.escaping, run.mission_time_s,
     )  # fmt: skip
-    run.sent_course.update({vid: v.command.course_rad for vid, v in verdicts.items()})
+    for vid, v in verdicts.items():
+        sent = run.sent_courses.setdefault(vid, deque(maxlen=SENT_COURSES_KEPT))
+        sent.append((run.mission_time_s, v.command.course_rad))
 
 
 def sample(station: Station, run: Run) -> None:

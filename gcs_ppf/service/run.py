@@ -70,10 +70,11 @@ class Run:
     commanded_speed: dict[int, float] = field(default_factory=dict)
     ended_vehicle_s: float | None = None
     """The fleet's vehicle time when the run ended (``service.station.Station.fleet_time_s``)."""
-    escaping: dict[int, assurance.Command] = field(default_factory=dict)
-    """Each vehicle's escape in force (the run-time assurance's last replacement)."""
-    sent_course: dict[int, float] = field(default_factory=dict)
-    """The course (ICS yaw, rad) each vehicle was last sent."""
+    escaping: dict[int, assurance.Escape] = field(default_factory=dict)
+    """Each vehicle's escape in force (the run-time assurance's last replacement), or the
+    way its last one turned, for a while after it ended."""
+    sent_courses: dict[int, deque[tuple[float, float]]] = field(default_factory=dict)
+    """The courses (mission time, ICS yaw in rad) each vehicle was sent lately."""
     leader_pos: Any = None  # ICS position at the last tick
     tick_latency_s: deque[float] = field(default_factory=lambda: deque(maxlen=10_000))
     tick_gaps_s: deque[float] = field(default_factory=lambda: deque(maxlen=RECENT_GAPS))

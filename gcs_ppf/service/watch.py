@@ -5,11 +5,14 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import time
 
 import numpy as np
 
+from gcs_ppf.geodesy import velocity_ned_to_enu
 from gcs_ppf.guidance.online import home_ground
-from gcs_ppf.planning.scene import obstacles_from_mission
+from gcs_ppf.guidance.safety_monitor import aligned
+from gcs_ppf.planning.scene import FloatArray, obstacles_from_mission
 from gcs_ppf.service.fleet import Vehicle
 from gcs_ppf.service.run import Run, RunState, summary
 from gcs_ppf.service.station import Station
@@ -21,13 +24,14 @@ def watch_safety(
     station: Station, run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]],
     ground_z_m: float | None, after_end_s: float = 0.0,
 ) -> None:  # fmt: skip
-    """The safety monitor on the positions the vehicles report (not carried on, not
-    planned): a ``safety_violation`` event for each keep-out entered."""
+    """The safety monitor on the positions the vehicles report (not planned; each carried to
+    the instant of the newest, ``safety_monitor.aligned``): a ``safety_violation`` event
+    for each keep-out entered."""
     if not located:
         return
     lim = run.mission.limits
     began = run.safety.watch(
-        [v.system_id for v, _ in located], np.array([p for _, p in located], dtype=float),
+        [v.system_id for v, _ in located], reported_together(located),
         obstacles_from_mission(run.mission).at(run.mission_time_s + after_end_s), ground_z_m,
         lim.safe_distance_uav, lim.safe_distance_obstacle,
     )  # fmt: skip
@@ -35,6 +39,23 @@ def watch_safety(
     for v in began:
         station.event(run, "safety_violation", v.vehicle_id, keep_out=v.kind, other=v.other,
                       depth_m=round(v.depth_m, 1), **late)  # fmt: skip
+
+
+def reported_together(located: list[tuple[Vehicle, tuple[float, float, float]]]) -> FloatArray:
+    """The reported positions [N,3] (ICS) on one instant: each carried along its velocity by
+    how much older it is than the newest (its age since it arrived, on its own clock)."""
+    now = time.monotonic()
+    positions = np.array([p for _, p in located], dtype=float).reshape(-1, 3)
+    velocities = np.zeros_like(positions)
+    ages = np.zeros(len(located))
+    for k, (v, _) in enumerate(located):
+        t = v.telemetry
+        if t.vn_m_s is None or t.ve_m_s is None or t.vd_m_s is None:
+            continue  # no velocity: taken as it is
+        velocities[k] = velocity_ned_to_enu(t.vn_m_s, t.ve_m_s, t.vd_m_s)
+        if t.position_received_s is not None:
+            ages[k] = v.clock.vehicle_seconds(max(0.0, now - t.position_received_s))
+    return aligned(positions, velocities, ages)
 
 
 def ground(run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]]) -> float | None:

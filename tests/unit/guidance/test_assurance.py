@@ -14,14 +14,17 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gcs_ppf.guidance.assurance import (
+    SIDE_SWITCH_S,
     SLACK_S,
     Command,
+    Escape,
     KeepOut,
     Motion,
     advance,
     assure,
     hold_path,
     score,
+    turn_side,
 )
 from gcs_ppf.planning.scene import Obstacles
 
@@ -229,10 +232,36 @@ def test_an_escape_in_force_is_kept_rather_than_its_mirror() -> None:
     mirror = Command(-fresh.command.course_rad, fresh.command.z_m)
     assert fresh.chosen_margin_m < SLACK_S * SPEED
     assert score(m, mirror, 1.0, keep(walls), [])[0] == pytest.approx(fresh.chosen_margin_m)
-    [kept] = assure([m], [Command(0.0, 150.0)], hold_s=1.0, keep=keep(walls), escaping=[mirror])
+    side = turn_side(m, mirror.course_rad)
+    assert side == -fresh.side != 0
+    [kept] = assure([m], [Command(0.0, 150.0)], hold_s=1.0, keep=keep(walls),
+                    escaping=[Escape(mirror, side)])  # fmt: skip
     assert kept.command == mirror
     [none] = assure([m], [Command(0.0, 150.0)], hold_s=1.0, keep=keep(walls), escaping=[None])
     assert none.command == fresh.command
+
+
+def test_an_escape_keeps_turning_the_way_the_last_one_turned() -> None:
+    """A sphere ahead, a little to the left: afresh the vehicle escapes to the right (the
+    nearest course with the slack), but having escaped to the left a moment ago it keeps
+    turning left while that keeps out and is within ``SIDE_SWITCH_S`` of the best; with a
+    wall across the left as well, it turns right after all (measured: escapes sent left
+    and right by turns kept a wingman flying straight on into an obstacle)."""
+    m = plane(0.0, 0.0, 150.0, 0.0)
+    ahead = sphere(200.0, 20.0, 150.0, 100.0)
+    [fresh] = assure([m], [Command(0.0, 150.0)], hold_s=1.0, keep=keep(ahead))
+    assert fresh.replaced
+    assert fresh.side == -1 == turn_side(m, fresh.command.course_rad)
+    [bound] = assure([m], [Command(0.0, 150.0)], 1.0, keep(ahead), [Escape(None, 1)])
+    assert bound.replaced
+    assert bound.side == 1 == turn_side(m, bound.command.course_rad)
+    assert 0.0 <= bound.chosen_margin_m < fresh.chosen_margin_m
+    walled = Obstacles(np.array([[200.0, 20.0, 150.0], [0.0, 140.0, 150.0]]),
+                       np.array([100.0, 80.0]), np.zeros((2, 3)))  # fmt: skip
+    [switched] = assure([m], [Command(0.0, 150.0)], 1.0, keep(walled), [Escape(None, 1)])
+    assert switched.side == -1
+    assert switched.chosen_margin_m > 0.0
+    assert fresh.chosen_margin_m - bound.chosen_margin_m < SIDE_SWITCH_S * SPEED
 
 
 def test_after_warm_up_nothing_is_compiled_in_flight() -> None:

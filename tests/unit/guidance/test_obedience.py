@@ -8,7 +8,13 @@ import math
 import numpy as np
 import pytest
 
-from gcs_ppf.guidance.obedience import Obedience, Report, as_obstacles, with_obstacles
+from gcs_ppf.guidance.obedience import (
+    Obedience,
+    Report,
+    as_obstacles,
+    courses_in_effect,
+    with_obstacles,
+)
 from gcs_ppf.guidance.online import VehicleState
 from gcs_ppf.planning.scene import Obstacles
 
@@ -113,3 +119,28 @@ def test_a_fast_vehicle_a_few_degrees_off_obeys_turning_as_slowly_as_expected() 
     assert Obedience.obeys(toward)
     assert not Obedience.obeys(Report(4, True, ACCEPTED, math.radians(8.0), 0.005, 0.03))
     assert not Obedience.obeys(Report(4, True, ACCEPTED, math.radians(8.0), -0.05, 0.03))
+
+
+def test_the_courses_in_effect_are_those_sent_within_the_lag() -> None:
+    """A report answers commands sent a lag ago: the courses sent within the lag and
+    ``RESPONSE_S`` count, the latest always, none when none was sent."""
+    sent = [(10.0, 0.1), (10.9, 0.2), (11.8, 0.3), (12.0, 0.4)]
+    assert courses_in_effect(sent, 12.0, 0.0) == [0.3, 0.4]
+    assert courses_in_effect(sent, 12.0, 0.5) == [0.2, 0.3, 0.4]
+    assert courses_in_effect(sent, 30.0, 1.0) == [0.4]
+    assert courses_in_effect([], 12.0, 1.0) == []
+
+
+def test_a_vehicle_answering_an_earlier_course_obeys() -> None:
+    """Escapes sent left and right by turns: the vehicle still turns towards the course
+    sent a moment ago, away from the latest.  One report per course in effect; it obeys
+    if it obeys one, and is flagged only if it obeys none for the bound."""
+    ob = Obedience(bound_s=3.0)
+    left, right = math.radians(40.0), math.radians(-40.0)
+    turning_left = 0.2
+    for t in (0.0, 1.0, 2.0, 3.0):
+        reports = [Report(4, True, ACCEPTED, e, turning_left, 0.3) for e in (left, right)]
+        assert ob.update(t, reports) == ([], [])
+    latest_only = [Report(4, True, ACCEPTED, right, turning_left, 0.3)]
+    ob.update(4.0, latest_only)
+    assert ob.update(7.0, latest_only) == ([4], [])

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as hs
 
-from gcs_ppf.guidance.safety_monitor import Monitor, violations
+from gcs_ppf.guidance.safety_monitor import MAX_ALIGN_S, Monitor, aligned, violations
 from gcs_ppf.planning.scene import Obstacles
 
 
@@ -86,3 +86,20 @@ def test_watching_counts_the_ground_once_a_vehicle_has_been_clear_of_it() -> Non
     assert mon.watch([1], np.array([[0.0, 0.0, 80.0]]), spheres(), 0.0, 50.0, 25.0) == []
     began = mon.watch([1], low, spheres(), 0.0, 50.0, 25.0)
     assert [(v.kind, v.vehicle_id) for v in began] == [("ground", 1)]
+
+
+def test_reports_of_different_moments_are_carried_to_the_newest() -> None:
+    """Two vehicles 60 m apart at one instant, one flying away from the other: its report,
+    0.2 s older, puts them 40 m apart; carried along its velocity to the newer report's
+    instant (at most ``MAX_ALIGN_S``), it is where it is.  Without ages, nothing moves."""
+    positions = np.array([[20.0, 0.0, 100.0], [60.0, 0.0, 100.0]])
+    velocities = np.array([[-100.0, 0.0, 0.0], [0.0, 100.0, 0.0]])
+    none = spheres()
+    assert violations([1, 2], positions, none, None, 50.0, 25.0)  # two moments compared
+    together = aligned(positions, velocities, np.array([0.5, 0.3]))
+    assert together[0] == pytest.approx([0.0, 0.0, 100.0])
+    assert together[1] == pytest.approx(positions[1])
+    assert not violations([1, 2], together, none, None, 50.0, 25.0)
+    far = aligned(positions, velocities, np.array([5.0, 0.0]))
+    assert far[0] == pytest.approx([20.0 - 100.0 * MAX_ALIGN_S, 0.0, 100.0])
+    assert aligned(positions, velocities, np.zeros(2)) == pytest.approx(positions)

@@ -17,7 +17,15 @@ from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.scene import Obstacles, scene_from_mission
-from gcs_ppf.service.commanding import Orders, command_fleet, hold_orders, motion, stack_level
+from gcs_ppf.service.commanding import (
+    SIDE_MEMORY_S,
+    Orders,
+    command_fleet,
+    hold_orders,
+    motion,
+    remember,
+    stack_level,
+)
 from tests.conftest import EXAMPLES
 
 
@@ -59,7 +67,7 @@ def test_a_vehicle_whose_command_is_replaced_by_an_escape_is_told_to_fly_its_slo
     fleet = Recorder()
     verdicts = asyncio.run(command_fleet(
         fleet, g, {1}, states, [Airframe()], Orders(mission, "course", 1.0), keep, 1.0, {},
-        lambda *a, **k: None, {},
+        lambda *a, **k: None, {}, 0.0,
     ))  # fmt: skip
     assert verdicts[1].replaced
     speeds = [m.param2 for m in fleet.sent if m.get_type() == "COMMAND_LONG"
@@ -122,3 +130,23 @@ def test_every_vehicle_holds_at_the_missions_slowest_speed() -> None:
         speed = mine[1].make()
         assert speed.command == commands.MAV_CMD_DO_CHANGE_SPEED
         assert speed.param2 == pytest.approx(120.0 if vid == 3 else mission.limits.v_min)
+
+
+def test_the_way_an_escape_turned_is_remembered_for_a_while_after_it() -> None:
+    """While a vehicle escapes its escape is in force; back on its plan, the way it turned
+    is remembered for ``SIDE_MEMORY_S`` of mission time, then forgotten."""
+    escaping: dict[int, assurance.Escape] = {}
+    escape = assurance.Command(0.5, 300.0)
+    planned = assurance.Command(0.0, 300.0)
+    replaced = assurance.Verdict(escape, True, "obstacle", -5.0, 40.0, side=1)
+    kept = assurance.Verdict(planned, False, None, 60.0, 60.0)
+    remember(escaping, 7, replaced, 10.0)
+    assert escaping[7] == assurance.Escape(escape, 1)
+    remember(escaping, 7, kept, 10.1)
+    assert escaping[7] == assurance.Escape(None, 1, 10.1)
+    remember(escaping, 7, kept, 10.1 + SIDE_MEMORY_S)
+    assert escaping[7].side == 1
+    remember(escaping, 7, kept, 10.2 + SIDE_MEMORY_S)
+    assert 7 not in escaping
+    remember(escaping, 8, kept, 11.0)
+    assert escaping == {}
