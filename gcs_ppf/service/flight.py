@@ -234,8 +234,13 @@ async def tick(station: Station, run: Run) -> bool:
         [(pos[2], v.telemetry.relative_alt_m) for v, pos in located
          if v.telemetry.relative_alt_m is not None]
     )  # fmt: skip
+    # what the vehicles report, on one instant (the safety monitor's and the status's
+    # distances), of those not lost (``losses`` has just matched them to the fleet's)
     reporting = [(v, p) for v, p in located if v.system_id not in run.lost_ids]
-    watch_safety(station, run, reporting, mission.ground if mission.ground is not None else ground)
+    ids = [v.system_id for v, _ in reporting]
+    together = reported_together(reporting)
+    watch_safety(station, run, ids, together,
+                 mission.ground if mission.ground is not None else ground)  # fmt: skip
     recent = list(itertools.islice(reversed(run.tick_latency_s), RECENT_TICKS))
     work = statistics.median(recent) if recent else 0.0
     states, active, lags = planning_states(located, work)
@@ -243,11 +248,10 @@ async def tick(station: Station, run: Run) -> bool:
     if leader_id not in states:
         return False
     # what the vehicles report, not where they are predicted to be when commands act:
-    # the target is reached, and distances kept, by the reported positions (the distances
-    # on one instant, as the safety monitor takes them)
+    # the target is reached, and distances kept, by the reported positions
     reported = {v.system_id: pos for v, pos in located}
-    together = dict(zip(reported, reported_together(located).tolist(), strict=True))
-    positions = np.array([together[i] for i in sorted(active)], dtype=float)
+    at = {vid: k for k, vid in enumerate(ids)}
+    positions = together[[at[i] for i in sorted(active)]].reshape(-1, 3)
     obstacles = obstacles_from_mission(mission).at(run.mission_time_s)
     run.min_separation_m = min_of(run.min_separation_m, separations(positions))
     run.min_clearance_m = min_of(run.min_clearance_m, clearance(positions, obstacles))

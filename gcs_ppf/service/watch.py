@@ -21,17 +21,17 @@ WATCH_AFTER_END_S = 60.0  # vehicle seconds the safety monitor goes on after a r
 
 
 def watch_safety(
-    station: Station, run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]],
+    station: Station, run: Run, ids: list[int], positions: FloatArray,
     ground_z_m: float | None, after_end_s: float = 0.0,
 ) -> None:  # fmt: skip
-    """The safety monitor on the positions the vehicles report (not planned; each carried to
-    the instant of the newest, ``safety_monitor.aligned``): a ``safety_violation`` event
-    for each keep-out entered."""
-    if not located:
+    """The safety monitor on the positions [N,3] the vehicles ``ids`` report, on one instant
+    (``reported_together``; not planned): a ``safety_violation`` event for each keep-out
+    entered."""
+    if not ids:
         return
     lim = run.mission.limits
     began = run.safety.watch(
-        [v.system_id for v, _ in located], reported_together(located),
+        ids, positions,
         obstacles_from_mission(run.mission).at(run.mission_time_s + after_end_s), ground_z_m,
         lim.safe_distance_uav, lim.safe_distance_obstacle,
     )  # fmt: skip
@@ -88,7 +88,8 @@ async def watch_after_end(station: Station, run: Run) -> None:
             return
         located = [(v, p) for v, p in station.located(run) if not v.lost]
         before = run.safety.count
-        watch_safety(station, run, located, ground(run, located), now - start)
+        watch_safety(station, run, [v.system_id for v, _ in located],
+                     reported_together(located), ground(run, located), now - start)  # fmt: skip
         if run.safety.count > before and run.state == RunState.COMPLETED:
             run.state = RunState.COMPLETED_UNSAFE
             run.outcome = f"{run.outcome}; a safety violation after the end"
