@@ -261,14 +261,14 @@ def run_fleet(
             nearby_obstacles(pos, obs_center, obs_radius, obs_velocity, lim, dt,
                              NEIGHBOUR_LIST_STEPS, near_start, near_obstacles)  # fmt: skip
             if step == 0 or mate_search != MATES_ALL_PAIRS:
-                mates = nearby_teammates(pos, pitch, yaw, speed, rank, active, lim, dt,
+                mates = nearby_teammates(pos, trig, speed, rank, active, lim, dt,
                                          MATE_LIST_STEPS, mate_search, mate_start,
                                          mates)  # fmt: skip
             if close.shape[0] < mates.shape[0]:
                 close = np.empty(mates.shape[0], dtype=np.int64)
         step_start, step_mates = mate_start, mates
         if refine:
-            refine_teammates(pos, pitch, yaw, speed, lim, dt, MATE_REFINE_STEPS, mate_start,
+            refine_teammates(pos, trig, speed, lim, dt, MATE_REFINE_STEPS, mate_start,
                              mates, close_start, close)  # fmt: skip
             step_start, step_mates = close_start, close
         step, records, elapsed, arrived = run_steps(

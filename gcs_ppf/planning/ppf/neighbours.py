@@ -290,8 +290,7 @@ def _grid(
 
 @njit(cache=True)
 def _mate_bounds(
-    pitch: np.ndarray,
-    yaw: np.ndarray,
+    trig: np.ndarray,
     speed: np.ndarray,
     lim: KernelLimits,
     dt: float,
@@ -299,7 +298,9 @@ def _mate_bounds(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, float]:
     """Each vehicle's part of the bounds of ``_within_reach`` over ``horizon_steps`` steps:
     its ``speed_bound``, ``velocity_change``, ``mate_reach_own`` and ``mate_reach_other``
-    ``[N]``, its velocity ``[N,3]``, and the fleet's highest speed bound."""
+    ``[N]``, its velocity ``[N,3]`` (Eq. 5, from cos θ, sin θ, cos ψ, sin ψ in
+    ``trig[N, 0:4]``, as the step keeps them: no angle is taken again), and the fleet's
+    highest speed bound."""
     n = speed.shape[0]
     bound = np.empty(n)
     change = np.empty(n)
@@ -312,10 +313,9 @@ def _mate_bounds(
         change[i] = velocity_change(speed[i], bound[i], lim, dt, horizon_steps)
         own[i] = mate_reach_own(bound[i], lim, dt, horizon_steps)
         other[i] = mate_reach_other(bound[i], lim, dt, horizon_steps)
-        cp = math.cos(pitch[i])
-        vel[i, 0] = speed[i] * cp * math.cos(yaw[i])
-        vel[i, 1] = speed[i] * cp * math.sin(yaw[i])
-        vel[i, 2] = speed[i] * math.sin(pitch[i])
+        vel[i, 0] = speed[i] * trig[i, 0] * trig[i, 2]
+        vel[i, 1] = speed[i] * trig[i, 0] * trig[i, 3]
+        vel[i, 2] = speed[i] * trig[i, 1]
         fastest = max(fastest, bound[i])
     return bound, change, own, other, vel, fastest
 
@@ -354,8 +354,7 @@ def _within_reach(
 @njit(cache=True)
 def _mates_grid(
     pos: np.ndarray,
-    pitch: np.ndarray,
-    yaw: np.ndarray,
+    trig: np.ndarray,
     speed: np.ndarray,
     rank: np.ndarray,
     active: np.ndarray,
@@ -369,8 +368,7 @@ def _mates_grid(
     of cells one largest ``mate_reach`` wide (a counting sort keeps each cell in index
     order)."""
     n = pos.shape[0]
-    bound, change, own, other, vel, fastest = _mate_bounds(pitch, yaw, speed, lim, dt,
-                                                           horizon_steps)  # fmt: skip
+    bound, change, own, other, vel, fastest = _mate_bounds(trig, speed, lim, dt, horizon_steps)
     widest = mate_reach_own(fastest, lim, dt, horizon_steps)
     size = widest + mate_reach_other(fastest, lim, dt, horizon_steps)
     cell, _, shape, _, cell_start, in_cell = _grid(pos, size)
@@ -409,8 +407,7 @@ def _mates_grid(
 @njit(cache=True)
 def refine_teammates(
     pos: np.ndarray,
-    pitch: np.ndarray,
-    yaw: np.ndarray,
+    trig: np.ndarray,
     speed: np.ndarray,
     lim: KernelLimits,
     dt: float,
@@ -422,14 +419,15 @@ def refine_teammates(
 ) -> None:
     """The teammates of the lists ``mates[mate_start[i]:mate_start[i+1]]`` (``nearby_teammates``)
     that are ``_within_reach`` over the next ``horizon_steps`` steps, into ``near`` (room
-    for ``mate_start[N]``) in CSR form (``near_start[N+1]``), in the same order.
+    for ``mate_start[N]``) in CSR form (``near_start[N+1]``), in the same order
+    (``trig`` as for ``nearby_teammates``).
 
     A list built for a longer horizon that covers these steps (``MATE_REFINE_STEPS``
     divides ``NEIGHBOUR_LIST_STEPS`` in ``rollout``) holds every teammate that can matter
     in them, so the shorter list does too, and a step decides with it exactly as with the
     longer one; it is shorter because the velocities can change less over fewer steps (in
     the formation of 500, 7.5 of 23.7 teammates a vehicle over 5 steps)."""
-    bound, change, own, other, vel, _ = _mate_bounds(pitch, yaw, speed, lim, dt, horizon_steps)
+    bound, change, own, other, vel, _ = _mate_bounds(trig, speed, lim, dt, horizon_steps)
     count = 0
     for i in range(pos.shape[0]):
         near_start[i] = count
@@ -452,8 +450,7 @@ def mate_search_for(search: int, n_vehicles: int) -> int:
 @njit(cache=True)
 def nearby_teammates(
     pos: np.ndarray,
-    pitch: np.ndarray,
-    yaw: np.ndarray,
+    trig: np.ndarray,
     speed: np.ndarray,
     rank: np.ndarray,
     active: np.ndarray,
@@ -469,12 +466,13 @@ def nearby_teammates(
     (lower rank), and for ``MATES_GRID`` within ``mate_reach`` and ``miss_reach`` (the
     influence radius, and the closest approach at the relative speed it can reach; see
     ``teammate_conflict``) (``MATES_AUTO``: chosen by
-    the fleet's size).  Fills ``mate_start[N+1]`` and returns the list (``mates``, or a
+    the fleet's size).  ``trig[N, 0:4]`` holds each vehicle's cos θ, sin θ, cos ψ, sin ψ
+    (``attitude_trig``).  Fills ``mate_start[N+1]`` and returns the list (``mates``, or a
     larger array when it had no room): vehicle i's mates are
     ``mates[mate_start[i]:mate_start[i+1]]``, in ascending index order."""
     search = mate_search_for(search, pos.shape[0])
     if search == MATES_GRID and pos.shape[0] > 1:
         return _mates_grid(
-            pos, pitch, yaw, speed, rank, active, lim, dt, horizon_steps, mate_start, mates
+            pos, trig, speed, rank, active, lim, dt, horizon_steps, mate_start, mates
         )
     return _mates_all_pairs(rank, active, mate_start, mates)

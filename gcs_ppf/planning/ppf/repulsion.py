@@ -118,7 +118,7 @@ def teammate_conflict(
     margin, 180 m at ArduPlane's 28 m/s) the slots 141 m apart of a five-vehicle formation
     were conflicts whenever two neighbours closed at all, and on real ArduPlane each wingman
     entered avoidance 20–39 times in a run and the formation never held 10 s.
-    Returns (kind, unit miss vector).
+    Returns (kind, unit miss vector; zero unless ``CONFLICT``).
     """
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     approach = wx * dx + wy * dy + wz * dz  # > 0: the gap is shrinking
@@ -142,13 +142,15 @@ def teammate_conflict(
     radius += vk * AVOIDANCE_TURN_ANGLE / omega
     if d > radius or d == 0.0:
         return NO_CONFLICT, 0.0, 0.0, 0.0
+    if miss2 >= threshold * threshold:  # (no miss vector: nothing is pushed)
+        return JUST_CLEAR, 0.0, 0.0, 0.0
     mx, my, mz = dx - wx * t_cpa, dy - wy * t_cpa, dz - wz * t_cpa
     miss = math.sqrt(mx * mx + my * my + mz * mz)
     if miss > 1e-6 * d:
         mx, my, mz = mx / miss, my / miss, mz / miss
     else:
         mx, my, mz = dx / d, dy / d, dz / d
-    return (JUST_CLEAR if miss2 >= threshold * threshold else CONFLICT), mx, my, mz
+    return CONFLICT, mx, my, mz
 
 
 @njit(cache=True, inline="always")

@@ -8,6 +8,7 @@ import pytest
 from gcs_ppf.mission import Limits, load_mission_file
 from gcs_ppf.offline.benchmark import synthetic_scene
 from gcs_ppf.planning.planner import MateSearch, Trajectory, advance
+from gcs_ppf.planning.ppf.kernel import attitude_trig
 from gcs_ppf.planning.ppf.neighbours import (
     MATES_ALL_PAIRS,
     MATES_GRID,
@@ -112,11 +113,13 @@ def test_the_grid_keeps_fewer_mates_than_all_pairs() -> None:
     scene = synthetic_scene(500, 0)
     f = scene.fleet
     n = f.pos.shape[0]
+    trig = np.empty((n, 7))
+    attitude_trig(f.pitch, f.yaw, trig)
     counts = {}
     for search in (MATES_ALL_PAIRS, MATES_GRID):
         start = np.zeros(n + 1, dtype=np.int64)
         mates = nearby_teammates(
-            f.pos, f.pitch, f.yaw, f.speed, f.rank, f.active, scene.limits, 0.01, 25,
+            f.pos, trig, f.speed, f.rank, f.active, scene.limits, 0.01, 25,
             search, start, np.empty(4, dtype=np.int64),
         )  # fmt: skip
         for i in range(n):  # ascending, active, of higher priority
