@@ -352,6 +352,22 @@ def _within_reach(
 
 
 @njit(cache=True)
+def _by_priority(rank: np.ndarray, cell_start: np.ndarray, in_cell: np.ndarray) -> np.ndarray:
+    """``in_cell`` with each cell's vehicles in order of priority (ascending rank; by index
+    among equals): an insertion sort of each cell."""
+    ordered = in_cell.copy()
+    for c in range(cell_start.shape[0] - 1):
+        for s in range(cell_start[c] + 1, cell_start[c + 1]):
+            k = ordered[s]
+            b = s
+            while b > cell_start[c] and rank[ordered[b - 1]] > rank[k]:
+                ordered[b] = ordered[b - 1]
+                b -= 1
+            ordered[b] = k
+    return ordered
+
+
+@njit(cache=True)
 def _mates_grid(
     pos: np.ndarray,
     trig: np.ndarray,
@@ -365,13 +381,15 @@ def _mates_grid(
     mates: np.ndarray,
 ) -> np.ndarray:
     """The active teammates of higher priority ``_within_reach``, found in a uniform grid
-    of cells one largest ``mate_reach`` wide (a counting sort keeps each cell in index
-    order)."""
+    of cells one largest ``mate_reach`` wide: vehicle i looks at the vehicles of the 27
+    cells round its own in order of priority (``_by_priority``) up to its own, never at
+    one of lower priority; its list is then sorted by index (insertion)."""
     n = pos.shape[0]
     bound, change, own, other, vel, fastest = _mate_bounds(trig, speed, lim, dt, horizon_steps)
     widest = mate_reach_own(fastest, lim, dt, horizon_steps)
     size = widest + mate_reach_other(fastest, lim, dt, horizon_steps)
     cell, _, shape, _, cell_start, in_cell = _grid(pos, size)
+    by_priority = _by_priority(rank, cell_start, in_cell)
     found = np.empty(n, dtype=np.int64)
     count = 0
     for i in range(n):
@@ -384,11 +402,11 @@ def _mates_grid(
                 for az in range(max(cell[i, 2] - 1, 0), min(cell[i, 2] + 2, shape[2])):
                     c = (ax * shape[1] + ay) * shape[2] + az
                     for s in range(cell_start[c], cell_start[c + 1]):
-                        k = in_cell[s]
-                        if k == i or not active[k] or rank[k] >= rank[i]:
-                            continue
-                        if _within_reach(i, k, pos, bound, change, own, other, vel, lim, dt,
-                                         horizon_steps):  # fmt: skip
+                        k = by_priority[s]
+                        if rank[k] >= rank[i]:  # (i itself, and every one after it)
+                            break
+                        if active[k] and _within_reach(i, k, pos, bound, change, own, other,
+                                                       vel, lim, dt, horizon_steps):  # fmt: skip
                             found[m] = k
                             m += 1
         mates = _grow(mates, count + m)

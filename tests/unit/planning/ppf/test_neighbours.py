@@ -22,9 +22,12 @@ from tests.conftest import EXAMPLES
 FIELDS = ("t", "pos", "pitch", "yaw", "speed", "state", "avoiding", "formed")
 
 
-def melee(n: int, seed: int, climb_limit: float | None = None, m: int = 5) -> Scene:
-    """N vehicles in a 3 km box, every heading and speed, random priorities, a tenth of
-    them inactive, among M spheres (one moving): teammate conflicts all the time."""
+def melee(
+    n: int, seed: int, climb_limit: float | None = None, m: int = 5, tied: bool = False
+) -> Scene:
+    """N vehicles in a 3 km box, every heading and speed, random priorities (``tied``:
+    three vehicles to a priority on average), a tenth of them inactive, among M spheres (one
+    moving): teammate conflicts all the time."""
     rng = np.random.default_rng(seed)
     pos = rng.uniform(-1500.0, 1500.0, (n, 3)) * [1.0, 1.0, 0.2]
     active = rng.random(n) > 0.1
@@ -36,7 +39,7 @@ def melee(n: int, seed: int, climb_limit: float | None = None, m: int = 5) -> Sc
         yaw=rng.uniform(-np.pi, np.pi, n),
         speed=rng.uniform(100.0, 300.0, n),
         slot=np.zeros((n, 3)),
-        rank=rng.permutation(n).astype(np.int64),
+        rank=(rng.integers(0, n // 3, n) if tied else rng.permutation(n)).astype(np.int64),
         active=active,
     )
     velocity = np.zeros((m, 3))
@@ -84,6 +87,13 @@ def test_a_melee_of_conflicts_plans_the_same_with_the_grid(
 ) -> None:
     plan = assert_same_plan(melee(60, seed, climb_limit, m), 1500)
     assert plan.avoiding.sum() > 1000  # teammates repelled each other throughout
+
+
+def test_tied_priorities_plan_the_same_with_the_grid() -> None:
+    scene = melee(60, 3, tied=True)
+    assert np.unique(scene.fleet.rank).size < 40  # (vehicles of one priority ignore each other)
+    plan = assert_same_plan(scene, 1500)
+    assert plan.avoiding.sum() > 1000
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
