@@ -21,7 +21,6 @@ from gcs_ppf.planning.ppf.primitives import (
     catching_up_speed,
     falling_back_speed,
     follow_direction,
-    influence_radius,
     slot_to_ics,
     trend,
 )
@@ -162,6 +161,7 @@ def attraction(
     speed: np.ndarray,
     mate_start: np.ndarray,
     mates: np.ndarray,
+    own_reach: float,
     lim: KernelLimits,
     dt: float,
     cy: float,
@@ -178,7 +178,8 @@ def attraction(
     higher priority within ``CROSSING_REACH`` safe distances (and within reach of
     ``teammate_conflict``, so that they are in its list
     ``mates[mate_start[i]:mate_start[i+1]]``); of those the way passes too close to, the
-    first along the way decides.
+    first along the way decides.  ``own_reach`` is vehicle i's R(v_i) + v_i·Δt (as for
+    ``teammate_conflict``).
     """
     px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
@@ -190,7 +191,6 @@ def attraction(
     # A wingman within the target accuracy of G has no way to pass anyone on.
     way2 = (gx - px) ** 2 + (gy - py) ** 2 + (gz - pz) ** 2
     last = mate_start[i + 1] if i > 0 and way2 > lim.target_accuracy**2 else mate_start[i]
-    own = influence_radius(vi, omega, lim.safe_distance_uav) + vi * dt
     farthest = CROSSING_REACH * lim.safe_distance_uav
     for c in range(mate_start[i], last):
         k = mates[c]
@@ -198,7 +198,7 @@ def attraction(
         d2 = dx * dx + dy * dy + dz * dz
         if d2 > farthest * farthest:  # (beyond the reach below whatever the speeds)
             continue
-        reach = min(own + speed[k] * AVOIDANCE_TURN_ANGLE / omega, farthest)
+        reach = min(own_reach + speed[k] * AVOIDANCE_TURN_ANGLE / omega, farthest)
         if d2 > reach * reach:
             continue
         s, vx, vy, vz = crossing_point(

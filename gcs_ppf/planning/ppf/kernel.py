@@ -271,15 +271,19 @@ def fleet_step(
     unit_velocities(speed, trig, direction)  # Eq. 5
     wait_speed = formation_targets(pos, slot, active, trig, direction, lim, local_target, formed)
     ux, uy, uz = direction[0, 0], direction[0, 1], direction[0, 2]  # the leader's direction
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     for i in range(pos.shape[0]):
         if not active[i]:
             continue
         cp, sp, cy, sy = trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3]
         # Attraction (Eq. 14): the way to the target point, passing teammates.
         g = target if i == 0 else local_target[i]
+        # Its reach among teammates: R(v_i) of the safe distance (Eq. 10–11) and a step.
+        own_reach = influence_radius(speed[i], omega, lim.safe_distance_uav) + speed[i] * dt
         fx, fy, fz, ax, ay, az = attraction(
-            i, g[0], g[1], g[2], ux, uy, uz, pos, speed, mate_start, mates, lim, dt, cy, sy
-        )
+            i, g[0], g[1], g[2], ux, uy, uz, pos, speed, mate_start, mates, own_reach, lim, dt,
+            cy, sy,
+        )  # fmt: skip
         # Repulsion (Eq. 12–13): the obstacles', then the teammates' of higher priority,
         # never pushing the vehicle into an obstacle (``obstacles_first``).
         ox, oy, oz, moving_obstacle = obstacle_repulsion(
@@ -287,8 +291,9 @@ def fleet_step(
             lim, dt,
         )  # fmt: skip
         rx, ry, rz, mate, hold_course = teammate_conflicts(
-            i, ox, oy, oz, fx, fy, fz, pos, speed, trig, mate_start, mates, formed, lim, dt
-        )
+            i, ox, oy, oz, fx, fy, fz, pos, speed, trig, mate_start, mates, formed, own_reach,
+            lim, dt,
+        )  # fmt: skip
         rx, ry, rz = obstacles_first(rx, ry, rz, ox, oy, oz)
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0
         avoiding[i] = repelled

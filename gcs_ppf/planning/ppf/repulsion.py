@@ -89,7 +89,7 @@ def obstacle_repulsion(
 
 
 @njit(cache=True, inline="always")
-def teammate_conflict(
+def closest_approach(
     dx: float,
     dy: float,
     dz: float,
@@ -100,11 +100,49 @@ def teammate_conflict(
     vk: float,
     lim: KernelLimits,
     dt: float,
+    in_formation: bool,
+) -> tuple[bool, float, float, float]:
+    """The closest approach of ``teammate_conflict`` (its arguments): (whether the two
+    close on each other, its time t_cpa within the horizon, the squared miss distance
+    then, the distance under which the mate repels); only the first is set when they do
+    not close."""
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    approach = wx * dx + wy * dy + wz * dz  # > 0: the gap is shrinking
+    w2 = wx * wx + wy * wy + wz * wz
+    if approach <= 0.0 or w2 == 0.0:  # (w2 can underflow while approach does not)
+        return False, 0.0, 0.0, 0.0
+    d2 = dx * dx + dy * dy + dz * dz
+    # Closest approach within the horizon (straight flight), and its time.
+    t_cpa = min(approach / w2, CONFLICT_HORIZON_TURNS * AVOIDANCE_TURN_ANGLE / omega)
+    miss2 = d2 - 2.0 * approach * t_cpa + w2 * t_cpa * t_cpa
+    # Either vehicle may be turning at full rate meanwhile (½ v ω t² each, at most one
+    # more safe distance).
+    turning = 0.0
+    if not in_formation:
+        turning = min(0.5 * (vi + vk) * omega * t_cpa * t_cpa, lim.safe_distance_uav)
+    return True, t_cpa, miss2, lim.safe_distance_uav + (2.0 * vi * dt + turning)
+
+
+@njit(cache=True, inline="always")
+def teammate_conflict(
+    dx: float,
+    dy: float,
+    dz: float,
+    wx: float,
+    wy: float,
+    wz: float,
+    vi: float,
+    vk: float,
+    own_reach: float,
+    lim: KernelLimits,
+    dt: float,
     in_formation: bool = False,
 ) -> tuple[int, float, float, float]:
     """One teammate k of higher priority as a moving obstacle (Eq. 12–13, formation model).
 
-    (dx, dy, dz) is vehicle i's offset from k, (wx, wy, wz) k's velocity relative to i.
+    (dx, dy, dz) is vehicle i's offset from k, (wx, wy, wz) k's velocity relative to i,
+    ``own_reach`` vehicle i's R(v_i) + v_i·Δt (the influence radius of the safe distance,
+    ``influence_radius``, and a step).
     The mate repels (``CONFLICT``) only while the two close on each other and, within a
     quarter turn's time, would come nearer than the safe distance plus what turning at
     full rate could take off it (closest point of approach); mates flying alongside do
@@ -120,26 +158,13 @@ def teammate_conflict(
     entered avoidance 20–39 times in a run and the formation never held 10 s.
     Returns (kind, unit miss vector; zero unless ``CONFLICT``).
     """
-    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
-    approach = wx * dx + wy * dy + wz * dz  # > 0: the gap is shrinking
-    w2 = wx * wx + wy * wy + wz * wz
-    if approach <= 0.0 or w2 == 0.0:  # (w2 can underflow while approach does not)
+    closing, t_cpa, miss2, threshold = closest_approach(
+        dx, dy, dz, wx, wy, wz, vi, vk, lim, dt, in_formation
+    )
+    if not closing or miss2 >= (threshold + lim.safe_distance_uav) ** 2:
         return NO_CONFLICT, 0.0, 0.0, 0.0
-    d2 = dx * dx + dy * dy + dz * dz
-    # Closest approach within the horizon (straight flight), and its time.
-    t_cpa = min(approach / w2, CONFLICT_HORIZON_TURNS * AVOIDANCE_TURN_ANGLE / omega)
-    miss2 = d2 - 2.0 * approach * t_cpa + w2 * t_cpa * t_cpa
-    # Either vehicle may be turning at full rate meanwhile (½ v ω t² each, at most one
-    # more safe distance).
-    turning = 0.0
-    if not in_formation:
-        turning = min(0.5 * (vi + vk) * omega * t_cpa * t_cpa, lim.safe_distance_uav)
-    threshold = lim.safe_distance_uav + (2.0 * vi * dt + turning)
-    if miss2 >= (threshold + lim.safe_distance_uav) ** 2:
-        return NO_CONFLICT, 0.0, 0.0, 0.0
-    d = math.sqrt(d2)
-    radius = influence_radius(vi, omega, lim.safe_distance_uav) + vi * dt
-    radius += vk * AVOIDANCE_TURN_ANGLE / omega
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    radius = own_reach + vk * AVOIDANCE_TURN_ANGLE / min(lim.max_pitch_rate, lim.max_yaw_rate)
     if d > radius or d == 0.0:
         return NO_CONFLICT, 0.0, 0.0, 0.0
     if miss2 >= threshold * threshold:  # (no miss vector: nothing is pushed)
@@ -168,6 +193,7 @@ def teammate_conflicts(
     mate_start: np.ndarray,
     mates: np.ndarray,
     formed: np.ndarray,
+    own_reach: float,
     lim: KernelLimits,
     dt: float,
 ) -> tuple[float, float, float, bool, bool]:
@@ -175,7 +201,8 @@ def teammate_conflicts(
     priority (lower rank) added (Eq. 12–13; each one by ``teammate_conflict``).  Only
     ``mates[mate_start[i]:mate_start[i+1]]`` are looked at (see ``nearby_teammates``);
     ``trig[:, 4:7]`` are the velocities (``unit_velocities``); ``formed`` whether each
-    wingman is in its slot (a pair in formation: ``teammate_conflict``).
+    wingman is in its slot (a pair in formation: ``teammate_conflict``); ``own_reach``
+    vehicle i's R(v_i) + v_i·Δt (``teammate_conflict``).
 
     Just clear of a conflict the vehicle holds its course rather than turn back into it
     (otherwise the turn flips every step along the conflict's edge), but only if flying
@@ -195,15 +222,17 @@ def teammate_conflicts(
         wx, wy, wz = trig[k, 4], trig[k, 5], trig[k, 6]
         together = formed[i] and (k == 0 or formed[k])
         kind, mx, my, mz = teammate_conflict(
-            dx, dy, dz, wx - trig[i, 4], wy - trig[i, 5], wz - trig[i, 6], vi, speed[k], lim, dt,
-            together,
+            dx, dy, dz, wx - trig[i, 4], wy - trig[i, 5], wz - trig[i, 6], vi, speed[k],
+            own_reach, lim, dt, together,
         )  # fmt: skip
         if kind == JUST_CLEAR and not hold_course:
-            wx, wy, wz = wx - vi * fx, wy - vi * fy, wz - vi * fz  # were it to follow
-            kind_after, _, _, _ = teammate_conflict(
+            # Were it to follow: a conflict if it closes to within the threshold (the mate
+            # is within reach, the distance being the same).
+            wx, wy, wz = wx - vi * fx, wy - vi * fy, wz - vi * fz
+            closing, _, miss2, threshold = closest_approach(
                 dx, dy, dz, wx, wy, wz, vi, speed[k], lim, dt, together
             )
-            hold_course = kind_after == CONFLICT
+            hold_course = closing and miss2 < threshold * threshold
         elif kind == CONFLICT:
             rx, ry, rz = rx + EPSILON_1 * mx, ry + EPSILON_1 * my, rz + EPSILON_1 * mz
             repelled_by_mate = True
