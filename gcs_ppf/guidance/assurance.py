@@ -57,13 +57,6 @@ apart, for 7 s; its heading stayed within 37–44° throughout, and it went 1.4 
 obstacle's sphere."""
 SIDE_DEADBAND_RAD = math.radians(10.0)
 """A course this close to the vehicle's yaw turns neither way (no reversal to reach it)."""
-RELEASE_S = 1.0
-"""An escape in force ends only when the plan keeps out with this many seconds of flight (×
-the speed) to spare beyond ``SLACK_S``: a plan that is only just recoverable again is not
-taken back at once.  Measured (Table 3, ×5, 300 ms, 20 % loss, a CPU burner per core, in
-the CI check): two wingmen crossing at 190–290 m/s were sent the plan and an escape by turns
-tick after tick, and with them altitudes 300 m below and 900 m above where they flew (the
-lower one climbed towards the upper one); they passed 48.1 m apart."""
 SLACK_S = 0.5
 """A command counts as recoverable only with this many seconds of flight (× its speed) to
 spare beyond the keep-out: slack for what the prediction does not know (a late tick, a lost
@@ -304,10 +297,9 @@ def assure(
     escaping: Sequence[Escape | None] | None = None,
 ) -> list[Verdict]:  # fmt: skip
     """Each vehicle's command, in priority order (the leader first): kept if recoverable
-    with ``SLACK_S`` to spare (and, while an escape is in force, ``RELEASE_S`` more), else
-    the nearest course that is (``ESCAPE_OFFSETS`` off the command, at one of
-    ``escape_altitudes``), else the best there is if it beats the command by
-    ``BETTER_BY_M``.  A vehicle yields to those before it, and to those after it
+    with ``SLACK_S`` to spare, else the nearest course that is (``ESCAPE_OFFSETS`` off the
+    command, at one of ``escape_altitudes``), else the best there is if it beats the
+    command by ``BETTER_BY_M``.  A vehicle yields to those before it, and to those after it
     that it is ``overtaking``.  ``escaping`` (per vehicle, the escape it flies or flew last,
     or None): its command is tried first and kept within ``ESCAPE_COMMIT_M``, and escapes
     that turn the other way must do better by ``SIDE_SWITCH_S`` (or keep out where the
@@ -325,8 +317,7 @@ def assure(
         chosen, chosen_margin, chosen_path = c, planned, path
         slack = SLACK_S * m.speed_m_s
         previous = None if escaping is None else escaping[i]
-        in_force = previous is not None and previous.command is not None
-        if planned < slack + (RELEASE_S * m.speed_m_s if in_force else 0.0):
+        if planned < slack:
             best = _escape(m, vector, c, reason, hold_s, keep, prepared, previous)
             if best[0] >= slack or best[0] > planned + BETTER_BY_M:
                 chosen_margin, chosen, chosen_path = best

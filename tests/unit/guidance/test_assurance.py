@@ -14,7 +14,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gcs_ppf.guidance.assurance import (
-    RELEASE_S,
     SIDE_SWITCH_S,
     SLACK_S,
     Command,
@@ -202,38 +201,6 @@ def test_a_command_that_keeps_out_by_less_than_the_slack_is_replaced() -> None:
     [v] = assure([m], [Command(0.0, 150.0)], hold_s=1.0, keep=keep(walls))
     assert v.replaced
     assert v.chosen_margin_m >= SLACK_S * SPEED
-
-
-def sphere_leaving(margin: float) -> Obstacles:
-    """A sphere ahead of ``plane(0, 0, 150, 0)`` whose keep-out its course (0, 150) clears
-    by ``margin`` (bisection on the radius: the margin falls as it grows)."""
-    m = plane(0.0, 0.0, 150.0, 0.0)
-    lo, hi = 10.0, 300.0
-    for _ in range(40):
-        mid = 0.5 * (lo + hi)
-        got = score(m, Command(0.0, 150.0), 1.0, keep(sphere(400.0, 0.0, 150.0, mid)), [])[0]
-        lo, hi = (mid, hi) if got > margin else (lo, mid)
-    return sphere(400.0, 0.0, 150.0, lo)
-
-
-def test_an_escape_in_force_ends_only_with_the_release_to_spare() -> None:
-    """The plan keeps out with the slack and half the release to spare: taken from a vehicle
-    flying its plan, not from one escaping; with the whole release and more to spare, taken
-    from both."""
-    m = plane(0.0, 0.0, 150.0, 0.0)
-    plan = Command(0.0, 150.0)
-    escape = Escape(Command(math.radians(60.0), 150.0), side=1)
-    within = SLACK_S * SPEED + 0.5 * RELEASE_S * SPEED
-    walls = keep(sphere_leaving(within))
-    [flying_plan] = assure([m], [plan], hold_s=1.0, keep=walls)
-    [escaping] = assure([m], [plan], hold_s=1.0, keep=walls, escaping=[escape])
-    assert not flying_plan.replaced
-    assert escaping.replaced
-    assert escaping.chosen_margin_m >= SLACK_S * SPEED
-    beyond = keep(sphere_leaving(SLACK_S * SPEED + 1.5 * RELEASE_S * SPEED))
-    [released] = assure([m], [plan], hold_s=1.0, keep=beyond, escaping=[escape])
-    assert not released.replaced
-    assert released.command == plan
 
 
 def test_the_overtaking_vehicle_gives_way_whatever_its_priority() -> None:
