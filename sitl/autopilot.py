@@ -12,7 +12,13 @@ from dataclasses import dataclass, field
 
 from gcs_ppf import geodesy
 from gcs_ppf.mavlink import enums
-from gcs_ppf.mavlink.ardupilot import ROLL_LAG_PER_TCONST, TURN_EFFICIENCY, PlaneMode
+from gcs_ppf.mavlink.ardupilot import (
+    CLIMB_LAG_PER_TECS_TCONST,
+    HEIGHT_GAIN_TIMES_TECS_TCONST,
+    ROLL_LAG_PER_TCONST,
+    TURN_EFFICIENCY,
+    PlaneMode,
+)
 from gcs_ppf.mavlink.enums import MAV_SEVERITY_CRITICAL, MAV_SEVERITY_INFO, MAV_SEVERITY_WARNING
 from gcs_ppf.mission import Origin
 from sitl import messages as mb
@@ -23,9 +29,7 @@ from sitl.messages import Message
 from sitl.navigation import AutoEvents, MissionRunner, NavTarget
 from sitl.params import ParamTable
 from sitl.physics import (
-    CLIMB_LAG_PER_TIME_CONST,
     GRAVITY_M_S2,
-    HEIGHT_GAIN_TIMES_TIME_CONST,
     ORBIT_MARGIN,
     Envelope,
     Guidance,
@@ -347,8 +351,8 @@ class Autopilot:
         env.takeoff_climb_m_s[i] = 2.0 * p["TECS_CLMB_MAX"]
         env.speed_height_coupling[i] = p["SIM_SPD_HGT"]
         env.roll_lag_s[i] = ROLL_LAG_PER_TCONST * p["RLL2SRV_TCONST"]
-        env.climb_lag_s[i] = CLIMB_LAG_PER_TIME_CONST * p["TECS_TIME_CONST"]
-        env.height_gain_1_s[i] = HEIGHT_GAIN_TIMES_TIME_CONST / p["TECS_TIME_CONST"]
+        env.climb_lag_s[i] = CLIMB_LAG_PER_TECS_TCONST * p["TECS_TIME_CONST"]
+        env.height_gain_1_s[i] = HEIGHT_GAIN_TIMES_TECS_TCONST / p["TECS_TIME_CONST"]
         env.rotate_speed_m_s[i] = 0.9 * p["AIRSPEED_CRUISE"] * p["SIM_EAS2TAS"]
         self.envelope_dirty = False
 

@@ -46,7 +46,13 @@ from enum import IntEnum
 import numpy as np
 from numpy.typing import NDArray
 
-from gcs_ppf.mavlink.ardupilot import ROLL_LAG_PER_TCONST, ROLL_RATE_MAX_RAD_S, TURN_EFFICIENCY
+from gcs_ppf.mavlink.ardupilot import (
+    CLIMB_LAG_PER_TECS_TCONST,
+    HEIGHT_GAIN_TIMES_TECS_TCONST,
+    ROLL_LAG_PER_TCONST,
+    ROLL_RATE_MAX_RAD_S,
+    TURN_EFFICIENCY,
+)
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -57,15 +63,11 @@ GRAVITY_M_S2 = 9.80665
 DT_S = 0.02
 
 # Fitted to real ArduPlane 4.7 SITL (plane.parm), see tests/sitl/test_arduplane_calibration.py
-# (the roll loop's lag and rate and the turn efficiency are gcs_ppf.mavlink.ardupilot's).
-#: Lag of the climb rate behind TECS's climb-rate demand, × TECS_TIME_CONST (5 s: a 2 s
-#: lag, +50 m step: 3 m/s after 3 s).
-CLIMB_LAG_PER_TIME_CONST = 0.4
-#: The same lag in the takeoff climb, s (trace 01 climbed at 10 m/s 0.5 s after lift-off).
+# (the roll loop's lag and rate, the turn efficiency and TECS's climb lag and height gain
+# are gcs_ppf.mavlink.ardupilot's).
+#: The vertical speed's lag in the takeoff climb, s (trace 01 climbed at 10 m/s 0.5 s
+#: after lift-off).
 TAU_TAKEOFF_CLIMB_S = 0.4
-#: TECS's height-error gain × TECS_TIME_CONST (5 s: 0.35 /s, from the tail of the +50 m
-#: step and the param3 = 2 run).
-HEIGHT_GAIN_TIMES_TIME_CONST = 1.75
 #: Lag of the airspeed behind its demand, s (within SIM_ACCEL_MAX / SIM_DECEL_MAX).
 TAU_SPEED_S = 1.0
 #: How often ArduPlane moves GUIDED's slewed altitude demand (``update_target_altitude``
@@ -203,8 +205,8 @@ def default_envelope(
         rotate_speed_m_s=np.full(n, 19.0),
         speed_height_coupling=np.zeros(n),
         roll_lag_s=np.full(n, ROLL_LAG_PER_TCONST * 0.25),
-        climb_lag_s=np.full(n, CLIMB_LAG_PER_TIME_CONST * 5.0),
-        height_gain_1_s=np.full(n, HEIGHT_GAIN_TIMES_TIME_CONST / 5.0),
+        climb_lag_s=np.full(n, CLIMB_LAG_PER_TECS_TCONST * 5.0),
+        height_gain_1_s=np.full(n, HEIGHT_GAIN_TIMES_TECS_TCONST / 5.0),
     )
 
 

@@ -85,6 +85,8 @@ class Airframe:
     """``TKOFF_ALT``."""
     roll_time_constant_s: float | None = None
     """``RLL2SRV_TCONST``: how fast the roll loop reaches a demanded bank."""
+    tecs_time_constant_s: float | None = None
+    """``TECS_TIME_CONST``: how fast TECS answers a height error."""
 
     @staticmethod
     def from_params(value: Callable[[str], float | None]) -> Airframe:
@@ -115,6 +117,7 @@ class Airframe:
             pitch_min_deg=first(("PTCH_LIM_MIN_DEG", 1.0), ("LIM_PITCH_MIN", 0.01)),
             takeoff_alt_m=positive(first(("TKOFF_ALT", 1.0))),
             roll_time_constant_s=positive(first(("RLL2SRV_TCONST", 1.0))),
+            tecs_time_constant_s=positive(first(("TECS_TIME_CONST", 1.0))),
         )
 
     @staticmethod

@@ -7,15 +7,19 @@ is calibrated to it (``sitl/calibration.py``, ``gcs_ppf.mavlink.ardupilot``): th
 the bank gives, the bank follows GUIDED's P-only demand (the course error over the heading
 time constant, at most the airframe's turn rate) with the roll loop's lag and rate limit,
 from the bank the vehicle flies now (a vehicle turning hard one way first rolls out: at
-100 m/s, 1.5 s and 150 m the other way, measured on a lossy link under load); the altitude
-at TECS's climb and sink limits, the speed held.  A command is *recoverable* when, from
+100 m/s, 1.5 s and 150 m the other way, measured on a lossy link under load); the vertical
+speed follows TECS's demand (the height error × its gain, within the climb and sink
+limits) with its lag, from the vertical speed the vehicle flies now (a vehicle diving at
+125 m/s does not level off at once); the speed held.  A command is *recoverable* when, from
 where the vehicle is at the end of ``hold_s`` (the lag of the telemetry, the link and the
 next tick), a turn to either side at the full bank through 180° (the way back is the way
 it came), rolled into from the bank it then has, keeps out of every keep-out: an
 obstacle's surface plus ``safe_distance_obstacle``, the ground plus the same, a teammate
 of higher priority (earlier in the order; the leader first) or one it is overtaking, plus
 ``safe_distance_uav``, with ``SLACK_S`` of flight to spare.
-Teammates are predicted on their own (assured) commands, straight on after their hold.
+Teammates are predicted on their own (assured) commands, through their hold and on
+through the escape (they are not known to escape; a teammate carried on straight and
+level from its hold's end was 270 m off in height 6 s on, when it was descending).
 Moving obstacles are taken where they are now (their motion over a few seconds is inside
 the planner's margins).
 """
@@ -94,6 +98,13 @@ class Motion:
     RLL2SRV_TCONST); 0: the bank is where it is asked at once."""
     roll_rate_rad_s: float = math.inf
     """The fastest roll (rad/s)."""
+    climb_rate_m_s: float = 0.0
+    """Its vertical speed now (m/s, + up)."""
+    climb_lag_s: float = 0.0
+    """The vertical speed's first-order lag behind TECS's demand (ArduPlane:
+    ``CLIMB_LAG_PER_TECS_TCONST`` × TECS_TIME_CONST); 0: at once."""
+    height_gain_1_s: float = math.inf
+    """TECS's climb-rate demand per metre of height error (1/s); inf: the limits at once."""
 
     def bank_for(self, yaw_rate_rad_s: float) -> float:
         """The bank (rad, + left) that turns at ``yaw_rate_rad_s``."""
@@ -161,7 +172,8 @@ def motion_vector(m: Motion) -> FloatArray:
     """``m`` as ``prediction``'s vector."""
     return np.array([*m.pos_m, m.yaw_rad, m.speed_m_s, m.turn_rate_rad_s, m.climb_m_s,
                      m.sink_m_s, m.heading_tau_s, m.yaw_rate_rad_s, m.roll_lag_s,
-                     m.roll_rate_rad_s], dtype=np.float64)  # fmt: skip
+                     m.roll_rate_rad_s, m.climb_rate_m_s, m.climb_lag_s,
+                     m.height_gain_1_s], dtype=np.float64)  # fmt: skip
 
 
 def hold_path(m: Motion, c: Command, hold_s: float) -> tuple[FloatArray, float]:
@@ -180,7 +192,8 @@ def advance(m: Motion, c: Command, dt_s: float) -> Motion:
     x, y, z = (float(v) for v in path[-1])
     turning = prediction.yaw_rate_for(vector, end[prediction.BANK])
     return replace(m, pos_m=(x, y, z), yaw_rad=_wrap(float(end[prediction.YAW])),
-                   yaw_rate_rad_s=float(turning))  # fmt: skip
+                   yaw_rate_rad_s=float(turning),
+                   climb_rate_m_s=float(end[prediction.FLIGHT_VZ]))  # fmt: skip
 
 
 def escape_s(m: Motion) -> float:
@@ -191,15 +204,19 @@ def escape_s(m: Motion) -> float:
 
 @dataclass(frozen=True, slots=True)
 class Track:
-    """A teammate's predicted flight: its hold path (the same instants as every other's)
-    and its velocity at the end, along which it is carried on during an escape."""
+    """A teammate's predicted flight: its hold path (the same instants as every other's),
+    then on through an escape's time (``STEP_S`` apart from the hold's end), [k+1+j,3]."""
 
     path: FloatArray
-    velocity_m_s: FloatArray
 
 
 REASONS = {prediction.OBSTACLE: "obstacle", prediction.GROUND: "ground",
            prediction.TEAMMATE: "teammate"}  # fmt: skip
+
+
+def hold_steps(hold_s: float) -> int:
+    """How many steps a hold path of ``hold_s`` has (``prediction.fly_hold``)."""
+    return max(1, math.ceil(hold_s / STEP_S))
 
 
 @dataclass(frozen=True, slots=True)
@@ -207,28 +224,37 @@ class _Near:
     """The teammates one vehicle yields to, as ``prediction.score`` takes them."""
 
     held: FloatArray  # [n,k+1,3]
-    velocity: FloatArray  # [n,3]
+    after: FloatArray  # [n,j,3]
 
     @staticmethod
     def of(tracks: Sequence[Track], hold_s: float) -> _Near:
-        k = max(1, math.ceil(hold_s / STEP_S)) + 1
+        k = hold_steps(hold_s)
         if not tracks:
-            return _Near(np.zeros((0, k, 3)), np.zeros((0, 3)))
-        held = np.stack([t.path for t in tracks]).astype(np.float64)
-        return _Near(held, np.stack([t.velocity_m_s for t in tracks]).astype(np.float64))
+            return _Near(np.zeros((0, k + 1, 3)), np.zeros((0, 1, 3)))
+        paths = np.stack([t.path for t in tracks]).astype(np.float64)
+        return _Near(np.ascontiguousarray(paths[:, : k + 1]),
+                     np.ascontiguousarray(paths[:, k:]))  # fmt: skip
 
 
 def _score(
-    m: Motion, vector: FloatArray, c: Command, hold_s: float, keep: KeepOut, near: _Near
-) -> tuple[float, str | None, Track]:
+    vector: FloatArray, c: Command, hold_s: float, keep: KeepOut, near: _Near
+) -> tuple[float, str | None, FloatArray]:
+    """A command's margin and the keep-out it is to, with the flight at its hold's end."""
     obs = keep.obstacles
     ground = math.nan if keep.ground_z_m is None else float(keep.ground_z_m)
-    s, reason, path, yaw = prediction.score(  # one signature: no compiling in flight
+    s, reason, _, end = prediction.score(  # one signature: no compiling in flight
         vector, float(c.course_rad), float(c.z_m), float(hold_s), _floats(obs.center),
         _floats(obs.radius), float(keep.safe_distance_obstacle), ground, near.held,
-        near.velocity, float(keep.safe_distance_uav),
+        near.after, float(keep.safe_distance_uav),
     )  # fmt: skip
-    return float(s), REASONS.get(reason), Track(path, m.velocity(float(yaw)))
+    return float(s), REASONS.get(reason), end
+
+
+def track(vector: FloatArray, c: Command, hold_s: float, after_steps: int) -> Track:
+    """A vehicle's predicted flight on ``c``: its hold, then ``after_steps`` more."""
+    path, end = prediction.fly_hold(vector, float(c.course_rad), float(c.z_m), float(hold_s))
+    on = prediction.fly_on(vector, end, float(c.course_rad), float(c.z_m), after_steps)
+    return Track(np.concatenate((path, on[1:])))
 
 
 def _floats(a: FloatArray) -> FloatArray:
@@ -239,10 +265,11 @@ def _floats(a: FloatArray) -> FloatArray:
 
 def score(
     m: Motion, c: Command, hold_s: float, keep: KeepOut, others: list[Track]
-) -> tuple[float, str | None, Track]:
+) -> tuple[float, str | None]:
     """A command's margin: along its hold, then along the better of its two escapes (the
-    teammates carried straight on meanwhile); with the vehicle's predicted track."""
-    return _score(m, motion_vector(m), c, hold_s, keep, _Near.of(others, hold_s))
+    teammates flying on meanwhile, ``Track``); with the keep-out it is to."""
+    s, reason, _ = _score(motion_vector(m), c, hold_s, keep, _Near.of(others, hold_s))
+    return s, reason
 
 
 def overtaking(a: Motion, b: Motion) -> bool:
@@ -256,13 +283,9 @@ def overtaking(a: Motion, b: Motion) -> bool:
     return bool(gap @ va > 0.0 and va @ vb > 0.0 and gap @ (va - vb) > 0.0)
 
 
-def straight_track(m: Motion, hold_s: float) -> Track:
-    """A teammate not yet assured this tick, flying straight on at its speed (the positions
-    every ``STEP_S`` over ``hold_s``, like a hold path)."""
-    k = max(1, math.ceil(hold_s / STEP_S))  # as many instants as ``hold_path``'s
-    velocity = m.velocity()
-    t = np.linspace(0.0, hold_s, k + 1)[:, None]
-    return Track(np.asarray(m.pos_m, dtype=float)[None] + velocity[None] * t, velocity)
+def straight_track(m: Motion, hold_s: float, after_steps: int) -> Track:
+    """A teammate not yet assured this tick, holding its course and height (``track``)."""
+    return track(motion_vector(m), Command(m.yaw_rad, m.pos_m[2]), hold_s, after_steps)
 
 
 def within_reach(a: Motion, b: Motion, hold_s: float, keep: KeepOut) -> bool:
@@ -306,21 +329,23 @@ def assure(
     others do not)."""
     verdicts: list[Verdict] = []
     paths: list[Track] = []
+    vectors = [motion_vector(m) for m in motions]
+    after = max((int(prediction.escape_steps(v)) for v in vectors), default=1)
     for i, (m, c) in enumerate(zip(motions, commands, strict=True)):
         near = [paths[j] for j in range(i) if within_reach(m, motions[j], hold_s, keep)]
         near += [
-            straight_track(o, hold_s) for o in motions[i + 1 :]
+            straight_track(o, hold_s, after) for o in motions[i + 1 :]
             if overtaking(m, o) and within_reach(m, o, hold_s, keep)
         ]  # fmt: skip
-        vector, prepared = motion_vector(m), _Near.of(near, hold_s)
-        planned, reason, path = _score(m, vector, c, hold_s, keep, prepared)
-        chosen, chosen_margin, chosen_path = c, planned, path
+        vector, prepared = vectors[i], _Near.of(near, hold_s)
+        planned, reason, _ = _score(vector, c, hold_s, keep, prepared)
+        chosen, chosen_margin = c, planned
         slack = SLACK_S * m.speed_m_s
         previous = None if escaping is None else escaping[i]
         if planned < slack:
             best = _escape(m, vector, c, reason, hold_s, keep, prepared, previous)
             if best[0] >= slack or best[0] > planned + BETTER_BY_M:
-                chosen_margin, chosen, chosen_path = best
+                chosen_margin, chosen = best
         replaced = chosen != c
         side = 0
         if replaced:
@@ -329,14 +354,14 @@ def assure(
                 side = previous.side
         verdicts.append(Verdict(chosen, replaced, reason if replaced or planned < slack else None,
                                 planned, chosen_margin, side))  # fmt: skip
-        paths.append(chosen_path)
+        paths.append(track(vector, chosen, hold_s, after))
     return verdicts
 
 
 def _escape(
     m: Motion, vector: FloatArray, c: Command, reason: str | None, hold_s: float,
     keep: KeepOut, near: _Near, previous: Escape | None,
-) -> tuple[float, Command, Track]:  # fmt: skip
+) -> tuple[float, Command]:  # fmt: skip
     """The escape for a command that is not recoverable with the slack: the first candidate
     that is, turning the way ``previous`` turned (any way if none); else the best, the
     escape in force kept within ``ESCAPE_COMMIT_M``; one turning the other way only if it
@@ -352,20 +377,20 @@ def _escape(
             for z in escape_altitudes(m, c, reason, hold_s, keep)
         ),
     )
-    best: tuple[float, Command, Track] | None = None
-    other: tuple[float, Command, Track] | None = None  # the best turning the other way
+    best: tuple[float, Command] | None = None
+    other: tuple[float, Command] | None = None  # the best turning the other way
     for candidate in candidates:
-        s, _, p = _score(m, vector, candidate, hold_s, keep, near)
+        s, _, _ = _score(vector, candidate, hold_s, keep, near)
         if side and candidate != kept_command and turn_side(m, candidate.course_rad) == -side:
             if other is None or s > other[0]:
-                other = (s, candidate, p)
+                other = (s, candidate)
             continue
         if s >= slack:
-            best = (s, candidate, p)
+            best = (s, candidate)
             break
         kept = 0.0 if best is None or best[1] != kept_command else ESCAPE_COMMIT_M
         if best is None or s > best[0] + kept:
-            best = (s, candidate, p)
+            best = (s, candidate)
     if other is not None and (
         best is None or other[0] > best[0] + SIDE_SWITCH_S * m.speed_m_s
         or best[0] < 0.0 <= other[0]

@@ -33,6 +33,9 @@ class VehicleState:
     speed_m_s: float
     yaw_rate_rad_s: float = 0.0
     """How fast its course turns (+: left), from the velocities it reports."""
+    climb_rate_m_s: float | None = None
+    """Its vertical speed (m/s, + up) as reported (the pitch may be from an average);
+    None: the one the pitch gives."""
 
 
 def state_from_velocity(
@@ -71,6 +74,7 @@ def state_from_velocity(
         yaw_rad=math.atan2(math.sin(yaw + turned), math.cos(yaw + turned)),
         speed_m_s=math.sqrt(horizontal**2 + vu**2),
         yaw_rate_rad_s=turn_rate_rad_s,
+        climb_rate_m_s=vu,
     )
 
 

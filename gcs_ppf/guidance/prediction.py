@@ -8,8 +8,9 @@ in trouble tries up to 36 of them: 7 ms a tick for each one escaping, at the ver
 the tick had to be on time (×10 under load the service's loop then fell seconds behind its
 telemetry and the escapes came late).  The model is the one ``assurance`` documents.
 
-``m``: x, y, z, yaw, speed, turn rate, climb, sink, heading τ, yaw rate, roll lag, roll rate.
-A predicted flight ``f``: x, y, z, yaw, bank (+ left).
+``m``: x, y, z, yaw, speed, turn rate, climb, sink, heading τ, yaw rate, roll lag, roll rate,
+vertical speed, climb lag, height gain.
+A predicted flight ``f``: x, y, z, yaw, bank (+ left), vertical speed, TECS's height demand.
 """
 
 from __future__ import annotations
@@ -24,8 +25,10 @@ from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from gcs_ppf.planning.scene import FloatArray
 
 X, Y, Z, YAW, SPEED, TURN, CLIMB, SINK, TAU, YAW_RATE, ROLL_LAG, ROLL_RATE = range(12)
-MOTION_SIZE = 12
-BANK = 4  # in a predicted flight, after x, y, z, yaw
+VZ, CLIMB_LAG, HEIGHT_GAIN = 12, 13, 14
+MOTION_SIZE = 15
+BANK, FLIGHT_VZ, HEIGHT_DEMAND = 4, 5, 6  # in a predicted flight, after x, y, z, yaw
+FLIGHT_SIZE = 7
 
 STEP_S = 0.125
 """Seconds between predicted samples (the roll loop's lag is ~0.2 s: integrated exactly)."""
@@ -57,10 +60,39 @@ def yaw_rate_for(m: FloatArray, bank_rad: float) -> float:
 
 
 @njit(cache=True)
+def height_demand_now(m: FloatArray) -> float:
+    """TECS's height demand as the vertical speed the vehicle flies gives it (its climb-rate
+    demand is the gain × the demand's lead on the altitude)."""
+    if math.isinf(m[HEIGHT_GAIN]):
+        return float(m[Z])
+    return float(m[Z] + m[VZ] * (1.0 / m[HEIGHT_GAIN] + m[CLIMB_LAG]))
+
+
+@njit(cache=True)
+def climb(m: FloatArray, f: FloatArray, z_demand: float, dt: float) -> None:
+    """``dt`` seconds of the height loop, ``f`` in place, as ``sitl.physics`` flies it
+    (calibrated to ArduPlane): TECS's height demand moves towards ``z_demand`` at the climb
+    and sink limits, its climb-rate demand is the gain × the demand's lead on the altitude
+    (within the limits), and the vertical speed lags behind that (first order).  With an
+    infinite gain and no lag (an airframe not known to be ArduPlane) the altitude goes
+    straight at ``z_demand`` at the limits, as if the vertical speed could change at once."""
+    gain = m[HEIGHT_GAIN]
+    if math.isinf(gain):
+        wanted = max(-m[SINK], min(m[CLIMB], (z_demand - f[Z]) / dt))
+    else:
+        f[HEIGHT_DEMAND] += max(-m[SINK] * dt, min(m[CLIMB] * dt, z_demand - f[HEIGHT_DEMAND]))
+        wanted = max(-m[SINK], min(m[CLIMB], gain * (f[HEIGHT_DEMAND] - f[Z])))
+    vz = wanted
+    if m[CLIMB_LAG] > 0.0:
+        vz = f[FLIGHT_VZ] + (wanted - f[FLIGHT_VZ]) * (1.0 - math.exp(-dt / m[CLIMB_LAG]))
+    f[FLIGHT_VZ] = vz
+    f[Z] += vz * dt
+
+
+@njit(cache=True)
 def step(m: FloatArray, f: FloatArray, bank_demand: float, z_demand: float, dt: float) -> None:
     """``dt`` seconds of flight, ``f`` in place: the bank towards its demand (first order,
-    rate limited), the turn it gives, the altitude towards ``z_demand`` within the climb and
-    sink limits."""
+    rate limited), the turn it gives, the altitude towards ``z_demand`` (``climb``)."""
     gap = bank_demand - f[BANK]
     if m[ROLL_LAG] > 0.0:
         gap *= 1.0 - math.exp(-dt / m[ROLL_LAG])
@@ -72,21 +104,14 @@ def step(m: FloatArray, f: FloatArray, bank_demand: float, z_demand: float, dt: 
     f[YAW] += rate * dt
     f[X] += m[SPEED] * math.cos(mid) * dt
     f[Y] += m[SPEED] * math.sin(mid) * dt
-    f[Z] += max(-m[SINK] * dt, min(m[CLIMB] * dt, z_demand - f[Z]))
+    climb(m, f, z_demand, dt)
 
 
 @njit(cache=True)
-def fly_hold(
-    m: FloatArray, course: float, z: float, hold_s: float
-) -> tuple[FloatArray, FloatArray]:
-    """Positions [k+1,3] (from now, every ``STEP_S`` or less) while the vehicle flies the
-    course and altitude for ``hold_s``, under GUIDED's P-only heading demand (the course
-    error over τ, at most the airframe's bank), and the predicted flight at the end."""
-    k = max(1, math.ceil(hold_s / STEP_S))
-    dt = hold_s / k
-    f = np.empty(5)
-    f[X], f[Y], f[Z], f[YAW] = m[X], m[Y], m[Z], m[YAW]
-    f[BANK] = bank_for(m, m[YAW_RATE])
+def _fly(m: FloatArray, f: FloatArray, course: float, z: float, dt: float, k: int) -> FloatArray:
+    """``k`` steps of ``dt`` flying the course and altitude from ``f`` (in place), under
+    GUIDED's P-only heading demand (the course error over τ, at most the airframe's bank):
+    the positions [k+1,3], ``f``'s first."""
     most = bank_for(m, m[TURN])
     out = np.empty((k + 1, 3))
     out[0] = f[:3]
@@ -94,7 +119,29 @@ def fly_hold(
         wanted = wrap(course - f[YAW]) / max(m[TAU], dt)
         step(m, f, max(-most, min(most, bank_for(m, wanted))), z, dt)
         out[i] = f[:3]
-    return out, f
+    return out
+
+
+@njit(cache=True)
+def fly_hold(
+    m: FloatArray, course: float, z: float, hold_s: float
+) -> tuple[FloatArray, FloatArray]:
+    """Positions [k+1,3] (from now, every ``STEP_S`` or less) while the vehicle flies the
+    course and altitude for ``hold_s`` (``_fly``), and the predicted flight at the end."""
+    k = max(1, math.ceil(hold_s / STEP_S))
+    f = np.empty(FLIGHT_SIZE)
+    f[X], f[Y], f[Z], f[YAW] = m[X], m[Y], m[Z], m[YAW]
+    f[BANK] = bank_for(m, m[YAW_RATE])
+    f[FLIGHT_VZ] = m[VZ]
+    f[HEIGHT_DEMAND] = height_demand_now(m)
+    return _fly(m, f, course, z, hold_s / k, k), f
+
+
+@njit(cache=True)
+def fly_on(m: FloatArray, end: FloatArray, course: float, z: float, k: int) -> FloatArray:
+    """Positions [k+1,3], ``STEP_S`` apart from ``end`` (a hold's end: the instants of an
+    escape arc), flying on the same course and altitude."""
+    return _fly(m, end.copy(), course, z, STEP_S, k)
 
 
 @njit(cache=True)
@@ -108,8 +155,9 @@ def escape_s(m: FloatArray) -> float:
 @njit(cache=True)
 def escape_arc(m: FloatArray, end: FloatArray, side: float) -> FloatArray:
     """The escape flown from ``end`` at full bank to ``side`` (+1 left, −1 right), rolled
-    into from the bank it has, until the vehicle has turned 180°, level: positions [k,3],
-    ``STEP_S`` apart.  Once the bank is within ``ROLLED_IN_RAD`` of full, a circle."""
+    into from the bank it has, until the vehicle has turned 180°, levelling off from the
+    vertical speed it has (``climb``): positions [k,3], ``STEP_S`` apart.  Once the bank is
+    within ``ROLLED_IN_RAD`` of full, a circle."""
     most = bank_for(m, m[TURN])
     steps = math.ceil(escape_s(m) / STEP_S) + 1
     rolled = np.empty((steps + 1, 3))
@@ -132,6 +180,7 @@ def escape_arc(m: FloatArray, end: FloatArray, side: float) -> FloatArray:
     cy = f[Y] + side * r * math.cos(f[YAW])
     for i in range(count):
         a = f[YAW] - side * math.pi / 2.0 + side * min(rate * STEP_S * (i + 1), left)
+        climb(m, f, end[Z], STEP_S)
         out[n + 1 + i, 0] = cx + r * math.cos(a)
         out[n + 1 + i, 1] = cy + r * math.sin(a)
         out[n + 1 + i, 2] = f[Z]
@@ -141,15 +190,13 @@ def escape_arc(m: FloatArray, end: FloatArray, side: float) -> FloatArray:
 @njit(cache=True)
 def margin(
     path: FloatArray, centers: FloatArray, radii: FloatArray, safe_obstacle: float,
-    ground_z: float, mates_at: FloatArray, mates_velocity: FloatArray, safe_uav: float,
+    ground_z: float, mates_at: FloatArray, safe_uav: float,
 ) -> tuple[float, int]:  # fmt: skip
     """How far ``path`` [k,3] (``STEP_S`` apart) stays outside every keep-out (m; negative:
     inside), and which one is nearest (``OBSTACLE``, ``GROUND``, ``TEAMMATE``).  A sphere's
     keep-out is its surface plus ``safe_obstacle``; the ground's (``ground_z``, NaN: none)
     the same above it; a teammate's ``safe_uav`` around where it is at each instant:
-    ``mates_at`` [n,k,3] (its last instant held on, for a teammate given only where it
-    starts) + ``mates_velocity`` [n,3] × the instant's time (zero for paths given instant
-    by instant)."""
+    ``mates_at`` [n,k,3] (its last instant held on beyond its k)."""
     best, reason = math.inf, NO_KEEP_OUT
     if radii.shape[0]:
         gap = math.inf
@@ -169,12 +216,10 @@ def margin(
         for j in range(mates_at.shape[0]):
             for i in range(path.shape[0]):
                 k = min(i, mates_at.shape[1] - 1)
-                t = STEP_S * i
                 d = math.sqrt(
-                    (path[i, 0] - mates_at[j, k, 0] - mates_velocity[j, 0] * t) ** 2
-                    + (path[i, 1] - mates_at[j, k, 1] - mates_velocity[j, 1] * t) ** 2
-                    + (path[i, 2] - mates_at[j, k, 2] - mates_velocity[j, 2] * t) ** 2
-                )
+                    (path[i, 0] - mates_at[j, k, 0]) ** 2 + (path[i, 1] - mates_at[j, k, 1]) ** 2
+                    + (path[i, 2] - mates_at[j, k, 2]) ** 2
+                )  # fmt: skip
                 gap = min(gap, d)
         if gap - safe_uav < best:
             best, reason = gap - safe_uav, TEAMMATE
@@ -182,27 +227,30 @@ def margin(
 
 
 @njit(cache=True)
+def escape_steps(m: FloatArray) -> int:
+    """At most how many ``STEP_S`` an escape arc (``escape_arc``) has after its start: its
+    roll-in and its circle."""
+    return 2 * math.ceil(escape_s(m) / STEP_S) + 2
+
+
+@njit(cache=True)
 def score(
     m: FloatArray, course: float, z: float, hold_s: float, centers: FloatArray,
     radii: FloatArray, safe_obstacle: float, ground_z: float, mates_held: FloatArray,
-    mates_velocity: FloatArray, safe_uav: float,
-) -> tuple[float, int, FloatArray, float]:  # fmt: skip
+    mates_after: FloatArray, safe_uav: float,
+) -> tuple[float, int, FloatArray, FloatArray]:  # fmt: skip
     """A command's margin: along its hold (the teammates along theirs, ``mates_held``
     [n,k+1,3] at the same instants), then along the better of its two escapes (the
-    teammates carried straight on from their hold's end at ``mates_velocity`` [n,3]); with
-    the hold's path and its yaw at the end."""
+    teammates flying on meanwhile, ``mates_after`` [n,j,3] from their hold's end,
+    ``STEP_S`` apart, the last held on); with the hold's path and the flight at its end."""
     path, end = fly_hold(m, course, z, hold_s)
-    still = np.zeros_like(mates_velocity)
-    held, reason = margin(path, centers, radii, safe_obstacle, ground_z, mates_held, still,
-                          safe_uav)  # fmt: skip
-    ends = mates_held[:, -1:, :].copy()
+    held, reason = margin(path, centers, radii, safe_obstacle, ground_z, mates_held, safe_uav)
     escape, escape_reason = -math.inf, NO_KEEP_OUT
     for side in (1.0, -1.0):
         arc = escape_arc(m, end, side)
-        e, r = margin(arc, centers, radii, safe_obstacle, ground_z, ends, mates_velocity,
-                      safe_uav)  # fmt: skip
+        e, r = margin(arc, centers, radii, safe_obstacle, ground_z, mates_after, safe_uav)
         if e > escape:
             escape, escape_reason = e, r
     if escape < held:
-        return escape, escape_reason, path, end[YAW]
-    return held, reason, path, end[YAW]
+        return escape, escape_reason, path, end
+    return held, reason, path, end

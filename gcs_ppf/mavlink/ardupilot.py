@@ -32,6 +32,16 @@ TURN_EFFICIENCY = 0.72
 SITL turned at 72–75 % of it (traces 02, 08 and 09: a 6°/s turn at 18.6° of bank where a
 coordinated one needs 14.1°; trace 08 loitered 94 m wide at 40° of bank: 70 %)."""
 
+# How ArduPlane's TECS answers a height demand, fitted the same way (traces 03 and 04:
+# altitude +50 m with param3 = 0 and = 2): the built-in SITL climbs by these, the service
+# predicts with them.
+CLIMB_LAG_PER_TECS_TCONST = 0.4
+"""Lag of the vertical speed behind TECS's climb-rate demand, × ``TECS_TIME_CONST`` (5 s: a
+2 s lag; the +50 m step climbed at 3 m/s after 3 s)."""
+HEIGHT_GAIN_TIMES_TECS_TCONST = 1.75
+"""TECS's climb-rate demand per metre of height error, × ``TECS_TIME_CONST`` (5 s: 0.35 /s,
+from the tail of the +50 m step and the param3 = 2 run)."""
+
 GCS_COMPONENT_ID = 190
 """``MAV_COMP_ID_MISSIONPLANNER``: the component id ground stations send from."""
 

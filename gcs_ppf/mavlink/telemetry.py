@@ -305,6 +305,7 @@ AIRFRAME_PARAMS: tuple[str, ...] = (
     "TKOFF_ALT",  # m above home that TAKEOFF mode climbs to
     "TKOFF_DIST",  # m ahead of the takeoff point where TAKEOFF mode then loiters (4.5 on)
     "RLL2SRV_TCONST",  # s: the roll loop's time constant
+    "TECS_TIME_CONST",  # s: TECS's height loop's time constant
     *PITCH_LIMIT_PARAMS,
 )
 """The ArduPlane parameters the service reads from every vehicle (PARAM_REQUEST_READ) and

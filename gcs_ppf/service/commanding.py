@@ -21,7 +21,13 @@ from gcs_ppf.guidance import assurance, holding, slew, speed_reference
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import Guidance, VehicleState
 from gcs_ppf.mavlink import commands
-from gcs_ppf.mavlink.ardupilot import ROLL_LAG_PER_TCONST, ROLL_RATE_MAX_RAD_S, PlaneMode
+from gcs_ppf.mavlink.ardupilot import (
+    CLIMB_LAG_PER_TECS_TCONST,
+    HEIGHT_GAIN_TIMES_TECS_TCONST,
+    ROLL_LAG_PER_TCONST,
+    ROLL_RATE_MAX_RAD_S,
+    PlaneMode,
+)
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.scene import Obstacles, obstacles_from_mission
@@ -79,7 +85,8 @@ def motion(
     speed it is told to reach: a faster vehicle turns wider).  Its climb and sink are what
     its pitch limits and TECS's rates give at that speed (TECS_CLMB_MAX alone, 102.6 m/s
     for the paper's airframe, made a leader at 100 m/s, climbing 36 m/s at its 20° pitch
-    limit, count on climbing over a sphere it then entered)."""
+    limit, count on climbing over a sphere it then entered); its vertical speed answers
+    with TECS's lag and gain from the one it reports."""
     v = max(state.speed_m_s, speed_m_s)
     turn = min(airframe.max_turn_rate(v) or math.inf, mission.limits.max_yaw_rate)
     climb_angle, dive_angle = airframe.max_climb_angle(v), airframe.max_dive_angle(v)
@@ -89,8 +96,15 @@ def motion(
     tconst = airframe.roll_time_constant_s  # None: not ArduPlane, the bank at once
     roll_lag = 0.0 if tconst is None else ROLL_LAG_PER_TCONST * tconst
     roll_rate = math.inf if tconst is None else ROLL_RATE_MAX_RAD_S
+    vz = state.climb_rate_m_s
+    if vz is None:
+        vz = state.speed_m_s * math.sin(state.pitch_rad)
+    tecs = airframe.tecs_time_constant_s  # None: not ArduPlane, the vertical speed at once
+    climb_lag = 0.0 if tecs is None else CLIMB_LAG_PER_TECS_TCONST * tecs
+    gain = math.inf if tecs is None else HEIGHT_GAIN_TIMES_TECS_TCONST / tecs
     return assurance.Motion(state.pos_m, state.yaw_rad, v, turn, climb, sink, tau,
-                            state.yaw_rate_rad_s, roll_lag, roll_rate)  # fmt: skip
+                            state.yaw_rate_rad_s, roll_lag, roll_rate, vz, climb_lag,
+                            gain)  # fmt: skip
 
 
 def planned_commands(
