@@ -48,6 +48,9 @@ run command for 12 s of its time meanwhile, and came to 27 m of a wingman turnin
 its own hold) …"""
 HOLD_ACK_VEHICLE_S = 2.0
 """… again when unanswered for this long (vehicle seconds; within 0.2–1.5 of ours)."""
+HOLD_LATE_S = 2.0 * HOLD_ACK_VEHICLE_S
+"""How late a vehicle's hold may take effect (vehicle seconds) whose first send went
+unanswered (``holding.formation_holds``; measured: 3.7 s, ×5 on a lossy link)."""
 
 #: Without TECS limits, climb and sink are taken as this fraction of the speed (~24°).
 DEFAULT_PATH_SLOPE = 0.4
@@ -264,14 +267,16 @@ def _holds(
     obstacles: Obstacles, keep_out: float,
 ) -> dict[int, holding.Hold]:  # fmt: skip
     """The formation's present layout translated (``holding.formation_holds``, towards the
-    leader's heading), or, where no translation clears the obstacles, each vehicle's own
+    leader's heading; the approaches apart by the safe distance, either one ``HOLD_LATE_S``
+    late), or, where no translation clears the obstacles, each vehicle's own
     circle clear of those chosen before it."""
     reference = states.get(mission.leader.id) or next(iter(states.values()), None)
     yaw = 0.0 if reference is None else reference.yaw_rad
     ids = list(requests)
     together = holding.formation_holds(
-        [requests[i] for i in ids], yaw, LOITER_AHEAD_M, obstacles, keep_out
-    )
+        [requests[i] for i in ids], yaw, LOITER_AHEAD_M, obstacles, keep_out,
+        mission.limits.safe_distance_uav, HOLD_LATE_S,
+    )  # fmt: skip
     if together is not None:
         return dict(zip(ids, together, strict=True))
     taken: list[tuple[holding.Hold, float]] = []  # the circles chosen so far, flown this wide
