@@ -32,7 +32,7 @@ TURN_EFFICIENCY = 0.72
 SITL turned at 72–75 % of it (traces 02, 08 and 09: a 6°/s turn at 18.6° of bank where a
 coordinated one needs 14.1°; trace 08 loitered 94 m wide at 40° of bank: 70 %)."""
 
-# How ArduPlane's TECS answers a height demand, fitted the same way (traces 03 and 04:
+# How ArduPlane's TECS answers a height demand, fitted the same way (traces 04 and 06:
 # altitude +50 m with param3 = 0 and = 2): the built-in SITL climbs by these, the service
 # predicts with them.
 CLIMB_LAG_PER_TECS_TCONST = 0.4
