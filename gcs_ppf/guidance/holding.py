@@ -23,7 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs_ppf.guidance.assurance import Motion
+from gcs_ppf.guidance import prediction
+from gcs_ppf.guidance.assurance import Motion, motion_vector
 from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from gcs_ppf.planning.scene import FloatArray, Obstacles
 
@@ -36,6 +37,7 @@ APPROACH_SAMPLES = 24
 #: Seconds between the points of a flown approach, and the longest approach flown.
 APPROACH_STEP_S = 0.5
 APPROACH_MAX_S = 180.0
+APPROACH_STEPS = math.ceil(APPROACH_MAX_S / APPROACH_STEP_S) + 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,25 +74,17 @@ def path_clearance(a: FloatArray, b: FloatArray, obstacles: Obstacles) -> float:
     return float((np.linalg.norm(obstacles.center - closest, axis=1) - obstacles.radius).min())
 
 
-def approach_path(
-    m: Motion, x: float, y: float, z: float, radius_m: float, late_s: float = 0.0
-) -> FloatArray:
+def approach_path(m: Motion, x: float, y: float, z: float, radius_m: float) -> FloatArray:
     """Where a vehicle flies [k,3] from its state ``m`` to the loiter circle (centre x, y at
-    height z), ``APPROACH_STEP_S`` apart: for ``late_s`` flying on as it does now (its turn
-    and its vertical speed: a hold that comes late), then turning towards the centre at its
-    turn rate (first order with its heading time constant), climbing or sinking at its
-    limits, until it is on the ring, then once around the ring's first half (the capture
-    swings out)."""
-    px, py, pz = m.pos_m
+    height z), ``APPROACH_STEP_S`` apart: turning towards the centre at its turn rate (first
+    order with its heading time constant), climbing or sinking as the assurance predicts it
+    (``prediction.heights``: from the vertical speed it has, as TECS flies), until it is on
+    the ring, then once around the ring's first half (the capture swings out)."""
+    px, py, _ = m.pos_m
     yaw = m.yaw_rad
     dt = APPROACH_STEP_S
-    out = [(px, py, pz)]
-    for _ in range(math.ceil(late_s / dt)):
-        yaw += m.yaw_rate_rad_s * dt
-        px += m.speed_m_s * math.cos(yaw) * dt
-        py += m.speed_m_s * math.sin(yaw) * dt
-        pz += m.climb_rate_m_s * dt
-        out.append((px, py, pz))
+    z_at = prediction.heights(motion_vector(m), float(z), dt, APPROACH_STEPS)
+    out = [(px, py)]
     t, on_ring_s = 0.0, None
     half_turn_s = math.pi * radius_m / max(m.speed_m_s, 1.0)
     while t < APPROACH_MAX_S:
@@ -106,10 +100,10 @@ def approach_path(
         yaw += rate * dt
         px += m.speed_m_s * math.cos(yaw) * dt
         py += m.speed_m_s * math.sin(yaw) * dt
-        pz += max(-m.sink_m_s * dt, min(m.climb_m_s * dt, z - pz))
-        out.append((px, py, pz))
+        out.append((px, py))
         t += dt
-    return np.array(out)
+    horizontal = np.array(out)
+    return np.column_stack((horizontal, z_at[: len(out)]))
 
 
 def points_clearance(points: FloatArray, obstacles: Obstacles) -> float:
@@ -170,31 +164,9 @@ class HoldRequest:
     motion: Motion | None
 
 
-def approaches_apart(on_time: Sequence[FloatArray], late: Sequence[FloatArray]) -> float:
-    """The smallest distance between two vehicles at one instant on their approaches
-    (``approach_path``, the same instants; each held at its last point once done), each
-    flown on time or ``late`` while the other is on time; inf for fewer than two."""
-    n = len(on_time)
-    if n < 2:
-        return math.inf
-    k = max(len(p) for p in (*on_time, *late))
-
-    def padded(p: FloatArray) -> FloatArray:
-        return np.concatenate((p, np.repeat(p[-1:], k - len(p), axis=0)))
-
-    a = np.stack([padded(p) for p in on_time])  # [n,k,3]
-    b = np.stack([padded(p) for p in late])
-    best = math.inf
-    for i in range(n):
-        for j in range(i + 1, n):
-            for p, q in ((a[i], a[j]), (b[i], a[j]), (a[i], b[j])):
-                best = min(best, float(np.linalg.norm(p - q, axis=1).min()))
-    return best
-
-
 def formation_holds(
     requests: Sequence[HoldRequest], yaw_rad: float, ahead_m: float, obstacles: Obstacles,
-    keep_out_m: float, separation_m: float = 0.0, late_s: float = 0.0,
+    keep_out_m: float,
 ) -> list[Hold] | None:  # fmt: skip
     """Every vehicle's circle at its own position moved by one same vector (``ahead_m``
     or further, nearest the bearing ``yaw_rad`` first): the formation as it flies now,
@@ -202,19 +174,10 @@ def formation_holds(
     vehicle starting it where its teammates start theirs — keep the vehicles' present
     spacing (circles chosen one vehicle at a time, clear of each other, made two wingmen
     cross on the way to them, 7.1 m apart on real ArduPlane); None if no vector keeps every
-    circle and approach ``keep_out_m`` from the obstacles.  Where every vehicle's response
-    is known, the approaches must also keep ``separation_m`` between any two, either of
-    them ``late_s`` late (``approaches_apart``): vehicles turning at the end of a run fly
-    approaches that are not parallel at first, and a hold that comes late leaves one flying
-    on meanwhile (Table 3, ×5 on a lossy link: a wingman escaping towards a teammate when
-    the run ended got its hold's altitude 3.7 s late and came to 32.4 m of it).  If none
-    does, the vector whose approaches keep the most."""
+    circle and approach ``keep_out_m`` from the obstacles."""
     if not requests:
         return []
     reach = max(r.radius_m for r in requests)
-    judged = separation_m > 0.0 and all(r.motion is not None for r in requests)
-    best: list[Hold] | None = None
-    best_apart = -math.inf
     for step in REACH_STEPS:
         d = ahead_m + step * reach
         for bearing in BEARINGS:
@@ -225,29 +188,9 @@ def formation_holds(
                         float(r.pos_m[1]) + dy, heading, obstacles, r.motion)
                 for r in requests
             ]  # fmt: skip
-            if not all(h.clearance_m >= keep_out_m for h in holds):
-                continue
-            if not judged:
+            if all(h.clearance_m >= keep_out_m for h in holds):
                 return holds
-            apart = approaches_apart(*approaches(requests, holds, late_s))
-            if apart >= separation_m:
-                return holds
-            if apart > best_apart:
-                best, best_apart = holds, apart
-    return best
-
-
-def approaches(
-    requests: Sequence[HoldRequest], holds: Sequence[Hold], late_s: float
-) -> tuple[list[FloatArray], list[FloatArray]]:
-    """Each vehicle's approach to its hold, on time and ``late_s`` late."""
-    on_time, late = [], []
-    for r, h in zip(requests, holds, strict=True):
-        assert r.motion is not None
-        wide = h.radius_m / TURN_EFFICIENCY
-        on_time.append(approach_path(r.motion, h.x_m, h.y_m, h.z_m, wide))
-        late.append(approach_path(r.motion, h.x_m, h.y_m, h.z_m, wide, late_s))
-    return on_time, late
+    return None
 
 
 def holding_circle(

@@ -60,12 +60,22 @@ def yaw_rate_for(m: FloatArray, bank_rad: float) -> float:
 
 
 @njit(cache=True)
-def height_demand_now(m: FloatArray) -> float:
-    """TECS's height demand as the vertical speed the vehicle flies gives it (its climb-rate
-    demand is the gain × the demand's lead on the altitude)."""
+def demand_lead(m: FloatArray, vz: float) -> float:
+    """How far TECS's height demand leads the altitude of a vehicle at vertical speed
+    ``vz``: the climb-rate demand's lead, and as much again as the vertical speed lags
+    (at the limits the demand runs on ahead: against the SITL, a dive at 84 m/s told to
+    climb dipped 47 m; with the lead vz / gain alone the prediction said 31 m); 0 for an
+    airframe whose vertical speed changes at once."""
     if math.isinf(m[HEIGHT_GAIN]):
-        return float(m[Z])
-    return float(m[Z] + m[VZ] * (1.0 / m[HEIGHT_GAIN] + m[CLIMB_LAG]))
+        return 0.0
+    return float(vz * (1.0 / m[HEIGHT_GAIN] + m[CLIMB_LAG]))
+
+
+@njit(cache=True)
+def height_demand_now(m: FloatArray) -> float:
+    """TECS's height demand as the vertical speed the vehicle flies gives it
+    (``demand_lead``); also the height it would level off at, told to hold where it is."""
+    return float(m[Z] + demand_lead(m, m[VZ]))
 
 
 @njit(cache=True)
@@ -87,6 +97,21 @@ def climb(m: FloatArray, f: FloatArray, z_demand: float, dt: float) -> None:
         vz = f[FLIGHT_VZ] + (wanted - f[FLIGHT_VZ]) * (1.0 - math.exp(-dt / m[CLIMB_LAG]))
     f[FLIGHT_VZ] = vz
     f[Z] += vz * dt
+
+
+@njit(cache=True)
+def heights(m: FloatArray, z_demand: float, dt: float, k: int) -> FloatArray:
+    """The altitudes [k+1], ``dt`` apart, of a vehicle told to go to ``z_demand``, as TECS
+    flies it from the vertical speed it has (``climb``)."""
+    f = np.zeros(FLIGHT_SIZE)
+    f[Z], f[FLIGHT_VZ] = m[Z], m[VZ]
+    f[HEIGHT_DEMAND] = height_demand_now(m)
+    out = np.empty(k + 1)
+    out[0] = f[Z]
+    for i in range(1, k + 1):
+        climb(m, f, z_demand, dt)
+        out[i] = f[Z]
+    return out
 
 
 @njit(cache=True)

@@ -17,7 +17,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from gcs_ppf.geodesy import enu_to_geodetic, enu_to_geodetic_many
-from gcs_ppf.guidance import assurance, holding, slew, speed_reference
+from gcs_ppf.guidance import assurance, holding, prediction, slew, speed_reference
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import Guidance, VehicleState
 from gcs_ppf.mavlink import commands
@@ -48,9 +48,6 @@ run command for 12 s of its time meanwhile, and came to 27 m of a wingman turnin
 its own hold) …"""
 HOLD_ACK_VEHICLE_S = 2.0
 """… again when unanswered for this long (vehicle seconds; within 0.2–1.5 of ours)."""
-HOLD_LATE_S = 2.0 * HOLD_ACK_VEHICLE_S
-"""How late a vehicle's hold may take effect (vehicle seconds) whose first send went
-unanswered (``holding.formation_holds``; measured: 3.7 s, ×5 on a lossy link)."""
 
 #: Without TECS limits, climb and sink are taken as this fraction of the speed (~24°).
 DEFAULT_PATH_SLOPE = 0.4
@@ -267,16 +264,14 @@ def _holds(
     obstacles: Obstacles, keep_out: float,
 ) -> dict[int, holding.Hold]:  # fmt: skip
     """The formation's present layout translated (``holding.formation_holds``, towards the
-    leader's heading; the approaches apart by the safe distance, either one ``HOLD_LATE_S``
-    late), or, where no translation clears the obstacles, each vehicle's own
+    leader's heading), or, where no translation clears the obstacles, each vehicle's own
     circle clear of those chosen before it."""
     reference = states.get(mission.leader.id) or next(iter(states.values()), None)
     yaw = 0.0 if reference is None else reference.yaw_rad
     ids = list(requests)
     together = holding.formation_holds(
-        [requests[i] for i in ids], yaw, LOITER_AHEAD_M, obstacles, keep_out,
-        mission.limits.safe_distance_uav, HOLD_LATE_S,
-    )  # fmt: skip
+        [requests[i] for i in ids], yaw, LOITER_AHEAD_M, obstacles, keep_out
+    )
     if together is not None:
         return dict(zip(ids, together, strict=True))
     taken: list[tuple[holding.Hold, float]] = []  # the circles chosen so far, flown this wide
@@ -291,14 +286,20 @@ def _holds(
     return out
 
 
-def stack_level(vehicle_id: int, states: dict[int, VehicleState]) -> int:
-    """A vehicle's level in the holding stack: how many vehicles are lower than it now (ties
-    by id), so that the order of heights is kept on the way to the holds."""
-    z = states[vehicle_id].pos_m[2]
-    return sum(
-        1 for vid, s in states.items()
-        if vid != vehicle_id and (s.pos_m[2], vid) < (z, vehicle_id)
-    )  # fmt: skip
+def levelling_height(state: VehicleState, airframe: Airframe, mission: Mission) -> float:
+    """Where a vehicle would level off, told to hold its height now: its altitude and the
+    lead TECS's height demand has at the vertical speed it flies
+    (``prediction.height_demand_now``)."""
+    vector = assurance.motion_vector(motion(state, airframe, mission))
+    return float(prediction.height_demand_now(vector))
+
+
+def stack_level(vehicle_id: int, heights: dict[int, float]) -> int:
+    """A vehicle's level in the holding stack: how many vehicles are lower than it (ties by
+    id), by ``heights`` (``levelling_height``), so that the order of heights is kept on the
+    way to the holds."""
+    z = heights[vehicle_id]
+    return sum(1 for vid, h in heights.items() if vid != vehicle_id and (h, vid) < (z, vehicle_id))
 
 
 def hold_orders(
@@ -311,12 +312,16 @@ def hold_orders(
     of its teammates' by the safe distance; flown at the mission's v_min (GUIDED keeps the
     last DO_CHANGE_SPEED: a wingman left at 218 m/s crossed its circle's centre and swung
     1.4 km out, into a sphere, 11 s after a Table 3 run under two CPU burners).  The k-th
-    lowest vehicle now holds ``LOITER_STACK_M``·k above the target after completion
+    lowest vehicle (``levelling_height``: where it levels off) holds ``LOITER_STACK_M``·k
+    above the target after completion
     (``stacked``), above the highest vehicle after an abort or a failure: no two circles at
     one height (held at their own heights after a failure, a leader and a wingman came to
     42.5 m on crossing circles), and no two climbs or descents to them crossing (stacked by
     the mission's order, a wingman descending to its level met one climbing through it to a
-    higher one, 14.2 m apart, 3.9 s after the end of a Table 3 run).  A vehicle without a
+    higher one, 14.2 m apart, 3.9 s after the end of a Table 3 run; stacked by the heights
+    they had, a wingman 20 m above another but diving at 50 m/s got the higher level, dived
+    70 m more before it climbed, and climbed through the other's level 42 m from it, 7.7 s
+    after a run, ×5 on a lossy link).  A vehicle without a
     state is put in LOITER; one not ``heard`` (lost) is not commanded.  A ``hold_not_clear``
     event when no circle keeps the keep-out."""
     mission = orders.mission
@@ -324,6 +329,10 @@ def hold_orders(
     keep_out = 2.0 * mission.limits.safe_distance_obstacle
     out: list[confirmation.Order] = []
     highest = max((st.pos_m[2] for st in states.values()), default=mission.target[2])
+    heights = {
+        vid: st.pos_m[2] if vid not in airframes else levelling_height(st, airframes[vid], mission)
+        for vid, st in states.items()
+    }  # fmt: skip
     requests: dict[int, holding.HoldRequest] = {}
     for v in mission.vehicles:
         if v.id not in heard:
@@ -339,7 +348,9 @@ def hold_orders(
         airframe_omega = airframes[v.id].max_turn_rate(s.speed_m_s)
         omega = min(airframe_omega or math.inf, mission.limits.max_yaw_rate)
         radius = max(HOLD_MIN_RADIUS_M, HOLD_TURN_RADII * s.speed_m_s / omega)
-        z = (mission.target[2] if stacked else highest) + LOITER_STACK_M * stack_level(v.id, states)
+        z = (mission.target[2] if stacked else highest) + LOITER_STACK_M * stack_level(
+            v.id, heights
+        )
         requests[v.id] = holding.HoldRequest(
             np.array(s.pos_m), s.yaw_rad, z, radius, motion(s, airframes[v.id], mission)
         )

@@ -36,17 +36,37 @@ def state(z: float) -> VehicleState:
 def test_the_lowest_vehicle_now_holds_lowest_and_the_order_of_heights_is_kept() -> None:
     # the mission's order (1…4) is not the order of heights: 2 is highest, 4 lowest
     states = {1: state(300.0), 2: state(474.0), 3: state(350.0), 4: state(299.0)}
-    levels = {vid: stack_level(vid, states) for vid in states}
+    heights = {vid: s.pos_m[2] for vid, s in states.items()}
+    levels = {vid: stack_level(vid, heights) for vid in states}
     assert levels == {4: 0, 1: 1, 3: 2, 2: 3}
     order_now = sorted(states, key=lambda v: states[v].pos_m[2])
     assert sorted(states, key=levels.__getitem__) == order_now
 
 
 def test_vehicles_at_one_height_get_distinct_levels_by_id() -> None:
-    states = {5: state(300.0), 2: state(300.0), 7: state(300.0)}
-    assert sorted(stack_level(v, states) for v in states) == [0, 1, 2]
-    assert stack_level(2, states) == 0
-    assert stack_level(7, states) == 2
+    heights = {5: 300.0, 2: 300.0, 7: 300.0}
+    assert sorted(stack_level(v, heights) for v in heights) == [0, 1, 2]
+    assert stack_level(2, heights) == 0
+    assert stack_level(7, heights) == 2
+
+
+def test_a_vehicle_diving_fast_is_stacked_below_one_it_will_level_off_under() -> None:
+    """At a run's end wingman 3 is 20 m above wingman 4 but diving at 40 m/s, wingman 4
+    climbing at 20 m/s (the paper's airframe, TECS_TIME_CONST 1 s): wingman 3 levels off
+    below wingman 4 and is given the lower level, so neither climbs through the other."""
+    from gcs_ppf.service.commanding import levelling_height
+
+    mission = Mission.model_validate_json((EXAMPLES / "paper_table3.json").read_text())
+    airframe = Airframe(tecs_time_constant_s=1.0, climb_max_m_s=100.0, sink_max_m_s=100.0)
+    diving = VehicleState((0.0, 0.0, 794.0), 0.0, 0.0, 150.0, climb_rate_m_s=-40.0)
+    climbing = VehicleState((300.0, 0.0, 774.0), 0.0, 0.0, 150.0, climb_rate_m_s=20.0)
+    heights = {3: levelling_height(diving, airframe, mission),
+               4: levelling_height(climbing, airframe, mission)}  # fmt: skip
+    assert heights[3] < 794.0 - 30.0  # 794 − 40 × (1 / 1.75 + 0.4) = 755.1
+    assert heights[4] > 774.0 + 15.0
+    assert stack_level(3, heights) == 0
+    assert stack_level(4, heights) == 1
+    assert stack_level(3, {3: 794.0, 4: 774.0}) == 1  # by the heights they had
 
 
 def test_a_vehicle_whose_command_is_replaced_by_an_escape_is_told_to_fly_its_slowest() -> None:
