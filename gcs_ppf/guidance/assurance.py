@@ -409,6 +409,4 @@ def warm_up() -> None:
     assure([m, replace(m, pos_m=(0.0, 300.0, 100.0))], [Command(0.0, 100.0)] * 2, 1.0, keep)
     advance(m, Command(0.0, 100.0), 1.0)
     escape_s(m)
-    vector = motion_vector(m)
-    prediction.height_demand_now(vector)  # the holds' stack and approaches
-    prediction.heights(vector, 100.0, 0.5, 4)
+    prediction.height_demand_now(motion_vector(m))  # the holds' stack

@@ -23,8 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs_ppf.guidance import prediction
-from gcs_ppf.guidance.assurance import Motion, motion_vector
+from gcs_ppf.guidance.assurance import Motion
 from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from gcs_ppf.planning.scene import FloatArray, Obstacles
 
@@ -37,7 +36,6 @@ APPROACH_SAMPLES = 24
 #: Seconds between the points of a flown approach, and the longest approach flown.
 APPROACH_STEP_S = 0.5
 APPROACH_MAX_S = 180.0
-APPROACH_STEPS = math.ceil(APPROACH_MAX_S / APPROACH_STEP_S) + 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -76,15 +74,13 @@ def path_clearance(a: FloatArray, b: FloatArray, obstacles: Obstacles) -> float:
 
 def approach_path(m: Motion, x: float, y: float, z: float, radius_m: float) -> FloatArray:
     """Where a vehicle flies [k,3] from its state ``m`` to the loiter circle (centre x, y at
-    height z), ``APPROACH_STEP_S`` apart: turning towards the centre at its turn rate (first
-    order with its heading time constant), climbing or sinking as the assurance predicts it
-    (``prediction.heights``: from the vertical speed it has, as TECS flies), until it is on
-    the ring, then once around the ring's first half (the capture swings out)."""
-    px, py, _ = m.pos_m
+    height z): turning towards the centre at its turn rate (first order with its heading
+    time constant), climbing or sinking at its limits, until it is on the ring, then once
+    around the ring's first half (the capture swings out)."""
+    px, py, pz = m.pos_m
     yaw = m.yaw_rad
     dt = APPROACH_STEP_S
-    z_at = prediction.heights(motion_vector(m), float(z), dt, APPROACH_STEPS)
-    out = [(px, py)]
+    out = [(px, py, pz)]
     t, on_ring_s = 0.0, None
     half_turn_s = math.pi * radius_m / max(m.speed_m_s, 1.0)
     while t < APPROACH_MAX_S:
@@ -100,10 +96,10 @@ def approach_path(m: Motion, x: float, y: float, z: float, radius_m: float) -> F
         yaw += rate * dt
         px += m.speed_m_s * math.cos(yaw) * dt
         py += m.speed_m_s * math.sin(yaw) * dt
-        out.append((px, py))
+        pz += max(-m.sink_m_s * dt, min(m.climb_m_s * dt, z - pz))
+        out.append((px, py, pz))
         t += dt
-    horizontal = np.array(out)
-    return np.column_stack((horizontal, z_at[: len(out)]))
+    return np.array(out)
 
 
 def points_clearance(points: FloatArray, obstacles: Obstacles) -> float:

@@ -100,21 +100,6 @@ def climb(m: FloatArray, f: FloatArray, z_demand: float, dt: float) -> None:
 
 
 @njit(cache=True)
-def heights(m: FloatArray, z_demand: float, dt: float, k: int) -> FloatArray:
-    """The altitudes [k+1], ``dt`` apart, of a vehicle told to go to ``z_demand``, as TECS
-    flies it from the vertical speed it has (``climb``)."""
-    f = np.zeros(FLIGHT_SIZE)
-    f[Z], f[FLIGHT_VZ] = m[Z], m[VZ]
-    f[HEIGHT_DEMAND] = height_demand_now(m)
-    out = np.empty(k + 1)
-    out[0] = f[Z]
-    for i in range(1, k + 1):
-        climb(m, f, z_demand, dt)
-        out[i] = f[Z]
-    return out
-
-
-@njit(cache=True)
 def step(m: FloatArray, f: FloatArray, bank_demand: float, z_demand: float, dt: float) -> None:
     """``dt`` seconds of flight, ``f`` in place: the bank towards its demand (first order,
     rate limited), the turn it gives, the altitude towards ``z_demand`` (``climb``)."""

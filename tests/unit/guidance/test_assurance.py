@@ -346,8 +346,7 @@ def test_after_warm_up_nothing_is_compiled_in_flight() -> None:
     assurance.warm_up()
     compiled = {
         f: len(getattr(prediction, f).signatures)
-        for f in ("score", "fly_hold", "fly_on", "escape_s", "escape_steps", "heights",
-                  "height_demand_now")
+        for f in ("score", "fly_hold", "fly_on", "escape_s", "escape_steps", "height_demand_now")
     }  # fmt: skip
     m = Motion((0, 0, 100), 0, 25, 0.3, 5, 5)
     walls = Obstacles(np.array([[500, 0, 100]]), np.array([100]), np.zeros((1, 3)))
@@ -356,13 +355,11 @@ def test_after_warm_up_nothing_is_compiled_in_flight() -> None:
     advance(m, Command(0, 100), 2)
     assurance.escape_s(m)
     from gcs_ppf.guidance.airframe import Airframe
-    from gcs_ppf.guidance.holding import approach_path
     from gcs_ppf.guidance.online import VehicleState
     from gcs_ppf.mission import Mission
     from gcs_ppf.service.commanding import levelling_height
     from tests.conftest import EXAMPLES
 
-    approach_path(m, 1000, 0, 200, 100)
     mission = Mission.model_validate_json((EXAMPLES / "paper_table3.json").read_text())
     state = VehicleState((0, 0, 100), 0, 0, 25, climb_rate_m_s=-3)
     levelling_height(state, Airframe(tecs_time_constant_s=5), mission)
