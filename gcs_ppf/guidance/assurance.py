@@ -35,7 +35,6 @@ import numpy as np
 
 from gcs_ppf.guidance import prediction
 from gcs_ppf.guidance.airframe import G_M_S2
-from gcs_ppf.guidance.prediction import STEP_S
 from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from gcs_ppf.planning.scene import FloatArray, Obstacles
 
@@ -214,11 +213,6 @@ REASONS = {prediction.OBSTACLE: "obstacle", prediction.GROUND: "ground",
            prediction.TEAMMATE: "teammate"}  # fmt: skip
 
 
-def hold_steps(hold_s: float) -> int:
-    """How many steps a hold path of ``hold_s`` has (``prediction.fly_hold``)."""
-    return max(1, math.ceil(hold_s / STEP_S))
-
-
 @dataclass(frozen=True, slots=True)
 class _Near:
     """The teammates one vehicle yields to, as ``prediction.score`` takes them."""
@@ -228,7 +222,7 @@ class _Near:
 
     @staticmethod
     def of(tracks: Sequence[Track], hold_s: float) -> _Near:
-        k = hold_steps(hold_s)
+        k = int(prediction.hold_steps(float(hold_s)))
         if not tracks:
             return _Near(np.zeros((0, k + 1, 3)), np.zeros((0, 1, 3)))
         paths = np.stack([t.path for t in tracks]).astype(np.float64)
@@ -238,16 +232,16 @@ class _Near:
 
 def _score(
     vector: FloatArray, c: Command, hold_s: float, keep: KeepOut, near: _Near
-) -> tuple[float, str | None, FloatArray]:
-    """A command's margin and the keep-out it is to, with the flight at its hold's end."""
+) -> tuple[float, str | None]:
+    """A command's margin and the keep-out it is to."""
     obs = keep.obstacles
     ground = math.nan if keep.ground_z_m is None else float(keep.ground_z_m)
-    s, reason, _, end = prediction.score(  # one signature: no compiling in flight
+    s, reason = prediction.score(  # one signature: no compiling in flight
         vector, float(c.course_rad), float(c.z_m), float(hold_s), _floats(obs.center),
         _floats(obs.radius), float(keep.safe_distance_obstacle), ground, near.held,
         near.after, float(keep.safe_distance_uav),
     )  # fmt: skip
-    return float(s), REASONS.get(reason), end
+    return float(s), REASONS.get(reason)
 
 
 def track(vector: FloatArray, c: Command, hold_s: float, after_steps: int) -> Track:
@@ -268,8 +262,7 @@ def score(
 ) -> tuple[float, str | None]:
     """A command's margin: along its hold, then along the better of its two escapes (the
     teammates flying on meanwhile, ``Track``); with the keep-out it is to."""
-    s, reason, _ = _score(motion_vector(m), c, hold_s, keep, _Near.of(others, hold_s))
-    return s, reason
+    return _score(motion_vector(m), c, hold_s, keep, _Near.of(others, hold_s))
 
 
 def overtaking(a: Motion, b: Motion) -> bool:
@@ -338,7 +331,7 @@ def assure(
             if overtaking(m, o) and within_reach(m, o, hold_s, keep)
         ]  # fmt: skip
         vector, prepared = vectors[i], _Near.of(near, hold_s)
-        planned, reason, _ = _score(vector, c, hold_s, keep, prepared)
+        planned, reason = _score(vector, c, hold_s, keep, prepared)
         chosen, chosen_margin = c, planned
         slack = SLACK_S * m.speed_m_s
         previous = None if escaping is None else escaping[i]
@@ -380,7 +373,7 @@ def _escape(
     best: tuple[float, Command] | None = None
     other: tuple[float, Command] | None = None  # the best turning the other way
     for candidate in candidates:
-        s, _, _ = _score(vector, candidate, hold_s, keep, near)
+        s, _ = _score(vector, candidate, hold_s, keep, near)
         if side and candidate != kept_command and turn_side(m, candidate.course_rad) == -side:
             if other is None or s > other[0]:
                 other = (s, candidate)

@@ -133,12 +133,18 @@ def _fly(m: FloatArray, f: FloatArray, course: float, z: float, dt: float, k: in
 
 
 @njit(cache=True)
+def hold_steps(hold_s: float) -> int:
+    """How many steps a hold of ``hold_s`` is predicted in (``fly_hold``)."""
+    return max(1, math.ceil(hold_s / STEP_S))
+
+
+@njit(cache=True)
 def fly_hold(
     m: FloatArray, course: float, z: float, hold_s: float
 ) -> tuple[FloatArray, FloatArray]:
     """Positions [k+1,3] (from now, every ``STEP_S`` or less) while the vehicle flies the
     course and altitude for ``hold_s`` (``_fly``), and the predicted flight at the end."""
-    k = max(1, math.ceil(hold_s / STEP_S))
+    k = hold_steps(hold_s)
     f = np.empty(FLIGHT_SIZE)
     f[X], f[Y], f[Z], f[YAW] = m[X], m[Y], m[Z], m[YAW]
     f[BANK] = bank_for(m, m[YAW_RATE])
@@ -248,11 +254,11 @@ def score(
     m: FloatArray, course: float, z: float, hold_s: float, centers: FloatArray,
     radii: FloatArray, safe_obstacle: float, ground_z: float, mates_held: FloatArray,
     mates_after: FloatArray, safe_uav: float,
-) -> tuple[float, int, FloatArray, FloatArray]:  # fmt: skip
+) -> tuple[float, int]:  # fmt: skip
     """A command's margin: along its hold (the teammates along theirs, ``mates_held``
     [n,k+1,3] at the same instants), then along the better of its two escapes (the
     teammates flying on meanwhile, ``mates_after`` [n,j,3] from their hold's end,
-    ``STEP_S`` apart, the last held on); with the hold's path and the flight at its end."""
+    ``STEP_S`` apart, the last held on); with the keep-out it is to."""
     path, end = fly_hold(m, course, z, hold_s)
     held, reason = margin(path, centers, radii, safe_obstacle, ground_z, mates_held, safe_uav)
     escape, escape_reason = -math.inf, NO_KEEP_OUT
@@ -262,5 +268,5 @@ def score(
         if e > escape:
             escape, escape_reason = e, r
     if escape < held:
-        return escape, escape_reason, path, end
-    return held, reason, path, end
+        return escape, escape_reason
+    return held, reason

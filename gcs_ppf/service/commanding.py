@@ -348,9 +348,8 @@ def hold_orders(
         airframe_omega = airframes[v.id].max_turn_rate(s.speed_m_s)
         omega = min(airframe_omega or math.inf, mission.limits.max_yaw_rate)
         radius = max(HOLD_MIN_RADIUS_M, HOLD_TURN_RADII * s.speed_m_s / omega)
-        z = (mission.target[2] if stacked else highest) + LOITER_STACK_M * stack_level(
-            v.id, heights
-        )
+        base = mission.target[2] if stacked else highest
+        z = base + LOITER_STACK_M * stack_level(v.id, heights)
         requests[v.id] = holding.HoldRequest(
             np.array(s.pos_m), s.yaw_rad, z, radius, motion(s, airframes[v.id], mission)
         )
