@@ -36,6 +36,12 @@ APPROACH_SAMPLES = 24
 #: Seconds between the points of a flown approach, and the longest approach flown.
 APPROACH_STEP_S = 0.5
 APPROACH_MAX_S = 180.0
+#: A vehicle flies its hold (``on_ring``) within this of its height (m) …
+SETTLED_HEIGHT_M = 10.0
+#: … level within this (m/s) …
+SETTLED_CLIMB_M_S = 2.0
+#: … and its course within this of the ring's tangent (radians).
+SETTLED_COURSE_RAD = math.radians(30.0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -72,25 +78,71 @@ def path_clearance(a: FloatArray, b: FloatArray, obstacles: Obstacles) -> float:
     return float((np.linalg.norm(obstacles.center - closest, axis=1) - obstacles.radius).min())
 
 
+def flown_radius_m(radius_m: float) -> float:
+    """The radius a loiter of ``radius_m`` is flown at: ArduPlane's turns give η of a
+    coordinated one's rate (``TURN_EFFICIENCY``), so its circle is radius / η."""
+    return radius_m / TURN_EFFICIENCY
+
+
+def loiter_course(
+    pos_m: Sequence[float] | FloatArray, x: float, y: float, ring_radius_m: float,
+    speed_m_s: float, turn_rate_rad_s: float, heading_tau_s: float,
+) -> float:  # fmt: skip
+    """The course (ICS yaw) that flies a vehicle onto the ring of radius ``ring_radius_m``
+    round (x, y) and clockwise round it: a vector field (Nelson et al., "Vector field path
+    following for miniature air vehicles", 2007) straight at the centre from afar, the
+    ring's tangent on it, 45° off the tangent a turn's radius (``speed_m_s`` /
+    ``turn_rate_rad_s``) off the ring; on and near the ring led by the turn the ring asks ×
+    ``heading_tau_s`` (GUIDED's course P-controller turns at the course error over that
+    time constant, so a vehicle told the tangent itself settles outside the ring)."""
+    dx, dy = float(pos_m[0]) - x, float(pos_m[1]) - y
+    out_from_centre = math.atan2(dy, dx)
+    turn_radius = max(speed_m_s, 1.0) / max(turn_rate_rad_s, 1e-6)
+    off = (math.hypot(dx, dy) - ring_radius_m) / turn_radius
+    near = 1.0 / (1.0 + off * off)
+    lead = near * heading_tau_s * max(speed_m_s, 1.0) / max(ring_radius_m, 1.0)
+    return math.remainder(out_from_centre - math.pi / 2.0 - math.atan(off) - lead, math.tau)
+
+
+def on_ring(
+    pos_m: Sequence[float] | FloatArray, yaw_rad: float, climb_rate_m_s: float, hold: Hold,
+    speed_m_s: float, turn_rate_rad_s: float,
+) -> bool:  # fmt: skip
+    """Whether a vehicle flies its hold: at its height (``SETTLED_HEIGHT_M``, level within
+    ``SETTLED_CLIMB_M_S``), within half a turn's radius of the ring as flown
+    (``flown_radius_m``) and along it, clockwise (``SETTLED_COURSE_RAD``)."""
+    dx, dy = float(pos_m[0]) - hold.x_m, float(pos_m[1]) - hold.y_m
+    turn_radius = max(speed_m_s, 1.0) / max(turn_rate_rad_s, 1e-6)
+    off = abs(math.hypot(dx, dy) - flown_radius_m(hold.radius_m))
+    tangent = math.atan2(dy, dx) - math.pi / 2.0
+    return (
+        abs(float(pos_m[2]) - hold.z_m) <= SETTLED_HEIGHT_M
+        and abs(climb_rate_m_s) <= SETTLED_CLIMB_M_S
+        and off <= 0.5 * turn_radius
+        and abs(math.remainder(yaw_rad - tangent, math.tau)) <= SETTLED_COURSE_RAD
+    )
+
+
 def approach_path(m: Motion, x: float, y: float, z: float, radius_m: float) -> FloatArray:
-    """Where a vehicle flies [k,3] from its state ``m`` to the loiter circle (centre x, y at
-    height z): turning towards the centre at its turn rate (first order with its heading
-    time constant), climbing or sinking at its limits, until it is on the ring, then once
-    around the ring's first half (the capture swings out)."""
+    """Where a vehicle flies [k,3] from its state ``m`` to the loiter ring of ``radius_m``
+    round (x, y) at height z, as the service flies it there (``loiter_course``, the course
+    followed first order with its heading time constant at most at its turn rate), climbing
+    or sinking at its limits, until it is on the ring, then once around the ring's first
+    half (the capture swings out)."""
     px, py, pz = m.pos_m
     yaw = m.yaw_rad
     dt = APPROACH_STEP_S
     out = [(px, py, pz)]
     t, on_ring_s = 0.0, None
     half_turn_s = math.pi * radius_m / max(m.speed_m_s, 1.0)
+    turn_radius = max(m.speed_m_s, 1.0) / max(m.turn_rate_rad_s, 1e-6)
     while t < APPROACH_MAX_S:
-        if on_ring_s is None and math.hypot(x - px, y - py) <= radius_m:
+        if on_ring_s is None and abs(math.hypot(x - px, y - py) - radius_m) <= 0.5 * turn_radius:
             on_ring_s = t
         if on_ring_s is not None and t - on_ring_s >= half_turn_s:
             break
-        aim = math.atan2(y - py, x - px)
-        if on_ring_s is not None:  # circling: tangent to the ring, clockwise (radius > 0)
-            aim += math.pi / 2.0
+        aim = loiter_course((px, py), x, y, radius_m, m.speed_m_s, m.turn_rate_rad_s,
+                            m.heading_tau_s)  # fmt: skip
         err = math.remainder(aim - yaw, math.tau)
         rate = max(-m.turn_rate_rad_s, min(m.turn_rate_rad_s, err / max(m.heading_tau_s, dt)))
         yaw += rate * dt
@@ -120,7 +172,7 @@ def ring_gap(x: float, y: float, wide_m: float, taken: Sequence[tuple[Hold, floa
 def flown_width_m(radius_m: float, motion: Motion | None) -> float:
     """How wide a circle of ``radius_m`` is flown: radius / η, and the capture swings out by
     up to a turn's radius beyond it."""
-    wide = radius_m / TURN_EFFICIENCY
+    wide = flown_radius_m(radius_m)
     if motion is not None:
         wide += motion.speed_m_s / max(motion.turn_rate_rad_s, 1e-6)
     return wide
@@ -137,7 +189,7 @@ def hold_at(
         approach = path_clearance(np.asarray(pos_m, dtype=float), entry, obstacles)
     else:
         approach = points_clearance(
-            approach_path(motion, x, y, z_m, radius_m / TURN_EFFICIENCY), obstacles
+            approach_path(motion, x, y, z_m, flown_radius_m(radius_m)), obstacles
         )
     wide = flown_width_m(radius_m, motion)
     clear = min(

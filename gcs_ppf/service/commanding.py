@@ -190,6 +190,13 @@ def remember(
         del escaping[vid]
 
 
+def along(m: assurance.Motion, c: assurance.Command) -> tuple[float, float, float]:
+    """A guided point for course ``c`` (point guidance): ``ESCAPE_POINT_M`` along it from
+    the vehicle, at its altitude."""
+    return (m.pos_m[0] + ESCAPE_POINT_M * math.cos(c.course_rad),
+            m.pos_m[1] + ESCAPE_POINT_M * math.sin(c.course_rad), c.z_m)  # fmt: skip
+
+
 def _course_point(
     cmd: slew.SlewCommand, v: assurance.Verdict, m: assurance.Motion, orders: Orders,
     guided_point: np.ndarray,
@@ -199,9 +206,7 @@ def _course_point(
     altitude it is sent."""
     if orders.guidance_mode == "point":
         if v.replaced:
-            return (m.pos_m[0] + ESCAPE_POINT_M * math.cos(v.command.course_rad),
-                    m.pos_m[1] + ESCAPE_POINT_M * math.sin(v.command.course_rad),
-                    v.command.z_m)  # fmt: skip
+            return along(m, v.command)
         x, y, z = (float(c) for c in guided_point)
         return x, y, z
     return m.pos_m[0], m.pos_m[1], v.command.z_m
@@ -302,17 +307,37 @@ def stack_level(vehicle_id: int, heights: dict[int, float]) -> int:
     return sum(1 for vid, h in heights.items() if vid != vehicle_id and (h, vid) < (z, vehicle_id))
 
 
-def hold_orders(
+@dataclass(frozen=True)
+class HoldPlan:
+    """Where each vehicle holds (``circles``) and the orders that hand the holds to the
+    autopilots (``orders``: each circle's GUIDED loiter, speed and altitude; LOITER mode
+    for a vehicle without a state)."""
+
+    circles: dict[int, holding.Hold]
+    orders: list[confirmation.Order]
+
+
+def stack_spacing_m(mission: Mission) -> float:
+    """The height between two levels of the holding stack: ``LOITER_STACK_M``, and at least
+    twice the safe distance and the assurance's slack at v_min (``assurance.SLACK_S``), so
+    that vehicles flying their circles one level apart are recoverable with the slack to
+    spare wherever they are on them (at Table 3's 100 m/s and 50 m, 100 m apart left the
+    margin exactly at the slack: an escape every time two circles crossed)."""
+    lim = mission.limits
+    return max(LOITER_STACK_M, 2.0 * lim.safe_distance_uav + assurance.SLACK_S * lim.v_min)
+
+
+def hold_plan(
     orders: Orders, states: dict[int, VehicleState], airframes: dict[int, Airframe],
     mission_time_s: float, stacked: bool, event: Callable[..., None], heard: set[int],
-) -> list[confirmation.Order]:  # fmt: skip
+) -> HoldPlan:  # fmt: skip
     """Each vehicle to a holding circle (``gcs_ppf.guidance.holding``) that cuts no
     obstacle's keep-out (twice the safe distance), at ``HOLD_TURN_RADII`` turn radii at its
     speed: the formation's present layout translated (``_holds``), else each circle clear
     of its teammates' by the safe distance; flown at the mission's v_min (GUIDED keeps the
     last DO_CHANGE_SPEED: a wingman left at 218 m/s crossed its circle's centre and swung
     1.4 km out, into a sphere, 11 s after a Table 3 run under two CPU burners).  The k-th
-    lowest vehicle (``levelling_height``: where it levels off) holds ``LOITER_STACK_M``·k
+    lowest vehicle (``levelling_height``: where it levels off) holds ``stack_spacing_m``·k
     above the target after completion
     (``stacked``), above the highest vehicle after an abort or a failure: no two circles at
     one height (held at their own heights after a failure, a leader and a wingman came to
@@ -333,6 +358,7 @@ def hold_orders(
         vid: st.pos_m[2] if vid not in airframes else levelling_height(st, airframes[vid], mission)
         for vid, st in states.items()
     }  # fmt: skip
+    spacing = stack_spacing_m(mission)
     requests: dict[int, holding.HoldRequest] = {}
     for v in mission.vehicles:
         if v.id not in heard:
@@ -349,27 +375,85 @@ def hold_orders(
         omega = min(airframe_omega or math.inf, mission.limits.max_yaw_rate)
         radius = max(HOLD_MIN_RADIUS_M, HOLD_TURN_RADII * s.speed_m_s / omega)
         base = mission.target[2] if stacked else highest
-        z = base + LOITER_STACK_M * stack_level(v.id, heights)
+        z = base + spacing * stack_level(v.id, heights)
         requests[v.id] = holding.HoldRequest(
             np.array(s.pos_m), s.yaw_rad, z, radius, motion(s, airframes[v.id], mission)
         )
-    for vid, hold in _holds(requests, states, mission, obstacles, keep_out).items():
+    circles = _holds(requests, states, mission, obstacles, keep_out)
+    for vid, hold in circles.items():
         if hold.clearance_m < keep_out:
             event("hold_not_clear", vid, clearance_m=round(hold.clearance_m, 1))
-        lat, lon, alt = enu_to_geodetic(hold.x_m, hold.y_m, hold.z_m, mission.origin)
+        out.extend(loiter_orders(vid, hold, orders, airframes[vid]))
+    return HoldPlan(circles, out)
+
+
+def loiter_orders(
+    vid: int, hold: holding.Hold, orders: Orders, airframe: Airframe
+) -> list[confirmation.Order]:
+    """The orders that hand ``hold`` to the vehicle's autopilot: GUIDED's loiter round its
+    centre (DO_REPOSITION with its radius), the mission's v_min, and in course guidance the
+    guided altitude (it outlives the course)."""
+    mission = orders.mission
+    lat, lon, alt = enu_to_geodetic(hold.x_m, hold.y_m, hold.z_m, mission.origin)
+    out = [confirmation.Order(
+        vid, partial(commands.reposition, vid, lat, lon, alt, hold.radius_m),
+        commands.MAV_CMD_DO_REPOSITION, "hold: guided loiter",
+    )]  # fmt: skip
+    slowest = slowest_airspeed(mission, airframe)
+    out.append(confirmation.Order(
+        vid, partial(commands.change_speed, vid, slowest),
+        commands.MAV_CMD_DO_CHANGE_SPEED, "hold: speed",
+    ))  # fmt: skip
+    if orders.guidance_mode == "course":
         out.append(confirmation.Order(
-            vid, partial(commands.reposition, vid, lat, lon, alt, hold.radius_m),
-            commands.MAV_CMD_DO_REPOSITION, "hold: guided loiter",
+            vid, partial(commands.guided_change_altitude, vid, slew.sendable_altitude(alt), 0.0),
+            commands.MAV_CMD_GUIDED_CHANGE_ALTITUDE, "hold: altitude",
         ))  # fmt: skip
-        slowest = slew.airspeed_command(mission.limits.v_min, None, None, airframes[vid])
-        out.append(confirmation.Order(
-            vid, partial(commands.change_speed, vid, slowest),
-            commands.MAV_CMD_DO_CHANGE_SPEED, "hold: speed",
-        ))  # fmt: skip
-        if orders.guidance_mode == "course":  # the guided altitude outlives the course
-            altitude = slew.sendable_altitude(alt)
-            out.append(confirmation.Order(
-                vid, partial(commands.guided_change_altitude, vid, altitude, 0.0),
-                commands.MAV_CMD_GUIDED_CHANGE_ALTITUDE, "hold: altitude",
-            ))  # fmt: skip
     return out
+
+
+def slowest_airspeed(mission: Mission, airframe: Airframe) -> float:
+    """The airspeed a hold is flown at: the mission's v_min (within the airframe's limits)."""
+    return slew.airspeed_command(mission.limits.v_min, None, None, airframe)
+
+
+def hold_orders(
+    orders: Orders, states: dict[int, VehicleState], airframes: dict[int, Airframe],
+    mission_time_s: float, stacked: bool, event: Callable[..., None], heard: set[int],
+) -> list[confirmation.Order]:  # fmt: skip
+    """``hold_plan``'s orders alone: the holds handed to the autopilots at once."""
+    return hold_plan(orders, states, airframes, mission_time_s, stacked, event, heard).orders
+
+
+async def command_holds(
+    fleet: Sender, circles: dict[int, holding.Hold], ids: list[int],
+    states: dict[int, VehicleState], airframes: dict[int, Airframe], orders: Orders,
+    keep: assurance.KeepOut, hold_s: float, event: Callable[..., None],
+    escaping: dict[int, assurance.Escape], now_s: float,
+) -> dict[int, assurance.Verdict]:  # fmt: skip
+    """One tick of the holding phase flown by the service (``service.hold_flight``): each of
+    ``ids`` (in priority order, the leader first) told the course onto and round its circle
+    (``holding.loiter_course``) at its circle's height, every command assured first as in a
+    run (``assurance.assure``; an escape is sent instead with an ``assurance_override``
+    event, ``phase`` ``hold``).  Returns each one's verdict."""
+    mission = orders.mission
+    motions = [motion(states[vid], airframes[vid], mission) for vid in ids]
+    wanted = []
+    for vid, m in zip(ids, motions, strict=True):
+        c = circles[vid]
+        course = holding.loiter_course(m.pos_m, c.x_m, c.y_m, holding.flown_radius_m(c.radius_m),
+                                       m.speed_m_s, m.turn_rate_rad_s, m.heading_tau_s)  # fmt: skip
+        wanted.append(assurance.Command(course, c.z_m))
+    verdicts = assurance.assure(motions, wanted, hold_s, keep, [escaping.get(i) for i in ids])
+    for vid, m, v in zip(ids, motions, verdicts, strict=True):
+        remember(escaping, vid, v, now_s)
+        if v.replaced:
+            event("assurance_override", vid, keep_out=v.reason, phase="hold",
+                  planned_margin_m=round(v.margin_m, 1), sent_margin_m=round(v.chosen_margin_m, 1),
+                  turn={1: "left", -1: "right"}.get(v.side, "straight"))  # fmt: skip
+        cmd = slew.SlewCommand(v.command.course_rad, m.speed_m_s * m.turn_rate_rad_s,
+                               v.command.z_m, 0.0)  # fmt: skip
+        point = _course_point(cmd, v, m, orders, np.array(along(m, v.command)))
+        lat, lon, alt = enu_to_geodetic(*point, mission.origin)
+        await _send_course(fleet, vid, cmd, v, m, orders, (lat, lon, alt))
+    return dict(zip(ids, verdicts, strict=True))

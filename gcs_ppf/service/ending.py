@@ -1,11 +1,13 @@
-"""The end of a run: its final state and summary at once, then every vehicle still heard to
-a confirmed holding circle and the safety watch after the end (``service.watch``)."""
+"""The end of a run: its final state and summary at once, then every vehicle still heard
+flown to its holding circle under run-time assurance (``service.hold_flight``), the circles
+handed to the autopilots and confirmed, and the safety watch after the end
+(``service.watch``)."""
 
 from __future__ import annotations
 
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import VehicleState
-from gcs_ppf.service import commanding, confirmation
+from gcs_ppf.service import commanding, confirmation, hold_flight
 from gcs_ppf.service.fleet import planning_states
 from gcs_ppf.service.run import FINISHED, Run, RunState, summary
 from gcs_ppf.service.station import Station
@@ -46,10 +48,22 @@ def end(
 
 
 async def hold(station: Station, run: Run, states: dict[int, VehicleState], stacked: bool) -> None:
-    """Every vehicle still heard to its holding circle (``confirm_holds``), then the safety
-    watch after the end."""
-    heard = {i for i, v in station.fleet.by_id.items() if not v.lost}
-    await confirm_holds(station, run, states, stacked, heard)
+    """Every vehicle still heard flown to its holding circle and round it by the service,
+    under run-time assurance (``hold_flight.fly_holds``), then the circles handed to the
+    autopilots, every command confirmed (``confirmation.confirm_all``), then the safety
+    watch for the rest of its time after the end."""
+    fleet = station.fleet
+    heard = {i for i, v in fleet.by_id.items() if not v.lost}
+    airframes = {vid: Airframe.from_telemetry(v.telemetry) for vid, v in fleet.by_id.items()}
+    event = station.events_of(run)
+    plan = commanding.hold_plan(
+        run.orders, states, airframes, run.mission_time_s, stacked, event, heard
+    )
+    if not await hold_flight.fly_holds(station, run, plan.circles):
+        return  # another run of the mission commands the vehicles now
+    retry = commanding.hold_retry(fleet.clock_rate())
+    await confirmation.confirm_all(fleet, plan.orders, event, retry)
+    station.event(run, "holds_loitering", None, vehicles=sorted(plan.circles))
     await watch_after_end(station, run)
 
 

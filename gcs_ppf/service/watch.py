@@ -19,6 +19,9 @@ from gcs_ppf.service.station import Station
 
 WATCH_AFTER_END_S = 60.0  # vehicle seconds the safety monitor goes on after a run ends
 
+Located = list[tuple[Vehicle, tuple[float, float, float]]]
+"""Vehicles that have reported a position, with it in the ICS."""
+
 
 def watch_safety(
     station: Station, run: Run, ids: list[int], positions: FloatArray,
@@ -41,7 +44,7 @@ def watch_safety(
                       depth_m=round(v.depth_m, 1), **late)  # fmt: skip
 
 
-def reported_together(located: list[tuple[Vehicle, tuple[float, float, float]]]) -> FloatArray:
+def reported_together(located: Located) -> FloatArray:
     """The reported positions [N,3] (ICS) on one instant: each carried along its velocity by
     how much older it is than the newest (its age since it arrived, on its own clock)."""
     now = time.monotonic()
@@ -58,12 +61,33 @@ def reported_together(located: list[tuple[Vehicle, tuple[float, float, float]]])
     return aligned(positions, velocities, ages)
 
 
-def ground(run: Run, located: list[tuple[Vehicle, tuple[float, float, float]]]) -> float | None:
+def ground(run: Run, located: Located) -> float | None:
     """The mission's ground, or the vehicles' home (``online.home_ground``)."""
     if run.mission.ground is not None:
         return run.mission.ground
     return home_ground([(pos[2], v.telemetry.relative_alt_m) for v, pos in located
                         if v.telemetry.relative_alt_m is not None])  # fmt: skip
+
+
+def watch_once(station: Station, run: Run, located: Located, after_end_s: float) -> None:
+    """The safety monitor on one sample after the end: a violation is a ``safety_violation``
+    event, and a completed run becomes ``completed_unsafe``."""
+    before = run.safety.count
+    watch_safety(station, run, [v.system_id for v, _ in located],
+                 reported_together(located), ground(run, located), after_end_s)  # fmt: skip
+    if run.safety.count > before and run.state == RunState.COMPLETED:
+        run.state = RunState.COMPLETED_UNSAFE
+        run.outcome = f"{run.outcome}; a safety violation after the end"
+        station.store.update_run(
+            run.record.id, run.state, outcome=run.outcome, summary=summary(run)
+        )
+        station.event(run, f"run_{run.state}", outcome=run.outcome)
+        station.publish()
+
+
+def superseded(station: Station, run: Run) -> bool:
+    """Whether another run of the run's mission has started since."""
+    return station.runs.get(run.mission_id) is not run
 
 
 async def watch_after_end(station: Station, run: Run) -> None:
@@ -80,21 +104,7 @@ async def watch_after_end(station: Station, run: Run) -> None:
             async with asyncio.timeout(1.0):
                 await fleet.telemetry_event.wait()
         now = station.fleet_time_s()
-        if (
-            now is None
-            or now - start > WATCH_AFTER_END_S
-            or station.runs.get(run.mission_id) is not run
-        ):
+        if now is None or now - start > WATCH_AFTER_END_S or superseded(station, run):
             return
-        located = [(v, p) for v, p in station.located(run) if not v.lost]
-        before = run.safety.count
-        watch_safety(station, run, [v.system_id for v, _ in located],
-                     reported_together(located), ground(run, located), now - start)  # fmt: skip
-        if run.safety.count > before and run.state == RunState.COMPLETED:
-            run.state = RunState.COMPLETED_UNSAFE
-            run.outcome = f"{run.outcome}; a safety violation after the end"
-            station.store.update_run(
-                run.record.id, run.state, outcome=run.outcome, summary=summary(run)
-            )
-            station.event(run, f"run_{run.state}", outcome=run.outcome)
-            station.publish()
+        watch_once(station, run, [(v, p) for v, p in station.located(run) if not v.lost],
+                   now - start)  # fmt: skip

@@ -316,17 +316,23 @@ def run_start_vehicle_time_s(tlog_dir: Path, leader_id: int) -> float:
 def test_a_run_that_outlasts_planner_max_time_fails_and_the_vehicles_hold_clear(
     tmp_path: Path,
 ) -> None:
-    """Failed at max_time: every vehicle is sent to a holding circle (GUIDED, DO_REPOSITION
-    with its radius) chosen clear of the obstacles (``gcs_ppf.guidance.holding``), not a
-    plain LOITER around wherever it happens to be."""
+    """Failed at max_time: every vehicle is flown to a holding circle chosen clear of the
+    obstacles (``gcs_ppf.guidance.holding``), not a plain LOITER around wherever it happens
+    to be, and once all fly theirs the circles are handed to the autopilots (GUIDED,
+    DO_REPOSITION with its radius; ``holds_loitering``)."""
     doc = json.loads(MISSION.read_text())
     doc["planner"]["max_time"] = 10.0  # the leader needs some 90 s
 
     def all_hold(api: str, mid: int) -> None:
+        def loitering() -> bool:
+            _, events = http("GET", f"{api}/missions/{mid}/events")
+            return any(e["kind"] == "holds_loitering" for e in events)
+
         def modes() -> bool:
             _, vehicles = http("GET", f"{api}/vehicles")
             return {v["mode"] for v in vehicles} == {"GUIDED"}
 
+        wait_for(loitering, 120, "the holds handed to the autopilots")
         wait_for(modes, 10, "every vehicle holding in GUIDED")
 
     flight = fly(tmp_path, doc, after=all_hold)
@@ -341,6 +347,9 @@ def test_a_run_that_outlasts_planner_max_time_fails_and_the_vehicles_hold_clear(
     ended = next(e for e in events if e.kind == "run_failed")
     assert ended.mission_time_s is not None
     assert 10.0 <= ended.mission_time_s <= 11.0
+    assert [e.kind for e in events if e.kind.startswith("hold")] == [
+        "holds_flown", "holds_settled", "holds_loitering"
+    ]
 
 
 def formation_offsets(flight: Flight, start_s: float) -> tuple[dict[int, float], float]:

@@ -130,3 +130,61 @@ def test_a_formation_holds_as_it_flies_translated() -> None:
     assert len(shifts) == 1
     assert shifts != {(800.0, 0.0)}
     assert all(h.clearance_m >= 50.0 for h in moved)
+
+
+def fly_loiter_course(m: Motion, x: float, y: float, ring_m: float, seconds: float) -> Motion:
+    """``m`` flown ``seconds`` on ``loiter_course`` by a course P-controller (the turn the
+    course error over the heading time constant, at most the turn rate) at 10 Hz."""
+    from dataclasses import replace
+
+    from gcs_ppf.guidance.holding import loiter_course
+
+    px, py, _ = m.pos_m
+    yaw, dt = m.yaw_rad, 0.1
+    for _ in range(round(seconds / dt)):
+        course = loiter_course((px, py), x, y, ring_m, m.speed_m_s, m.turn_rate_rad_s,
+                               m.heading_tau_s)  # fmt: skip
+        err = math.remainder(course - yaw, math.tau)
+        yaw += max(-m.turn_rate_rad_s, min(m.turn_rate_rad_s, err / m.heading_tau_s)) * dt
+        px += m.speed_m_s * math.cos(yaw) * dt
+        py += m.speed_m_s * math.sin(yaw) * dt
+    return replace(m, pos_m=(px, py, m.pos_m[2]), yaw_rad=math.remainder(yaw, math.tau))
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    hs.floats(-3000.0, 3000.0), hs.floats(-3000.0, 3000.0), hs.floats(-math.pi, math.pi),
+    hs.sampled_from([(28.0, 0.3, 2.0), (100.0, 0.52, 1.0), (210.0, 0.5, 1.5)]),
+)  # fmt: skip
+def test_the_loiter_course_brings_a_vehicle_from_anywhere_onto_its_ring_clockwise(
+    x: float, y: float, yaw: float, airframe: tuple[float, float, float]
+) -> None:
+    """From any position and heading, a vehicle told ``loiter_course`` by a GUIDED-like
+    P-controller is on its ring (as ``on_ring`` judges it) and stays there: the ring 1.5
+    turn radii / η wide, reached within the flight to it and two turns round it."""
+    from gcs_ppf.guidance.holding import flown_radius_m, on_ring
+
+    speed, omega, tau = airframe
+    radius = 1.5 * speed / omega
+    ring = flown_radius_m(radius)
+    hold = Hold(0.0, 0.0, 300.0, radius, math.inf)
+    m = Motion((x, y, 300.0), yaw, speed, omega, 5.0, 5.0, tau)
+    to_ring_s = (math.hypot(x, y) + ring) / speed + 2.0 * math.tau * ring / speed
+    m = fly_loiter_course(m, 0.0, 0.0, ring, to_ring_s)
+    for _ in range(20):  # and round it: judged every 2 s for 40 s
+        assert on_ring(m.pos_m, m.yaw_rad, 0.0, hold, speed, omega)
+        assert abs(math.hypot(*m.pos_m[:2]) - ring) < 0.25 * speed / omega
+        m = fly_loiter_course(m, 0.0, 0.0, ring, 2.0)
+
+
+def test_on_ring_is_the_ring_at_its_height_level_and_clockwise() -> None:
+    from gcs_ppf.guidance.holding import flown_radius_m, on_ring
+
+    hold = Hold(100.0, 0.0, 300.0, 300.0, math.inf)
+    ring = flown_radius_m(300.0)
+    east = (100.0 + ring, 0.0, 300.0)  # clockwise there is south: ICS yaw −π/2
+    assert on_ring(east, -math.pi / 2, 0.0, hold, 100.0, 0.5)
+    assert not on_ring(east, math.pi / 2, 0.0, hold, 100.0, 0.5)  # anticlockwise
+    assert not on_ring(east, -math.pi / 2, 6.0, hold, 100.0, 0.5)  # still climbing
+    assert not on_ring((east[0], 0.0, 330.0), -math.pi / 2, 0.0, hold, 100.0, 0.5)  # 30 m high
+    assert not on_ring((east[0] + 150.0, 0.0, 300.0), -math.pi / 2, 0.0, hold, 100.0, 0.5)

@@ -170,3 +170,100 @@ def test_the_way_an_escape_turned_is_remembered_for_a_while_after_it() -> None:
     assert 7 not in escaping
     remember(escaping, 8, kept, 11.0)
     assert escaping == {}
+
+
+class Fleet:
+    """Any number of vehicles that report no airspeed; records what each is sent."""
+
+    def __init__(self) -> None:
+        self.sent: list[tuple[int, Any]] = []
+
+    def telemetry(self, system_id: int) -> VehicleTelemetry | None:
+        return VehicleTelemetry(system_id=system_id, component_id=1)
+
+    async def send(self, system_id: int, msg: Any) -> None:
+        self.sent.append((system_id, msg))
+
+
+def headings_sent(fleet: Fleet, vid: int) -> list[float]:
+    """The courses (compass degrees) ``vid`` was sent by GUIDED_CHANGE_HEADING."""
+    return [m.param2 for i, m in fleet.sent if i == vid and m.get_type() == "COMMAND_INT"
+            and m.command == commands.MAV_CMD_GUIDED_CHANGE_HEADING]  # fmt: skip
+
+
+def on_circle(hold: Any, angle: float, speed: float, z: float) -> VehicleState:
+    """A vehicle on ``hold``'s ring as flown, at ``angle`` round its centre, flying it
+    clockwise at ``speed``."""
+    from gcs_ppf.guidance.holding import flown_radius_m
+
+    r = flown_radius_m(hold.radius_m)
+    pos = (hold.x_m + r * math.cos(angle), hold.y_m + r * math.sin(angle), z)
+    return VehicleState(pos, 0.0, angle - math.pi / 2.0, speed)
+
+
+def test_vehicles_circling_one_level_of_the_stack_apart_fly_their_circles_unreplaced() -> None:
+    """Table 3 (v_min 100 m/s, safe distance 50 m): two vehicles on one circle one level
+    apart, one right above the other, each as far off its level towards the other as a
+    settled vehicle may be, are told the loiter course and their levels, none replaced
+    (``stack_spacing_m``), with the slack to spare; 100 m apart, the lower one 5 m high, the
+    lower one's margin is under the slack (an escape looked for every tick they cross)."""
+    from gcs_ppf.guidance.holding import SETTLED_HEIGHT_M, Hold
+    from gcs_ppf.service.commanding import command_holds, stack_spacing_m
+
+    mission = Mission.model_validate_json((EXAMPLES / "paper_table3.json").read_text())
+    none = Obstacles(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
+    keep = assurance.KeepOut(none, None, 25.0, 50.0)
+    airframes = {1: Airframe(), 2: Airframe()}
+    spacing = stack_spacing_m(mission)
+    assert spacing >= 2 * 50.0 + assurance.SLACK_S * 100.0
+
+    def fly(levels_m: float, gap_m: float) -> dict[int, assurance.Verdict]:
+        circles = {1: Hold(0.0, 0.0, 1000.0, 290.0, math.inf),
+                   2: Hold(0.0, 0.0, 1000.0 - levels_m, 290.0, math.inf)}  # fmt: skip
+        states = {1: on_circle(circles[1], 1.0, 100.0, 1000.0),
+                  2: on_circle(circles[2], 1.0, 100.0, 1000.0 - gap_m)}  # fmt: skip
+        return asyncio.run(command_holds(
+            Fleet(), circles, [1, 2], states, airframes, Orders(mission, "course", 1.0), keep,
+            1.0, lambda *a, **k: None, {}, 0.0,
+        ))  # fmt: skip
+
+    verdicts = fly(spacing, spacing - 2.0 * SETTLED_HEIGHT_M)
+    assert not any(v.replaced for v in verdicts.values())
+    assert [v.reason for v in verdicts.values()] == [None, None]
+    assert [v.command.z_m for v in verdicts.values()] == [1000.0, 1000.0 - spacing]
+    close = fly(100.0, 95.0)[2]
+    assert close.reason == "teammate"
+    assert close.margin_m < assurance.SLACK_S * 100.0
+
+
+def test_a_loiter_course_that_would_cut_a_keep_out_is_replaced_by_an_escape() -> None:
+    """A vehicle on its way to its circle whose loiter course runs it at a sphere 270 m
+    ahead is sent an escape instead, with an ``assurance_override`` event of the holding
+    phase; its teammate, whose course is clear, is sent the loiter course itself."""
+    from gcs_ppf.guidance.holding import Hold, flown_radius_m, loiter_course
+    from gcs_ppf.service.commanding import command_holds
+
+    mission = Mission.model_validate_json((EXAMPLES / "paper_table3.json").read_text())
+    sphere = Obstacles(np.array([[420.0, 0.0, 1000.0]]), np.array([150.0]), np.zeros((1, 3)))
+    keep = assurance.KeepOut(sphere, None, 25.0, 50.0)
+    circles = {1: Hold(5000.0, 0.0, 1000.0, 290.0, math.inf),
+               2: Hold(0.0, 5000.0, 1500.0, 290.0, math.inf)}  # fmt: skip
+    states = {1: VehicleState((0.0, 0.0, 1000.0), 0.0, 0.0, 100.0),
+              2: VehicleState((-3000.0, 0.0, 1500.0), 0.0, 0.0, 100.0)}  # fmt: skip
+    events: list[tuple[Any, ...]] = []
+    fleet = Fleet()
+    verdicts = asyncio.run(command_holds(
+        fleet, circles, [1, 2], states, {1: Airframe(), 2: Airframe()},
+        Orders(mission, "course", 1.0), keep, 1.0, lambda *a, **k: events.append((a, k)),
+        {}, 0.0,
+    ))  # fmt: skip
+    assert verdicts[1].replaced and verdicts[1].reason == "obstacle"
+    assert [(a, k["phase"]) for a, k in events] == [(("assurance_override", 1), "hold")]
+    m = motion(states[2], Airframe(), mission)
+    wanted = loiter_course(m.pos_m, 0.0, 5000.0, flown_radius_m(290.0), m.speed_m_s,
+                           m.turn_rate_rad_s, m.heading_tau_s)  # fmt: skip
+    assert not verdicts[2].replaced
+    assert headings_sent(fleet, 2) == [pytest.approx(90.0 - math.degrees(wanted), abs=1e-3)]
+    assert headings_sent(fleet, 1) == [
+        pytest.approx(90.0 - math.degrees(verdicts[1].command.course_rad), abs=1e-3)
+    ]
