@@ -348,7 +348,9 @@ def test_a_run_that_outlasts_planner_max_time_fails_and_the_vehicles_hold_clear(
     assert ended.mission_time_s is not None
     assert 10.0 <= ended.mission_time_s <= 11.0
     assert [e.kind for e in events if e.kind.startswith("hold")] == [
-        "holds_flown", "holds_settled", "holds_loitering"
+        "holds_flown",
+        "holds_settled",
+        "holds_loitering",
     ]
 
 

@@ -257,7 +257,8 @@ def test_a_loiter_course_that_would_cut_a_keep_out_is_replaced_by_an_escape() ->
         Orders(mission, "course", 1.0), keep, 1.0, lambda *a, **k: events.append((a, k)),
         {}, 0.0,
     ))  # fmt: skip
-    assert verdicts[1].replaced and verdicts[1].reason == "obstacle"
+    assert verdicts[1].replaced
+    assert verdicts[1].reason == "obstacle"
     assert [(a, k["phase"]) for a, k in events] == [(("assurance_override", 1), "hold")]
     m = motion(states[2], Airframe(), mission)
     wanted = loiter_course(m.pos_m, 0.0, 5000.0, flown_radius_m(290.0), m.speed_m_s,
