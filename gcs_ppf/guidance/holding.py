@@ -1,14 +1,16 @@
 """Where a vehicle holds once the service stops planning for it (completion, abort, failure):
 a loiter circle, at a radius it can fly, that cuts no obstacle's keep-out and is reached
-without crossing one.
+without crossing one; and how the service flies a vehicle onto it and round it
+(``loiter_course``) until it is on it (``on_ring``) and the circle can be handed to the
+autopilot (``service.hold_flight``).
 
 Pure. Flown closed loop, vehicles left circling a point straight ahead of them flew through
 an obstacle after the run had ended (issue 10: Table 3 at 10×, 4 of 6 runs). Candidates are
 tried nearest the vehicle's heading first, then further out; the first circle whose ring (at the
 radius asked and at the wider one ArduPlane flies, radius / η) and whose approach keep the
-safe distance wins.  The approach is flown as the run-time assurance predicts a vehicle
-(``gcs_ppf.guidance.assurance``: turning at its turn rate, climbing at its limits) when its
-``Motion`` is given; a straight line from the vehicle to the ring otherwise (a vehicle at
+safe distance wins.  The approach is flown as the service flies it (``loiter_course``,
+turning at the vehicle's turn rate, climbing at its limits) when its ``Motion`` is given; a
+straight line from the vehicle to the ring otherwise (a vehicle at
 210 m/s turning 400 m wide onto a circle checked as a straight line flew 46 m into a sphere
 after a run had ended, issue 10 (d)); and the ring is checked as wide as the capture can
 swing out, a turn's radius beyond radius / η (at 200 m/s, a wingman captured on a 525 m

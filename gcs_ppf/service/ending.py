@@ -5,6 +5,10 @@ handed to the autopilots and confirmed, and the safety watch after the end
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
+import logging
+
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import VehicleState
 from gcs_ppf.service import commanding, confirmation, hold_flight
@@ -12,6 +16,11 @@ from gcs_ppf.service.fleet import planning_states
 from gcs_ppf.service.run import FINISHED, Run, RunState, summary
 from gcs_ppf.service.station import Station
 from gcs_ppf.service.watch import watch_after_end
+
+log = logging.getLogger("gcs_ppf.service.runs")
+
+HANDOVER_ON_STOP_S = 2.0
+"""How long the service's shutdown waits for the holds being flown to be handed over."""
 
 
 def finish(station: Station, run: Run, state: RunState, outcome: str) -> None:
@@ -51,7 +60,10 @@ async def hold(station: Station, run: Run, states: dict[int, VehicleState], stac
     """Every vehicle still heard flown to its holding circle and round it by the service,
     under run-time assurance (``hold_flight.fly_holds``), then the circles handed to the
     autopilots, every command confirmed (``confirmation.confirm_all``), then the safety
-    watch for the rest of its time after the end."""
+    watch for the rest of its time after the end.  The holds are handed over at once if
+    flying them fails, and sent once, unconfirmed, if the service stops meanwhile (the
+    service's shutdown waits ``HANDOVER_ON_STOP_S`` for that): a vehicle is never left on
+    the last course it was sent."""
     fleet = station.fleet
     heard = {i for i, v in fleet.by_id.items() if not v.lost}
     airframes = {vid: Airframe.from_telemetry(v.telemetry) for vid, v in fleet.by_id.items()}
@@ -59,12 +71,30 @@ async def hold(station: Station, run: Run, states: dict[int, VehicleState], stac
     plan = commanding.hold_plan(
         run.orders, states, airframes, run.mission_time_s, stacked, event, heard
     )
-    if not await hold_flight.fly_holds(station, run, plan.circles):
-        return  # another run of the mission commands the vehicles now
+    try:
+        await hold_flight.fly_holds(station, run, plan.circles)
+    except asyncio.CancelledError:
+        await send_once(station, run, plan.orders)
+        raise
+    except Exception:  # the holds must still be handed over
+        log.exception("mission %d: flying the holds failed; handing them over", run.mission_id)
+        station.event(run, "holds_flight_failed", None)
+    taken = hold_flight.taken_over(station, run)
+    mine = [o for o in plan.orders if o.vehicle_id not in taken]
     retry = commanding.hold_retry(fleet.clock_rate())
-    await confirmation.confirm_all(fleet, plan.orders, event, retry)
-    station.event(run, "holds_loitering", None, vehicles=sorted(plan.circles))
+    await confirmation.confirm_all(fleet, mine, event, retry)
+    station.event(run, "holds_loitering", None, vehicles=sorted({o.vehicle_id for o in mine}))
     await watch_after_end(station, run)
+
+
+async def send_once(station: Station, run: Run, orders: list[confirmation.Order]) -> None:
+    """Each of ``orders`` sent once, unconfirmed, to the vehicles no later run commands
+    (the service is stopping: there is no time to confirm them)."""
+    taken = hold_flight.taken_over(station, run)
+    for o in orders:
+        if o.vehicle_id not in taken:
+            with contextlib.suppress(Exception):
+                await station.fleet.send(o.vehicle_id, o.make())
 
 
 async def confirm_holds(

@@ -29,7 +29,7 @@ from gcs_ppf.service import commanding
 from gcs_ppf.service.fleet import planning_states
 from gcs_ppf.service.run import Run
 from gcs_ppf.service.station import Station
-from gcs_ppf.service.watch import ground, superseded, watch_once
+from gcs_ppf.service.watch import ground, watch_once
 
 log = logging.getLogger("gcs_ppf.service.runs")
 
@@ -42,13 +42,21 @@ DO_CHANGE_SPEED lost on a lossy link would leave a vehicle at its run's speed.""
 GAPS_KEPT = 20  # the latest tick gaps that size a command's hold (``lag.hold_s``)
 
 
-async def fly_holds(station: Station, run: Run, circles: dict[int, holding.Hold]) -> bool:
+def taken_over(station: Station, run: Run) -> set[int]:
+    """The vehicles of ``run`` that a run started after it commands now (of its mission or
+    another: its holds are not to be flown or handed over)."""
+    later = [r for r in station.runs.values() if r is not run and r.record.id > run.record.id]
+    mine = {v.id for v in run.mission.vehicles}
+    return mine & {v.id for r in later for v in r.mission.vehicles}
+
+
+async def fly_holds(station: Station, run: Run, circles: dict[int, holding.Hold]) -> None:
     """Fly every vehicle of ``circles`` still heard and obeying to its circle and round it
     (``commanding.command_holds``) at ``tick_hz`` of the vehicles' time, with the safety
     monitor on every tick, until all of them are on their rings (``holding.on_ring``) or
     ``SETTLE_MAX_S`` has passed.  A vehicle lost or flagged not responding is left out and
-    avoided as traffic.  False if another run of the mission started meanwhile (it commands
-    the vehicles now: nothing is to be handed over)."""
+    avoided as traffic; so is one a later run commands (``taken_over``), and when every one
+    is, the holds end there."""
     fleet, settings, mission = station.fleet, station.settings, run.mission
     period = 1.0 / settings.tick_hz
     telemetry_interval = 1.0 / settings.stream_rate_hz
@@ -64,10 +72,9 @@ async def fly_holds(station: Station, run: Run, circles: dict[int, holding.Hold]
             async with asyncio.timeout(1.0):
                 await fleet.telemetry_event.wait()
         now = station.fleet_time_s()
-        if superseded(station, run):
-            return False
-        if now is None or ended is None:
-            return True
+        taken = taken_over(station, run)
+        if now is None or ended is None or set(circles) <= taken:
+            return
         if started is None:
             started = now
         if last_tick is not None and now - last_tick < period * 0.999:
@@ -80,7 +87,7 @@ async def fly_holds(station: Station, run: Run, circles: dict[int, holding.Hold]
         states, active, lags = planning_states(located)
         stuck = run.obedience.not_responding & set(states)
         ids = [v.id for v in mission.vehicles
-               if v.id in circles and v.id in active and v.id not in stuck]  # fmt: skip
+               if v.id in circles and v.id in active and v.id not in stuck | taken]  # fmt: skip
         airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
         motions = [commanding.motion(states[i], airframes[i], mission) for i in ids]
         settled = [
@@ -90,15 +97,15 @@ async def fly_holds(station: Station, run: Run, circles: dict[int, holding.Hold]
         ]  # fmt: skip
         if all(settled):
             station.event(run, "holds_settled", None, after_end_s=round(now - ended, 1))
-            return True
+            return
         if now - started > SETTLE_MAX_S:
             off = [i for i, s in zip(ids, settled, strict=True) if not s]
             station.event(run, "hold_settle_timeout", None, after_end_s=round(now - ended, 1),
                           off_ring=off)  # fmt: skip
-            return True
+            return
         obstacles = obstacles_from_mission(mission).at(run.mission_time_s + now - ended)
-        if stuck:
-            traffic = obedience.as_obstacles(states, stuck, traffic_radius_m(mission))
+        if stuck | taken:
+            traffic = obedience.as_obstacles(states, stuck | taken, traffic_radius_m(mission))
             obstacles = obedience.with_obstacles(obstacles, traffic)
         lim = mission.limits
         keep = assurance.KeepOut(obstacles, ground(run, located), lim.safe_distance_obstacle,

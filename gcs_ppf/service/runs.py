@@ -79,16 +79,30 @@ class FormationService:
             try:
                 yield self
             finally:
-                for run in self._runs.values():
-                    if run.task is not None and not run.task.done():
-                        run.abort.set()
-                        run.task.cancel()
-                    if run.hold_task is not None and not run.hold_task.done():
-                        run.hold_task.cancel()  # the holds and the watch after the end
+                await self._hand_over_holds()
                 self.fleet.close()
                 for task in background:
                     task.cancel()
                 self._tasks = None
+
+    async def _hand_over_holds(self) -> None:
+        """On stopping: a run in flight ends ``failed`` and its vehicles get their holds;
+        every hold being flown (``ending.hold``) is cancelled, which sends its circles to
+        the autopilots once, and waited for (``ending.HANDOVER_ON_STOP_S`` at most) before
+        the links close: no vehicle is left on the last course it was sent."""
+        for run in self._runs.values():
+            if run.task is not None and not run.task.done():
+                run.abort.set()
+                run.task.cancel()
+                if run.state == RunState.RUNNING:
+                    ending.end(self._station, run, RunState.FAILED, "the service stopped")
+        await asyncio.sleep(0)  # a hold just spawned plans its circles before it is cancelled
+        holds = [r.hold_task for r in self._runs.values()
+                 if r.hold_task is not None and not r.hold_task.done()]  # fmt: skip
+        for task in holds:
+            task.cancel()  # the holds and the watch after the end
+        if holds:
+            await asyncio.wait(holds, timeout=ending.HANDOVER_ON_STOP_S)
 
     async def _kernels_loaded(self) -> None:
         if self._kernels is not None:

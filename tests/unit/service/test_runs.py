@@ -63,3 +63,54 @@ def test_start_answers_while_the_kernels_load_and_launch_waits_for_them(
             service.fleet.by_id.clear()
 
     asyncio.run(scenario())
+
+
+def test_a_service_stopped_while_a_run_flies_hands_every_vehicle_its_hold(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Stopped mid-run, the service left every vehicle on the last course it was sent (in
+    GUIDED, for ever). Now the run ends ``failed`` and, before the links close, every
+    vehicle is sent its holding circle (DO_REPOSITION with a radius, then v_min and the
+    altitude), once."""
+    from gcs_ppf.geodesy import enu_to_geodetic
+    from gcs_ppf.mavlink import commands
+
+    monkeypatch.setattr(runs, "load_kernels", lambda planner_dt_s: None)
+
+    async def launch_fleet(station: object, run: Run) -> None:
+        return None  # as if every vehicle were flying in GUIDED
+
+    monkeypatch.setattr(flight, "launch_fleet", launch_fleet)
+    mission = Mission.model_validate_json((EXAMPLES / "paper_table3.json").read_text())
+    sent: list[tuple[int, object]] = []
+
+    async def scenario() -> None:
+        settings = Settings(db=tmp_path / "gcs.db", tlog_dir=None)
+        service = FormationService(settings, Store(settings.db))
+
+        async def send(system_id: int, msg: object) -> None:
+            sent.append((system_id, msg))
+
+        monkeypatch.setattr(service.fleet, "send", send)
+        async with service.running():
+            for v in mission.vehicles:  # flying east at 150 m/s where the mission starts
+                lat, lon, alt = enu_to_geodetic(*v.position, mission.origin)
+                t = VehicleTelemetry(v.id, 1, lat_deg=lat, lon_deg=lon, alt_amsl_m=alt,
+                                     vn_m_s=0.0, ve_m_s=150.0, vd_m_s=0.0, time_boot_ms=1000,
+                                     position_received_s=time.monotonic())  # fmt: skip
+                service.fleet.by_id[v.id] = Vehicle(v.id, 0, t, last_heard_s=time.monotonic() + 60)
+            mid = service.create_mission(mission).id
+            await service.start(mid)
+            for _ in range(100):
+                if service.status(mid)["state"] == "running":
+                    break
+                await asyncio.sleep(0.05)
+            assert service.status(mid)["state"] == "running"
+            sent.clear()
+        assert service.status(mid)["state"] == "failed"
+        holds = {vid: m for vid, m in sent
+                 if getattr(m, "command", None) == commands.MAV_CMD_DO_REPOSITION}  # fmt: skip
+        assert set(holds) == {v.id for v in mission.vehicles}
+        assert all(getattr(m, "param3", 0.0) >= 80.0 for m in holds.values())
+
+    asyncio.run(scenario())
