@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import logging
 from collections import deque
 
 from gcs_ppf.guidance import assurance, holding, lag, obedience
@@ -30,8 +29,6 @@ from gcs_ppf.service.fleet import planning_states
 from gcs_ppf.service.run import Run
 from gcs_ppf.service.station import Station
 from gcs_ppf.service.watch import ground, watch_once
-
-log = logging.getLogger("gcs_ppf.service.runs")
 
 SETTLE_MAX_S = 180.0
 """Vehicle seconds the service flies the holds at most; then they are handed over as they
@@ -60,7 +57,7 @@ async def fly_holds(station: Station, run: Run, circles: dict[int, holding.Hold]
     fleet, settings, mission = station.fleet, station.settings, run.mission
     period = 1.0 / settings.tick_hz
     telemetry_interval = 1.0 / settings.stream_rate_hz
-    started = ended = run.ended_vehicle_s
+    ended = run.ended_vehicle_s
     event = station.events_of(run)
     gaps: deque[float] = deque(maxlen=GAPS_KEPT)
     speed_sent: dict[int, float] = {}
@@ -75,8 +72,6 @@ async def fly_holds(station: Station, run: Run, circles: dict[int, holding.Hold]
         taken = taken_over(station, run)
         if now is None or ended is None or set(circles) <= taken:
             return
-        if started is None:
-            started = now
         if last_tick is not None and now - last_tick < period * 0.999:
             continue
         if last_tick is not None:
@@ -98,7 +93,7 @@ async def fly_holds(station: Station, run: Run, circles: dict[int, holding.Hold]
         if all(settled):
             station.event(run, "holds_settled", None, after_end_s=round(now - ended, 1))
             return
-        if now - started > SETTLE_MAX_S:
+        if now - ended > SETTLE_MAX_S:
             off = [i for i, s in zip(ids, settled, strict=True) if not s]
             station.event(run, "hold_settle_timeout", None, after_end_s=round(now - ended, 1),
                           off_ring=off)  # fmt: skip
