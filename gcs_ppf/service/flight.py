@@ -25,7 +25,7 @@ from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_HEADING
 from gcs_ppf.planning.scene import Obstacles, obstacles_from_mission
 from gcs_ppf.service import commanding, launch
-from gcs_ppf.service.ending import confirm_holds, end
+from gcs_ppf.service.ending import end, hold_during_launch
 from gcs_ppf.service.fleet import Vehicle, planning_states
 from gcs_ppf.service.run import NOT_RESPONDING_S, Run, RunState, changes, min_of
 from gcs_ppf.service.station import Station
@@ -84,19 +84,21 @@ async def launch_fleet(station: Station, run: Run) -> None:
             takeoff_dist_m=station.settings.takeoff_dist_m, is_lost=is_lost, on_lost=on_lost,
         )  # fmt: skip
     finally:
-        if holding is not None:
-            await holding  # its confirmations done before the run commands them
+        if holding is not None:  # the holds flown until now, sent once, before the run
+            holding.cancel()
+            await asyncio.wait([holding])
 
 
 def hold_while_others_take_off(
     station: Station, run: Run, ids: list[int]
-) -> asyncio.Task[set[int]] | None:
+) -> asyncio.Task[None] | None:
     """While some of the vehicles take off (tens of seconds of their time), the ones
-    already flying each hold on a circle (``commanding.hold_orders``: clear of every
-    obstacle and of each other, stacked above the highest) instead of flying on as they
-    were: in Table 3, wingman 2 starts on the ground, and wingmen 3 and 4 flew straight on
-    towards each other until the run began, 45.6 m apart (campaign (e), 1 of 20 runs; in
-    6 of 20 the takeoff took 10 s longer).  None when none is on the ground, or none flying."""
+    already flying each hold on a circle (``ending.hold_during_launch``: clear of every
+    obstacle, stacked above the highest, flown under run-time assurance with the vehicles
+    taking off as traffic) instead of flying on as they were: in Table 3, wingman 2 starts
+    on the ground, and wingmen 3 and 4 flew straight on towards each other until the run
+    began, 45.6 m apart (campaign (e), 1 of 20 runs; in 6 of 20 the takeoff took 10 s
+    longer).  None when none is on the ground, or none flying."""
     fleet = station.fleet
     flying = set()
     for vid in ids:
@@ -107,7 +109,7 @@ def hold_while_others_take_off(
         return None
     states, _, _ = planning_states([(v, p) for v, p in station.located(run)
                                     if v.system_id in flying])  # fmt: skip
-    return station.spawn(confirm_holds(station, run, states, False, set(states)))
+    return station.spawn(hold_during_launch(station, run, states))
 
 
 def vehicle_time_s(station: Station, run: Run) -> float | None:

@@ -47,22 +47,27 @@ def taken_over(station: Station, run: Run) -> set[int]:
     return mine & {v.id for r in later for v in r.mission.vehicles}
 
 
-async def fly_holds(station: Station, run: Run, circles: dict[int, holding.Hold]) -> None:
+async def fly_holds(
+    station: Station, run: Run, circles: dict[int, holding.Hold], *, launching: bool = False
+) -> None:
     """Fly every vehicle of ``circles`` still heard and obeying to its circle and round it
     (``commanding.command_holds``) at ``tick_hz`` of the vehicles' time, with the safety
     monitor on every tick, until all of them are on their rings (``holding.on_ring``) or
-    ``SETTLE_MAX_S`` has passed.  A vehicle lost or flagged not responding is left out and
-    avoided as traffic; so is one a later run commands (``taken_over``), and when every one
-    is, the holds end there."""
+    ``SETTLE_MAX_S`` has passed after the run's end; while the run is ``launching`` (the
+    vehicles flying hold while others take off), until cancelled.  Every other vehicle
+    with a state is avoided as traffic: one taking off, lost from the holds, flagged not
+    responding, or commanded by a later run (``taken_over``; when every one is, the holds
+    end there)."""
     fleet, settings, mission = station.fleet, station.settings, run.mission
     period = 1.0 / settings.tick_hz
     telemetry_interval = 1.0 / settings.stream_rate_hz
-    ended = run.ended_vehicle_s
+    since = None if launching else run.ended_vehicle_s
     event = station.events_of(run)
     gaps: deque[float] = deque(maxlen=GAPS_KEPT)
     speed_sent: dict[int, float] = {}
     last_tick: float | None = None
-    station.event(run, "holds_flown", None, vehicles=sorted(circles))
+    kind = "launch_holds_flown" if launching else "holds_flown"
+    station.event(run, kind, None, vehicles=sorted(circles))
     while True:
         fleet.telemetry_event.clear()
         with contextlib.suppress(TimeoutError):
@@ -70,19 +75,22 @@ async def fly_holds(station: Station, run: Run, circles: dict[int, holding.Hold]
                 await fleet.telemetry_event.wait()
         now = station.fleet_time_s()
         taken = taken_over(station, run)
-        if now is None or ended is None or set(circles) <= taken:
+        if now is None or set(circles) <= taken or (since is None and not launching):
             return
+        since = now if since is None else since
+        after = 0.0 if launching else now - since  # after the end
         if last_tick is not None and now - last_tick < period * 0.999:
             continue
         if last_tick is not None:
             gaps.append(now - last_tick)
         last_tick = now
         located = [(v, p) for v, p in station.located(run) if not v.lost]
-        watch_once(station, run, located, now - ended)
+        watch_once(station, run, located, after)
         states, active, lags = planning_states(located)
         stuck = run.obedience.not_responding & set(states)
         ids = [v.id for v in mission.vehicles
                if v.id in circles and v.id in active and v.id not in stuck | taken]  # fmt: skip
+        traffic_ids = set(states) - set(ids)
         airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
         motions = [commanding.motion(states[i], airframes[i], mission) for i in ids]
         settled = [
@@ -90,17 +98,17 @@ async def fly_holds(station: Station, run: Run, circles: dict[int, holding.Hold]
                             m.turn_rate_rad_s)
             for i, m in zip(ids, motions, strict=True)
         ]  # fmt: skip
-        if all(settled):
-            station.event(run, "holds_settled", None, after_end_s=round(now - ended, 1))
+        if not launching and all(settled):
+            station.event(run, "holds_settled", None, after_end_s=round(after, 1))
             return
-        if now - ended > SETTLE_MAX_S:
+        if not launching and after > SETTLE_MAX_S:
             off = [i for i, s in zip(ids, settled, strict=True) if not s]
-            station.event(run, "hold_settle_timeout", None, after_end_s=round(now - ended, 1),
+            station.event(run, "hold_settle_timeout", None, after_end_s=round(after, 1),
                           off_ring=off)  # fmt: skip
             return
-        obstacles = obstacles_from_mission(mission).at(run.mission_time_s + now - ended)
-        if stuck | taken:
-            traffic = obedience.as_obstacles(states, stuck | taken, traffic_radius_m(mission))
+        obstacles = obstacles_from_mission(mission).at(run.mission_time_s + after)
+        if traffic_ids:
+            traffic = obedience.as_obstacles(states, traffic_ids, traffic_radius_m(mission))
             obstacles = obedience.with_obstacles(obstacles, traffic)
         lim = mission.limits
         keep = assurance.KeepOut(obstacles, ground(run, located), lim.safe_distance_obstacle,
@@ -110,7 +118,7 @@ async def fly_holds(station: Station, run: Run, circles: dict[int, holding.Hold]
                             starvation)  # fmt: skip
         await commanding.command_holds(
             fleet, circles, ids, states, airframes, run.orders, keep, hold_s, event,
-            run.escaping, run.mission_time_s + now - ended,
+            run.escaping, run.mission_time_s + after,
         )  # fmt: skip
         for vid in ids:
             if now - speed_sent.get(vid, -SPEED_RESEND_S) >= SPEED_RESEND_S:

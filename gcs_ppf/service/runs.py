@@ -90,10 +90,12 @@ class FormationService:
         every hold being flown (``ending.hold``) is cancelled, which sends its circles to
         the autopilots once, and waited for (``ending.HANDOVER_ON_STOP_S`` at most) before
         the links close: no vehicle is left on the last course it was sent."""
+        flying = []  # runs cancelled: one launching hands its holds over as it stops
         for run in self._runs.values():
             if run.task is not None and not run.task.done():
                 run.abort.set()
                 run.task.cancel()
+                flying.append(run.task)
                 if run.state == RunState.RUNNING:
                     ending.end(self._station, run, RunState.FAILED, "the service stopped")
         await asyncio.sleep(0)  # a hold just spawned plans its circles before it is cancelled
@@ -101,8 +103,8 @@ class FormationService:
                  if r.hold_task is not None and not r.hold_task.done()]  # fmt: skip
         for task in holds:
             task.cancel()  # the holds and the watch after the end
-        if holds:
-            await asyncio.wait(holds, timeout=ending.HANDOVER_ON_STOP_S)
+        if holds or flying:
+            await asyncio.wait(holds + flying, timeout=ending.HANDOVER_ON_STOP_S)
 
     async def _kernels_loaded(self) -> None:
         if self._kernels is not None:

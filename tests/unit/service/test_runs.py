@@ -114,3 +114,66 @@ def test_a_service_stopped_while_a_run_flies_hands_every_vehicle_its_hold(
         assert all(getattr(m, "param3", 0.0) >= 80.0 for m in holds.values())
 
     asyncio.run(scenario())
+
+
+def test_while_one_vehicle_takes_off_the_others_holds_are_flown_then_handed_over(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Wingman 2 on the ground, the others flying: while it takes off the others are flown
+    to holding circles by the service (course commands through the assurance, a
+    ``launch_holds_flown`` event), not left to their autopilots' loiter at once (two
+    wingmen came to 43.0 m on their way to theirs); when the launch is done each is sent
+    its circle once (DO_REPOSITION), and the one taking off is never commanded by the
+    holds."""
+    from gcs_ppf.geodesy import enu_to_geodetic
+    from gcs_ppf.mavlink import commands
+
+    monkeypatch.setattr(runs, "load_kernels", lambda planner_dt_s: None)
+
+    async def takeoff(*args: object, **kwargs: object) -> None:
+        await asyncio.sleep(1.5)  # the first hold tick comes within 1 s
+
+    monkeypatch.setattr(flight.launch, "launch", takeoff)
+    mission = Mission.model_validate_json((EXAMPLES / "paper_table3.json").read_text())
+    sent: list[tuple[int, object]] = []
+    events: list[str] = []
+
+    async def scenario() -> None:
+        settings = Settings(db=tmp_path / "gcs.db", tlog_dir=None)
+        service = FormationService(settings, Store(settings.db))
+
+        async def send(system_id: int, msg: object) -> None:
+            sent.append((system_id, msg))
+
+        monkeypatch.setattr(service.fleet, "send", send)
+        async with service.running():
+            for v in mission.vehicles:
+                lat, lon, alt = enu_to_geodetic(*v.position, mission.origin)
+                rel = 0.0 if v.id == 2 else 300.0
+                t = VehicleTelemetry(v.id, 1, lat_deg=lat, lon_deg=lon, alt_amsl_m=alt,
+                                     relative_alt_m=rel, vn_m_s=0.0, ve_m_s=150.0,
+                                     vd_m_s=0.0, time_boot_ms=1000,
+                                     position_received_s=time.monotonic())  # fmt: skip
+                service.fleet.by_id[v.id] = Vehicle(v.id, 0, t, last_heard_s=time.monotonic() + 60)
+            mid = service.create_mission(mission).id
+            await service.start(mid)
+            for _ in range(100):
+                if service.status(mid)["state"] == "running":
+                    break
+                await asyncio.sleep(0.05)
+            launched.extend(sent)  # the launch's (the run's first tick is a second away)
+            events.extend(e["kind"] for e in service.events(mid))
+            service.fleet.by_id.clear()
+
+    launched: list[tuple[int, object]] = []
+    asyncio.run(scenario())
+    assert "launch_holds_flown" in events
+
+    def sent_to(vid: int, command: int) -> int:
+        return sum(1 for i, m in launched if i == vid and getattr(m, "command", None) == command)
+
+    flying = [v.id for v in mission.vehicles if v.id != 2]
+    assert all(sent_to(v, commands.MAV_CMD_GUIDED_CHANGE_HEADING) >= 1 for v in flying)
+    assert all(sent_to(v, commands.MAV_CMD_DO_REPOSITION) == 1 for v in flying)
+    assert sent_to(2, commands.MAV_CMD_GUIDED_CHANGE_HEADING) == 0
+    assert sent_to(2, commands.MAV_CMD_DO_REPOSITION) == 0
