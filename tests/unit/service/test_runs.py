@@ -12,7 +12,7 @@ import pytest
 
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission
-from gcs_ppf.service import flight, runs
+from gcs_ppf.service import flight, launch, runs
 from gcs_ppf.service.fleet import Vehicle
 from gcs_ppf.service.run import Run
 from gcs_ppf.service.runs import FormationService
@@ -133,7 +133,7 @@ def test_while_one_vehicle_takes_off_the_others_holds_are_flown_then_handed_over
     async def takeoff(*args: object, **kwargs: object) -> None:
         await asyncio.sleep(1.5)  # the first hold tick comes within 1 s
 
-    monkeypatch.setattr(flight.launch, "launch", takeoff)
+    monkeypatch.setattr(launch, "launch", takeoff)
     mission = Mission.model_validate_json((EXAMPLES / "paper_table3.json").read_text())
     sent: list[tuple[int, object]] = []
     events: list[str] = []
