@@ -366,8 +366,7 @@ def run_campaign(
                 m, k = job
                 workdir = out / stamp / f"{m.stem}-{cond.key}-{k}"
                 try:
-                    rec = fly_once(m, cond, workdir, event_at_s=event_at_s, seed=k,
-                                   after_s=after_s)  # fmt: skip
+                    rec = fly_once(m, cond, workdir, event_at_s=event_at_s, seed=k, after_s=after_s)
                 except Exception as exc:  # a broken run is a result too
                     rec = {"mission": m.stem, "condition": cond.key, "dir": str(workdir),
                            "state": "error", "error": repr(exc), "ok": False,
@@ -480,8 +479,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--jobs", type=int, default=1, help="runs at once (the default 1 suits 2 cores)")
     p.add_argument("--event-at", type=float, default=15.0,
                    help="mission time (s) of (d)'s stuck wingman, (e)'s dead leader")  # fmt: skip
-    p.add_argument("--after", type=float, default=AFTER_S,
-                   help="vehicle seconds watched after each run's end")  # fmt: skip
+    p.add_argument("--after", type=float, default=AFTER_S, help="vehicle s watched after the end")
     a = p.parse_args(argv)
     conditions = [c.strip() for c in a.conditions.split(",") if c.strip()]
     unknown = [c for c in conditions if c not in CONDITIONS]
@@ -491,8 +489,8 @@ def main(argv: list[str] | None = None) -> int:
     for m in missions:
         if not m.is_file():
             p.error(f"no mission file {m}")
-    results = run_campaign(missions, conditions, a.runs, a.out, jobs=a.jobs, event_at_s=a.event_at,
-                           after_s=a.after)  # fmt: skip
+    results = run_campaign(missions, conditions, a.runs, a.out, jobs=a.jobs,
+                           event_at_s=a.event_at, after_s=a.after)  # fmt: skip
     print(format_tables(summarize(results)), end="")
     print(f"runs: {a.out / 'runs.jsonl'}; summary: {a.out / 'summary.json'}")
     return 0
