@@ -70,8 +70,9 @@ def ground(run: Run, located: Located) -> float | None:
 
 
 def watch_once(station: Station, run: Run, located: Located, after_end_s: float) -> None:
-    """The safety monitor on one sample after the end: a violation is a ``safety_violation``
-    event, and a completed run becomes ``completed_unsafe``."""
+    """The safety monitor on one sample taken outside the run's ticks (the holds flown while
+    others take off, ``after_end_s`` 0; the holds and the watch after the end): a violation
+    is a ``safety_violation`` event, and a completed run becomes ``completed_unsafe``."""
     before = run.safety.count
     watch_safety(station, run, [v.system_id for v, _ in located],
                  reported_together(located), ground(run, located), after_end_s)  # fmt: skip
