@@ -65,6 +65,46 @@ def test_start_answers_while_the_kernels_load_and_launch_waits_for_them(
     asyncio.run(scenario())
 
 
+def report_flying(
+    service: FormationService, mission: Mission, on_ground: int | None = None
+) -> None:
+    """Every vehicle of ``mission`` as if its link reported it flying east at 150 m/s where
+    the mission starts it (``on_ground``: that one on the ground there, 300 m below the
+    others' height above home)."""
+    from gcs_ppf.geodesy import enu_to_geodetic
+
+    for v in mission.vehicles:
+        lat, lon, alt = enu_to_geodetic(*v.position, mission.origin)
+        t = VehicleTelemetry(v.id, 1, lat_deg=lat, lon_deg=lon, alt_amsl_m=alt,
+                             relative_alt_m=0.0 if v.id == on_ground else 300.0, vn_m_s=0.0,
+                             ve_m_s=150.0, vd_m_s=0.0, time_boot_ms=1000,
+                             position_received_s=time.monotonic())  # fmt: skip
+        service.fleet.by_id[v.id] = Vehicle(v.id, 0, t, last_heard_s=time.monotonic() + 60)
+
+
+def recording(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, sent: list[tuple[int, object]]
+) -> FormationService:
+    """A service whose fleet records what it sends (system id, message) in ``sent``."""
+    settings = Settings(db=tmp_path / "gcs.db", tlog_dir=None)
+    service = FormationService(settings, Store(settings.db))
+
+    async def send(system_id: int, msg: object) -> None:
+        sent.append((system_id, msg))
+
+    monkeypatch.setattr(service.fleet, "send", send)
+    return service
+
+
+async def until_running(service: FormationService, mission_id: int) -> str:
+    """Wait (5 s at most) for the run to be ``running``; its state then."""
+    for _ in range(100):
+        if service.status(mission_id)["state"] == "running":
+            break
+        await asyncio.sleep(0.05)
+    return str(service.status(mission_id)["state"])
+
+
 def test_a_service_stopped_while_a_run_flies_hands_every_vehicle_its_hold(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -72,7 +112,6 @@ def test_a_service_stopped_while_a_run_flies_hands_every_vehicle_its_hold(
     GUIDED, for ever). Now the run ends ``failed`` and, before the links close, every
     vehicle is sent its holding circle (DO_REPOSITION with a radius, then v_min and the
     altitude), once."""
-    from gcs_ppf.geodesy import enu_to_geodetic
     from gcs_ppf.mavlink import commands
 
     monkeypatch.setattr(runs, "load_kernels", lambda planner_dt_s: None)
@@ -85,27 +124,12 @@ def test_a_service_stopped_while_a_run_flies_hands_every_vehicle_its_hold(
     sent: list[tuple[int, object]] = []
 
     async def scenario() -> None:
-        settings = Settings(db=tmp_path / "gcs.db", tlog_dir=None)
-        service = FormationService(settings, Store(settings.db))
-
-        async def send(system_id: int, msg: object) -> None:
-            sent.append((system_id, msg))
-
-        monkeypatch.setattr(service.fleet, "send", send)
+        service = recording(tmp_path, monkeypatch, sent)
         async with service.running():
-            for v in mission.vehicles:  # flying east at 150 m/s where the mission starts
-                lat, lon, alt = enu_to_geodetic(*v.position, mission.origin)
-                t = VehicleTelemetry(v.id, 1, lat_deg=lat, lon_deg=lon, alt_amsl_m=alt,
-                                     vn_m_s=0.0, ve_m_s=150.0, vd_m_s=0.0, time_boot_ms=1000,
-                                     position_received_s=time.monotonic())  # fmt: skip
-                service.fleet.by_id[v.id] = Vehicle(v.id, 0, t, last_heard_s=time.monotonic() + 60)
+            report_flying(service, mission)
             mid = service.create_mission(mission).id
             await service.start(mid)
-            for _ in range(100):
-                if service.status(mid)["state"] == "running":
-                    break
-                await asyncio.sleep(0.05)
-            assert service.status(mid)["state"] == "running"
+            assert await until_running(service, mid) == "running"
             sent.clear()
         assert service.status(mid)["state"] == "failed"
         holds = {vid: m for vid, m in sent
@@ -125,7 +149,6 @@ def test_while_one_vehicle_takes_off_the_others_holds_are_flown_then_handed_over
     wingmen came to 43.0 m on their way to theirs); when the launch is done each is sent
     its circle once (DO_REPOSITION), and the one taking off is never commanded by the
     holds."""
-    from gcs_ppf.geodesy import enu_to_geodetic
     from gcs_ppf.mavlink import commands
 
     monkeypatch.setattr(runs, "load_kernels", lambda planner_dt_s: None)
@@ -139,28 +162,12 @@ def test_while_one_vehicle_takes_off_the_others_holds_are_flown_then_handed_over
     events: list[str] = []
 
     async def scenario() -> None:
-        settings = Settings(db=tmp_path / "gcs.db", tlog_dir=None)
-        service = FormationService(settings, Store(settings.db))
-
-        async def send(system_id: int, msg: object) -> None:
-            sent.append((system_id, msg))
-
-        monkeypatch.setattr(service.fleet, "send", send)
+        service = recording(tmp_path, monkeypatch, sent)
         async with service.running():
-            for v in mission.vehicles:
-                lat, lon, alt = enu_to_geodetic(*v.position, mission.origin)
-                rel = 0.0 if v.id == 2 else 300.0
-                t = VehicleTelemetry(v.id, 1, lat_deg=lat, lon_deg=lon, alt_amsl_m=alt,
-                                     relative_alt_m=rel, vn_m_s=0.0, ve_m_s=150.0,
-                                     vd_m_s=0.0, time_boot_ms=1000,
-                                     position_received_s=time.monotonic())  # fmt: skip
-                service.fleet.by_id[v.id] = Vehicle(v.id, 0, t, last_heard_s=time.monotonic() + 60)
+            report_flying(service, mission, on_ground=2)
             mid = service.create_mission(mission).id
             await service.start(mid)
-            for _ in range(100):
-                if service.status(mid)["state"] == "running":
-                    break
-                await asyncio.sleep(0.05)
+            await until_running(service, mid)
             launched.extend(sent)  # the launch's (the run's first tick is a second away)
             events.extend(e["kind"] for e in service.events(mid))
             service.fleet.by_id.clear()
