@@ -417,27 +417,18 @@ def slowest_airspeed(mission: Mission, airframe: Airframe) -> float:
     return slew.airspeed_command(mission.limits.v_min, None, None, airframe)
 
 
-def hold_orders(
-    orders: Orders, states: dict[int, VehicleState], airframes: dict[int, Airframe],
-    mission_time_s: float, stacked: bool, event: Callable[..., None], heard: set[int],
-) -> list[confirmation.Order]:  # fmt: skip
-    """``hold_plan``'s orders alone: the holds handed to the autopilots at once."""
-    return hold_plan(orders, states, airframes, mission_time_s, stacked, event, heard).orders
-
-
 async def command_holds(
     fleet: Sender, circles: dict[int, holding.Hold], ids: list[int],
-    states: dict[int, VehicleState], airframes: dict[int, Airframe], orders: Orders,
-    keep: assurance.KeepOut, hold_s: float, event: Callable[..., None],
-    escaping: dict[int, assurance.Escape], now_s: float,
+    motions: list[assurance.Motion], orders: Orders, keep: assurance.KeepOut, hold_s: float,
+    event: Callable[..., None], escaping: dict[int, assurance.Escape], now_s: float,
 ) -> dict[int, assurance.Verdict]:  # fmt: skip
     """One tick of the holding phase flown by the service (``service.hold_flight``): each of
-    ``ids`` (in priority order, the leader first) told the course onto and round its circle
+    ``ids`` (in priority order, the leader first; ``motions`` theirs, ``motion``) told the
+    course onto and round its circle
     (``holding.loiter_course``) at its circle's height, every command assured first as in a
     run (``assurance.assure``; an escape is sent instead with an ``assurance_override``
     event, ``phase`` ``hold``).  Returns each one's verdict."""
     mission = orders.mission
-    motions = [motion(states[vid], airframes[vid], mission) for vid in ids]
     wanted = []
     for vid, m in zip(ids, motions, strict=True):
         c = circles[vid]

@@ -58,33 +58,53 @@ def end(
 
 async def hold(station: Station, run: Run, states: dict[int, VehicleState], stacked: bool) -> None:
     """Every vehicle still heard flown to its holding circle and round it by the service,
-    under run-time assurance (``hold_flight.fly_holds``), then the circles handed to the
-    autopilots, every command confirmed (``confirmation.confirm_all``), then the safety
-    watch for the rest of its time after the end.  The holds are handed over at once if
-    flying them fails, and sent once, unconfirmed, if the service stops meanwhile (the
-    service's shutdown waits ``HANDOVER_ON_STOP_S`` for that): a vehicle is never left on
-    the last course it was sent."""
-    fleet = station.fleet
-    heard = {i for i, v in fleet.by_id.items() if not v.lost}
-    airframes = {vid: Airframe.from_telemetry(v.telemetry) for vid, v in fleet.by_id.items()}
-    event = station.events_of(run)
-    plan = commanding.hold_plan(
-        run.orders, states, airframes, run.mission_time_s, stacked, event, heard
+    under run-time assurance (``fly``), then the circles handed to the autopilots, every
+    command confirmed (``confirmation.confirm_all``), then the safety watch for the rest of
+    its time after the end."""
+    heard = {i for i, v in station.fleet.by_id.items() if not v.lost}
+    plan = _plan(station, run, states, stacked, heard)
+    await fly(station, run, plan, launching=False)
+    taken = hold_flight.taken_over(station, run)
+    mine = [o for o in plan.orders if o.vehicle_id not in taken]
+    await _confirm(station, run, mine)
+    station.event(run, "holds_loitering", None, vehicles=sorted({o.vehicle_id for o in mine}))
+    await watch_after_end(station, run)
+
+
+def _plan(
+    station: Station, run: Run, states: dict[int, VehicleState], stacked: bool, heard: set[int]
+) -> commanding.HoldPlan:
+    """``commanding.hold_plan`` for the run's vehicles as the fleet reports them."""
+    airframes = {
+        vid: Airframe.from_telemetry(v.telemetry) for vid, v in station.fleet.by_id.items()
+    }
+    return commanding.hold_plan(
+        run.orders, states, airframes, run.mission_time_s, stacked, station.events_of(run), heard
     )
+
+
+async def _confirm(station: Station, run: Run, orders: list[confirmation.Order]) -> None:
+    """``orders`` sent until confirmed (``commanding.hold_retry``)."""
+    retry = commanding.hold_retry(station.fleet.clock_rate())
+    await confirmation.confirm_all(station.fleet, orders, station.events_of(run), retry)
+
+
+async def fly(station: Station, run: Run, plan: commanding.HoldPlan, launching: bool) -> bool:
+    """``plan``'s circles flown by the service (``hold_flight.fly_holds``); True when that
+    ended as it should.  If the service stops meanwhile (it waits ``HANDOVER_ON_STOP_S``
+    for this) the circles are sent once, unconfirmed, and the cancellation goes on; if
+    flying them fails, False (``holds_flight_failed``): a vehicle is never left on the last
+    course it was sent."""
     try:
-        await hold_flight.fly_holds(station, run, plan.circles)
+        await hold_flight.fly_holds(station, run, plan.circles, launching=launching)
     except asyncio.CancelledError:
         await send_once(station, run, plan.orders)
         raise
     except Exception:  # the holds must still be handed over
         log.exception("mission %d: flying the holds failed; handing them over", run.mission_id)
         station.event(run, "holds_flight_failed", None)
-    taken = hold_flight.taken_over(station, run)
-    mine = [o for o in plan.orders if o.vehicle_id not in taken]
-    retry = commanding.hold_retry(fleet.clock_rate())
-    await confirmation.confirm_all(fleet, mine, event, retry)
-    station.event(run, "holds_loitering", None, vehicles=sorted({o.vehicle_id for o in mine}))
-    await watch_after_end(station, run)
+        return False
+    return True
 
 
 async def send_once(station: Station, run: Run, orders: list[confirmation.Order]) -> None:
@@ -101,26 +121,12 @@ async def hold_during_launch(station: Station, run: Run, states: dict[int, Vehic
     """While some vehicles take off, the ones already flying (``states``) hold on circles
     (``commanding.hold_plan``: clear of every obstacle, stacked above the highest), flown
     by the service under run-time assurance with the vehicles taking off as traffic
-    (``hold_flight.fly_holds``, launching) until the launch is done and this is cancelled;
-    then the circles are sent once (the run commands the vehicles at its first tick).  Sent
-    to the autopilots and only confirmed, as before, wingmen 3 and 4 of Table 3 came to
-    43.0 m of each other on their way to them while wingman 2 took off (×5, 300 ms, 20 %
-    loss, a CPU burner per core; 1 of 20 runs).  If flying them fails, the circles are
-    handed over and confirmed at once."""
-    fleet = station.fleet
-    airframes = {vid: Airframe.from_telemetry(v.telemetry) for vid, v in fleet.by_id.items()}
-    event = station.events_of(run)
-    plan = commanding.hold_plan(
-        run.orders, states, airframes, run.mission_time_s, False, event, set(states)
-    )
-    try:
-        await hold_flight.fly_holds(station, run, plan.circles, launching=True)
-    except asyncio.CancelledError:
-        await send_once(station, run, plan.orders)
-        raise
-    except Exception:
-        log.exception("mission %d: flying the holds failed; handing them over", run.mission_id)
-        station.event(run, "holds_flight_failed", None)
-        await confirmation.confirm_all(
-            fleet, plan.orders, event, commanding.hold_retry(fleet.clock_rate())
-        )
+    (``fly``, launching) until the launch is done and this is cancelled; then the circles
+    are sent once (the run commands the vehicles at its first tick).  Sent to the
+    autopilots and only confirmed, as before, wingmen 3 and 4 of Table 3 came to 43.0 m of
+    each other on their way to them while wingman 2 took off (×5, 300 ms, 20 % loss, a CPU
+    burner per core; 1 of 20 runs).  If flying them fails, the circles are handed over and
+    confirmed at once."""
+    plan = _plan(station, run, states, False, set(states))
+    if not await fly(station, run, plan, launching=True):
+        await _confirm(station, run, plan.orders)

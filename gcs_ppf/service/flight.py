@@ -26,10 +26,10 @@ from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_H
 from gcs_ppf.planning.scene import Obstacles, obstacles_from_mission
 from gcs_ppf.service import commanding, launch
 from gcs_ppf.service.ending import end, hold_during_launch
-from gcs_ppf.service.fleet import Vehicle, planning_states
+from gcs_ppf.service.fleet import planning_states
 from gcs_ppf.service.run import NOT_RESPONDING_S, Run, RunState, changes, min_of
 from gcs_ppf.service.station import Station
-from gcs_ppf.service.watch import reported_together, watch_safety
+from gcs_ppf.service.watch import Located, reported_together, watch_safety
 
 log = logging.getLogger("gcs_ppf.service.runs")  # the runs' log, under its name of old
 
@@ -39,9 +39,6 @@ COURSE_COMMAND = {  # the command each guidance mode flies by
 }
 RECENT_TICKS = 20  # the tick's own work is the median of this many latest
 SENT_COURSES_KEPT = 100  # courses kept per vehicle for the obedience check (10 s at 10 Hz)
-
-Located = list[tuple[Vehicle, tuple[float, float, float]]]
-"""The run's vehicles that have reported a position, with it in the ICS."""
 
 
 async def fly(station: Station, run: Run) -> None:

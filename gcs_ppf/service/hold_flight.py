@@ -61,7 +61,9 @@ async def fly_holds(
     fleet, settings, mission = station.fleet, station.settings, run.mission
     period = 1.0 / settings.tick_hz
     telemetry_interval = 1.0 / settings.stream_rate_hz
-    since = None if launching else run.ended_vehicle_s
+    ended = run.ended_vehicle_s
+    if ended is None and not launching:
+        return
     event = station.events_of(run)
     gaps: deque[float] = deque(maxlen=GAPS_KEPT)
     speed_sent: dict[int, float] = {}
@@ -75,10 +77,9 @@ async def fly_holds(
                 await fleet.telemetry_event.wait()
         now = station.fleet_time_s()
         taken = taken_over(station, run)
-        if now is None or set(circles) <= taken or (since is None and not launching):
+        if now is None or set(circles) <= taken:
             return
-        since = now if since is None else since
-        after = 0.0 if launching else now - since  # after the end
+        after = 0.0 if ended is None else now - ended  # after the end (0 while launching)
         if last_tick is not None and now - last_tick < period * 0.999:
             continue
         if last_tick is not None:
@@ -117,8 +118,8 @@ async def fly_holds(
         hold_s = lag.hold_s(gaps, period, telemetry_interval, lag.worst(list(lags.values())),
                             starvation)  # fmt: skip
         await commanding.command_holds(
-            fleet, circles, ids, states, airframes, run.orders, keep, hold_s, event,
-            run.escaping, run.mission_time_s + after,
+            fleet, circles, ids, motions, run.orders, keep, hold_s, event, run.escaping,
+            run.mission_time_s + after,
         )  # fmt: skip
         for vid in ids:
             if now - speed_sent.get(vid, -SPEED_RESEND_S) >= SPEED_RESEND_S:

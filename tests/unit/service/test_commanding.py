@@ -21,7 +21,7 @@ from gcs_ppf.service.commanding import (
     SIDE_MEMORY_S,
     Orders,
     command_fleet,
-    hold_orders,
+    hold_plan,
     motion,
     remember,
     stack_level,
@@ -142,8 +142,8 @@ def test_every_vehicle_holds_at_the_missions_slowest_speed() -> None:
     }
     airframes = {vid: Airframe() for vid in states}
     airframes[3] = Airframe(airspeed_min_m_s=120.0)
-    orders = hold_orders(Orders(mission, "course", 1.0), states, airframes, 100.0, True,
-                         lambda *a, **k: None, set(states))  # fmt: skip
+    orders = hold_plan(Orders(mission, "course", 1.0), states, airframes, 100.0, True,
+                       lambda *a, **k: None, set(states)).orders  # fmt: skip
     for vid in states:
         mine = [o for o in orders if o.vehicle_id == vid]
         assert [o.what for o in mine] == ["hold: guided loiter", "hold: speed", "hold: altitude"]
@@ -222,9 +222,10 @@ def test_vehicles_circling_one_level_of_the_stack_apart_fly_their_circles_unrepl
                    2: Hold(0.0, 0.0, 1000.0 - levels_m, 290.0, math.inf)}  # fmt: skip
         states = {1: on_circle(circles[1], 1.0, 100.0, 1000.0),
                   2: on_circle(circles[2], 1.0, 100.0, 1000.0 - gap_m)}  # fmt: skip
+        motions = [motion(states[i], airframes[i], mission) for i in (1, 2)]
         return asyncio.run(command_holds(
-            Fleet(), circles, [1, 2], states, airframes, Orders(mission, "course", 1.0), keep,
-            1.0, lambda *a, **k: None, {}, 0.0,
+            Fleet(), circles, [1, 2], motions, Orders(mission, "course", 1.0), keep, 1.0,
+            lambda *a, **k: None, {}, 0.0,
         ))  # fmt: skip
 
     verdicts = fly(spacing, spacing - 2.0 * SETTLED_HEIGHT_M)
@@ -252,10 +253,10 @@ def test_a_loiter_course_that_would_cut_a_keep_out_is_replaced_by_an_escape() ->
               2: VehicleState((-3000.0, 0.0, 1500.0), 0.0, 0.0, 100.0)}  # fmt: skip
     events: list[tuple[Any, ...]] = []
     fleet = Fleet()
+    motions = [motion(states[i], Airframe(), mission) for i in (1, 2)]
     verdicts = asyncio.run(command_holds(
-        fleet, circles, [1, 2], states, {1: Airframe(), 2: Airframe()},
-        Orders(mission, "course", 1.0), keep, 1.0, lambda *a, **k: events.append((a, k)),
-        {}, 0.0,
+        fleet, circles, [1, 2], motions, Orders(mission, "course", 1.0), keep, 1.0,
+        lambda *a, **k: events.append((a, k)), {}, 0.0,
     ))  # fmt: skip
     assert verdicts[1].replaced
     assert verdicts[1].reason == "obstacle"
