@@ -165,15 +165,26 @@ async def command_fleet(
         vid = g.ids[i]
         remember(escaping, vid, v, now_s)
         if v.replaced:
-            event("assurance_override", vid, keep_out=v.reason,
-                  planned_margin_m=round(v.margin_m, 1), sent_margin_m=round(v.chosen_margin_m, 1),
-                  course_deg=round(90.0 - math.degrees(v.command.course_rad), 1),
-                  turn={1: "left", -1: "right"}.get(v.side, "straight"))  # fmt: skip
+            course_deg = round(90.0 - math.degrees(v.command.course_rad), 1)
+            override_event(event, vid, v, [g.ids[j] for j in idx], course_deg=course_deg)
         where = (float(lats[k]), float(lons[k]), float(alts[k]))
         await _send_course(fleet, vid, planned[i], v, m, orders, where)
         slowest = mission.limits.v_min if v.replaced else None
         await _send_speed(fleet, vid, g, i, airframes[i], commanded_speed, follows, slowest)
     return {g.ids[i]: v for i, v in zip(idx, verdicts, strict=True)}
+
+
+def override_event(
+    event: Callable[..., None], vid: int, v: assurance.Verdict, ids: list[int], **detail: Any
+) -> None:
+    """The ``assurance_override`` event of a replaced command: the keep-out, the margins of
+    the planned and the sent command, the way it turns, and the teammate it gives way to
+    (``assurance.Verdict.gives_way_to``, ``ids`` the vehicles assured, in order)."""
+    if v.gives_way_to is not None:
+        detail["gives_way_to"] = ids[v.gives_way_to]
+    event("assurance_override", vid, keep_out=v.reason, planned_margin_m=round(v.margin_m, 1),
+          sent_margin_m=round(v.chosen_margin_m, 1),
+          turn={1: "left", -1: "right"}.get(v.side, "straight"), **detail)  # fmt: skip
 
 
 def remember(
@@ -439,9 +450,7 @@ async def command_holds(
     for vid, m, v in zip(ids, motions, verdicts, strict=True):
         remember(escaping, vid, v, now_s)
         if v.replaced:
-            event("assurance_override", vid, keep_out=v.reason, phase="hold",
-                  planned_margin_m=round(v.margin_m, 1), sent_margin_m=round(v.chosen_margin_m, 1),
-                  turn={1: "left", -1: "right"}.get(v.side, "straight"))  # fmt: skip
+            override_event(event, vid, v, ids, phase="hold")
         cmd = slew.SlewCommand(v.command.course_rad, m.speed_m_s * m.turn_rate_rad_s,
                                v.command.z_m, 0.0)  # fmt: skip
         point = _course_point(cmd, v, m, orders, np.array(along(m, v.command)))

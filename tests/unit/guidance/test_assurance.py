@@ -14,6 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from gcs_ppf.guidance.assurance import (
+    ESCAPE_OFFSETS,
     SIDE_SWITCH_S,
     SLACK_S,
     Command,
@@ -22,8 +23,12 @@ from gcs_ppf.guidance.assurance import (
     Motion,
     advance,
     assure,
+    escape_altitudes,
     hold_path,
+    motion_vector,
     score,
+    straight_track,
+    track,
     turn_side,
 )
 from gcs_ppf.planning.scene import Obstacles
@@ -81,13 +86,42 @@ def test_a_descent_into_the_ground_is_replaced_with_a_safe_altitude() -> None:
 
 
 def test_the_wingman_yields_to_the_leader_head_on() -> None:
+    """240 m apart head on, the wingman has an escape with the slack on its own: it turns,
+    the leader holds its course."""
     leader = plane(0.0, 0.0, 150.0, 0.0)
-    wingman = plane(160.0, 0.0, 150.0, math.pi)
+    wingman = plane(240.0, 0.0, 150.0, math.pi)
     verdicts = assure([leader, wingman], [Command(0.0, 150.0), Command(math.pi, 150.0)],
                       hold_s=1.0, keep=keep(sphere(1e5, 0, 0, 1)))  # fmt: skip
     assert not verdicts[0].replaced
     assert verdicts[1].replaced
     assert verdicts[1].reason == "teammate"
+    assert verdicts[1].chosen_margin_m >= SLACK_S * SPEED
+    assert verdicts[1].gives_way_to is None
+
+
+def test_the_leader_makes_way_when_the_wingman_alone_cannot_keep_the_slack() -> None:
+    """160 m apart head on: whatever the wingman does on its own, the leader flying on
+    leaves it less than the slack (measured in flight: a wingman escaping alone with 7–9 m
+    where the slack was 50 m came to 37.1 m of a teammate).  The leader gives way too, and
+    both keep the slack, each turning to its right as the rules of the air have it."""
+    leader = plane(0.0, 0.0, 150.0, 0.0)
+    wingman = plane(160.0, 0.0, 150.0, math.pi)
+    k = keep(sphere(1e5, 0, 0, 1))
+    leader_on = straight_track(leader, 1.0, 200)
+    alone = max(
+        score(wingman, Command(math.pi + offset, z), 1.0, k, [leader_on])[0]
+        for offset in (0.0, *ESCAPE_OFFSETS)
+        for z in escape_altitudes(wingman, Command(math.pi, 150.0), "teammate", 1.0, k)
+    )
+    assert alone < SLACK_S * SPEED
+    verdicts = assure([leader, wingman], [Command(0.0, 150.0), Command(math.pi, 150.0)],
+                      hold_s=1.0, keep=k)  # fmt: skip
+    assert verdicts[0].replaced
+    assert verdicts[0].reason == "teammate"
+    assert verdicts[0].gives_way_to == 1
+    assert verdicts[1].replaced
+    assert min(v.chosen_margin_m for v in verdicts) >= SLACK_S * SPEED
+    assert [v.side for v in verdicts] == [-1, -1]
 
 
 def fly_straight_at(target: np.ndarray, start: Motion, k: KeepOut, steps: int) -> np.ndarray:
@@ -227,7 +261,9 @@ def test_a_wingman_yields_to_a_teammate_diving_through_its_height() -> None:
     """A wingman level at 1,000 m at 200 m/s with the leader 160 m above it, the same way,
     diving at 84 m/s towards 600 m: the leader flown on along its dive comes down through
     the wingman's height (margin −23 m), and the wingman turns away; were the leader level,
-    it would stay 160 m above (margin 110 m), and the command would stand."""
+    it would stay 160 m above (margin 110 m), and the command would stand.  At 200 m/s no
+    escape of the wingman's alone keeps the slack (100 m): the leader gives way as well,
+    levelling off above it."""
     keep_out = keep(sphere(1e5, 0, 0, 1), ground=None)
     wingman = Motion((0.0, 0.0, 1000.0), 0.0, 200.0, 0.5, 68.4, 84.5, heading_tau_s=0.4,
                      climb_lag_s=0.4, height_gain_1_s=1.75)  # fmt: skip
@@ -239,9 +275,13 @@ def test_a_wingman_yields_to_a_teammate_diving_through_its_height() -> None:
                   keep_out)  # fmt: skip
     assert not held[1].replaced
     assert held[1].margin_m > 50.0
+    along_its_dive = track(motion_vector(leader), Command(0.0, 600.0), 1.0, 200)
+    assert score(wingman, Command(0.0, 1000.0), 1.0, keep_out, [along_its_dive])[0] < 0.0
     assert diving[1].replaced
     assert diving[1].reason == "teammate"
-    assert diving[1].margin_m < 0.0 <= diving[1].chosen_margin_m
+    assert diving[1].chosen_margin_m >= 0.0
+    assert diving[0].gives_way_to == 1
+    assert diving[0].command.z_m > 1000.0 + 50.0
 
 
 def test_a_vehicle_diving_at_an_obstacle_with_no_level_escape_pulls_up() -> None:
