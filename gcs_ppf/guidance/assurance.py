@@ -3,17 +3,10 @@ can take effect, can still escape every keep-out; otherwise it gets the nearest 
 can (the simplex architecture: the planner is the advanced controller, this the safety one).
 
 Pure: arrays in, verdicts out.  The prediction is ArduPlane's response as the built-in SITL
-is calibrated to it (``sitl/calibration.py``, ``gcs_ppf.mavlink.ardupilot``): the turn is what
-the bank gives, the bank follows GUIDED's P-only demand (the course error over the heading
-time constant, at most the airframe's turn rate) with the roll loop's lag and rate limit,
-from the bank the vehicle flies now (a vehicle turning hard one way first rolls out: at
-100 m/s, 1.5 s and 150 m the other way, measured on a lossy link under load); the vertical
-speed follows TECS's demand (the height error × its gain, within the climb and sink
-limits) with its lag, from the vertical speed the vehicle flies now (a vehicle diving at
-125 m/s does not level off at once); the speed held.  A command is *recoverable* when, from
-where the vehicle is at the end of ``hold_s`` (the lag of the telemetry, the link and the
-next tick), a turn to either side at the full bank through 180° (the way back is the way
-it came), rolled into from the bank it then has, keeps out of every keep-out: an
+is calibrated to it (``gcs_ppf.guidance.vehicle_motion``).  A command is *recoverable* when,
+from where the vehicle is at the end of ``hold_s`` (the lag of the telemetry, the link and
+the next tick), a turn to either side at the full bank through 180° (the way back is the
+way it came), rolled into from the bank it then has, keeps out of every keep-out: an
 obstacle's surface plus ``safe_distance_obstacle``, the ground plus the same, a teammate
 of higher priority (earlier in the order; the leader first) or one it is overtaking, plus
 ``safe_distance_uav``, with ``SLACK_S`` of flight to spare.
@@ -34,8 +27,18 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gcs_ppf.guidance import prediction
-from gcs_ppf.guidance.airframe import G_M_S2
-from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
+from gcs_ppf.guidance.vehicle_motion import (
+    Command,
+    Motion,
+    Track,
+    advance,
+    escape_s,
+    motion_vector,
+    straight_track,
+    track,
+    turn_side,
+    wrap,
+)
 from gcs_ppf.planning.scene import FloatArray, Obstacles
 
 #: Course offsets tried for an escape, nearest the command first (radians).
@@ -58,66 +61,12 @@ costs more than it predicts.  Measured (Table 3, ×5, 300 ms, 20 % loss, a CPU b
 core): a wingman at 100 m/s was sent escapes to the left and right by turns, 0.3–0.6 s
 apart, for 7 s; its heading stayed within 37–44° throughout, and it went 1.4 m into an
 obstacle's sphere."""
-SIDE_DEADBAND_RAD = math.radians(10.0)
-"""A course this close to the vehicle's yaw turns neither way (no reversal to reach it)."""
 SLACK_S = 0.5
 """A command counts as recoverable only with this many seconds of flight (× its speed) to
 spare beyond the keep-out: slack for what the prediction does not know (a late tick, a lost
 command, a teammate's turn).  Without it the switch to an escape came at zero margin, and
 under load on a lossy link the escapes' margins then fell 50–80 m within half a second
 (Table 3, ×5, 300 ms, 20 % loss: 5 of 20 runs entered a keep-out)."""
-
-
-@dataclass(frozen=True, slots=True)
-class Command:
-    """What a vehicle is told: a course (ICS yaw, rad) and an altitude (ICS z, m)."""
-
-    course_rad: float
-    z_m: float
-
-
-@dataclass(frozen=True, slots=True)
-class Motion:
-    """How a vehicle answers a command: its state now and its airframe's limits."""
-
-    pos_m: tuple[float, float, float]
-    yaw_rad: float
-    speed_m_s: float
-    turn_rate_rad_s: float
-    """Steepest turn (rad/s) at its speed: the bank limit, and the mission's yaw rate."""
-    climb_m_s: float
-    sink_m_s: float
-    heading_tau_s: float = 1.0
-    """First-order time constant of the course (ArduPlane's GUIDED P-controller)."""
-    yaw_rate_rad_s: float = 0.0
-    """How fast it turns now (+: left), i.e. the bank it flies: a turn the other way first
-    rolls out of it."""
-    roll_lag_s: float = 0.0
-    """The bank's first-order lag behind its demand (ArduPlane: ``ROLL_LAG_PER_TCONST`` ×
-    RLL2SRV_TCONST); 0: the bank is where it is asked at once."""
-    roll_rate_rad_s: float = math.inf
-    """The fastest roll (rad/s)."""
-    climb_rate_m_s: float = 0.0
-    """Its vertical speed now (m/s, + up)."""
-    climb_lag_s: float = 0.0
-    """The vertical speed's first-order lag behind TECS's demand (ArduPlane:
-    ``CLIMB_LAG_PER_TECS_TCONST`` × TECS_TIME_CONST); 0: at once."""
-    height_gain_1_s: float = math.inf
-    """TECS's climb-rate demand per metre of height error (1/s); inf: the limits at once."""
-
-    def bank_for(self, yaw_rate_rad_s: float) -> float:
-        """The bank (rad, + left) that turns at ``yaw_rate_rad_s``."""
-        v = max(self.speed_m_s, 1e-6)
-        return math.atan(yaw_rate_rad_s * v / (TURN_EFFICIENCY * G_M_S2))
-
-    def velocity(self, yaw_rad: float | None = None) -> FloatArray:
-        """Its level velocity (m/s, ICS) along ``yaw_rad`` (default: its yaw now)."""
-        yaw = self.yaw_rad if yaw_rad is None else yaw_rad
-        return self.speed_m_s * np.array([math.cos(yaw), math.sin(yaw), 0.0])
-
-    def yaw_rate_for(self, bank_rad: float) -> float:
-        """The turn (rad/s, + left) that ``bank_rad`` gives."""
-        return TURN_EFFICIENCY * G_M_S2 * math.tan(bank_rad) / max(self.speed_m_s, 1e-6)
 
 
 @dataclass(frozen=True, slots=True)
@@ -159,59 +108,6 @@ class Verdict:
     when that teammate had no escape of its own with the slack (``assure``)."""
 
 
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
-def turn_side(m: Motion, course_rad: float) -> int:
-    """The way a course turns the vehicle (ArduPlane turns the shorter way): +1 left, −1
-    right, 0 for a course within ``SIDE_DEADBAND_RAD`` of its yaw."""
-    error = _wrap(course_rad - m.yaw_rad)
-    return 0 if abs(error) < SIDE_DEADBAND_RAD else (1 if error > 0.0 else -1)
-
-
-def motion_vector(m: Motion) -> FloatArray:
-    """``m`` as ``prediction``'s vector."""
-    return np.array([*m.pos_m, m.yaw_rad, m.speed_m_s, m.turn_rate_rad_s, m.climb_m_s,
-                     m.sink_m_s, m.heading_tau_s, m.yaw_rate_rad_s, m.roll_lag_s,
-                     m.roll_rate_rad_s, m.climb_rate_m_s, m.climb_lag_s,
-                     m.height_gain_1_s], dtype=np.float64)  # fmt: skip
-
-
-def hold_path(m: Motion, c: Command, hold_s: float) -> tuple[FloatArray, float]:
-    """Positions [k,3] (from now, every ``STEP_S`` or less) while the vehicle flies ``c``
-    for ``hold_s``, and its yaw at the end."""
-    path, end = prediction.fly_hold(
-        motion_vector(m), float(c.course_rad), float(c.z_m), float(hold_s)
-    )
-    return path, float(end[prediction.YAW])
-
-
-def advance(m: Motion, c: Command, dt_s: float) -> Motion:
-    """The vehicle ``dt_s`` later, flying ``c`` as predicted (its position, yaw and turn)."""
-    vector = motion_vector(m)
-    path, end = prediction.fly_hold(vector, float(c.course_rad), float(c.z_m), float(dt_s))
-    x, y, z = (float(v) for v in path[-1])
-    turning = prediction.yaw_rate_for(vector, end[prediction.BANK])
-    return replace(m, pos_m=(x, y, z), yaw_rad=_wrap(float(end[prediction.YAW])),
-                   yaw_rate_rad_s=float(turning),
-                   climb_rate_m_s=float(end[prediction.FLIGHT_VZ]))  # fmt: skip
-
-
-def escape_s(m: Motion) -> float:
-    """The longest an escape takes: a half turn at the full rate, after rolling from full
-    bank one way to full bank the other."""
-    return float(prediction.escape_s(motion_vector(m)))
-
-
-@dataclass(frozen=True, slots=True)
-class Track:
-    """A teammate's predicted flight: its hold path (the same instants as every other's),
-    then on through an escape's time (``STEP_S`` apart from the hold's end), [k+1+j,3]."""
-
-    path: FloatArray
-
-
 REASONS = {prediction.OBSTACLE: "obstacle", prediction.GROUND: "ground",
            prediction.TEAMMATE: "teammate"}  # fmt: skip
 
@@ -247,13 +143,6 @@ def _score(
     return float(s), REASONS.get(reason)
 
 
-def track(vector: FloatArray, c: Command, hold_s: float, after_steps: int) -> Track:
-    """A vehicle's predicted flight on ``c``: its hold, then ``after_steps`` more."""
-    path, end = prediction.fly_hold(vector, float(c.course_rad), float(c.z_m), float(hold_s))
-    on = prediction.fly_on(vector, end, float(c.course_rad), float(c.z_m), after_steps)
-    return Track(np.concatenate((path, on[1:])))
-
-
 def _floats(a: FloatArray) -> FloatArray:
     """``a`` as contiguous float64 (integer radii in a test's spheres made numba compile a
     second version of the prediction, seconds of a tick had it happened in flight)."""
@@ -277,11 +166,6 @@ def overtaking(a: Motion, b: Motion) -> bool:
     gap = np.subtract(b.pos_m, a.pos_m)
     va, vb = a.velocity(), b.velocity()
     return bool(gap @ va > 0.0 and va @ vb > 0.0 and gap @ (va - vb) > 0.0)
-
-
-def straight_track(m: Motion, hold_s: float, after_steps: int) -> Track:
-    """A teammate not yet assured this tick, holding its course and height (``track``)."""
-    return track(motion_vector(m), Command(m.yaw_rad, m.pos_m[2]), hold_s, after_steps)
 
 
 def within_reach(a: Motion, b: Motion, hold_s: float, keep: KeepOut) -> bool:
@@ -453,7 +337,7 @@ def _make_way(
     now = max(slack_i - v.chosen_margin_m, slack_j - first.verdicts[j].chosen_margin_m)
     best: tuple[float, Command] | None = None
     candidates = (
-        Command(_wrap(cj.course_rad + offset), z)
+        Command(wrap(cj.course_rad + offset), z)
         for offset in (0.0, *ESCAPE_OFFSETS)
         for z in escape_altitudes(mj, cj, "teammate", hold_s, keep)
     )
@@ -487,7 +371,7 @@ def _escape(
     candidates = itertools.chain(
         () if kept_command is None else (kept_command,),
         (
-            Command(_wrap(c.course_rad + offset), z)
+            Command(wrap(c.course_rad + offset), z)
             for offset in (0.0, *ESCAPE_OFFSETS)
             for z in escape_altitudes(m, c, reason, hold_s, keep)
         ),

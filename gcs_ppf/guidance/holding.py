@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs_ppf.guidance.assurance import Motion
+from gcs_ppf.guidance.vehicle_motion import Motion
 from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from gcs_ppf.planning.scene import FloatArray, Obstacles
 

@@ -17,7 +17,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from gcs_ppf.geodesy import enu_to_geodetic, enu_to_geodetic_many
-from gcs_ppf.guidance import assurance, holding, prediction, slew, speed_reference
+from gcs_ppf.guidance import assurance, holding, prediction, slew, speed_reference, vehicle_motion
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import Guidance, VehicleState
 from gcs_ppf.mavlink import commands
@@ -79,7 +79,7 @@ class Orders:
 
 def motion(
     state: VehicleState, airframe: Airframe, mission: Mission, speed_m_s: float = 0.0
-) -> assurance.Motion:
+) -> vehicle_motion.Motion:
     """A vehicle's response model for the assurance, from its airframe's parameters (the
     mission's limits where it reports none), at its speed or ``speed_m_s`` if faster (the
     speed it is told to reach: a faster vehicle turns wider).  Its climb and sink are what
@@ -102,7 +102,7 @@ def motion(
     tecs = airframe.tecs_time_constant_s  # None: not ArduPlane, the vertical speed at once
     climb_lag = 0.0 if tecs is None else CLIMB_LAG_PER_TECS_TCONST * tecs
     gain = math.inf if tecs is None else HEIGHT_GAIN_TIMES_TECS_TCONST / tecs
-    return assurance.Motion(state.pos_m, state.yaw_rad, v, turn, climb, sink, tau,
+    return vehicle_motion.Motion(state.pos_m, state.yaw_rad, v, turn, climb, sink, tau,
                             state.yaw_rate_rad_s, roll_lag, roll_rate, vz, climb_lag,
                             gain)  # fmt: skip
 
@@ -155,7 +155,7 @@ async def command_fleet(
     idx = [i for i, vid in enumerate(g.ids) if vid in active]
     ahead = g.speed_m_s if g.speed_ahead_m_s is None else g.speed_ahead_m_s
     motions = [motion(states[g.ids[i]], airframes[i], mission, float(ahead[i])) for i in idx]
-    wanted = [assurance.Command(planned[i].course_rad, planned[i].z_m) for i in idx]
+    wanted = [vehicle_motion.Command(planned[i].course_rad, planned[i].z_m) for i in idx]
     previous = [escaping.get(g.ids[i]) for i in idx]
     verdicts = assurance.assure(motions, wanted, hold_s, keep, previous)
     points = [_course_point(planned[i], v, m, orders, g.guided_point_m[i])
@@ -201,7 +201,7 @@ def remember(
         del escaping[vid]
 
 
-def along(m: assurance.Motion, c: assurance.Command) -> tuple[float, float, float]:
+def along(m: vehicle_motion.Motion, c: vehicle_motion.Command) -> tuple[float, float, float]:
     """A guided point for course ``c`` (point guidance): ``ESCAPE_POINT_M`` along it from
     the vehicle, at its altitude."""
     return (m.pos_m[0] + ESCAPE_POINT_M * math.cos(c.course_rad),
@@ -209,7 +209,7 @@ def along(m: assurance.Motion, c: assurance.Command) -> tuple[float, float, floa
 
 
 def _course_point(
-    cmd: slew.SlewCommand, v: assurance.Verdict, m: assurance.Motion, orders: Orders,
+    cmd: slew.SlewCommand, v: assurance.Verdict, m: vehicle_motion.Motion, orders: Orders,
     guided_point: np.ndarray,
 ) -> tuple[float, float, float]:  # fmt: skip
     """Where a vehicle's command points (ICS): the guided point (an escape's point
@@ -224,7 +224,7 @@ def _course_point(
 
 
 async def _send_course(
-    fleet: Sender, vid: int, cmd: slew.SlewCommand, v: assurance.Verdict, m: assurance.Motion,
+    fleet: Sender, vid: int, cmd: slew.SlewCommand, v: assurance.Verdict, m: vehicle_motion.Motion,
     orders: Orders, where: tuple[float, float, float],
 ) -> None:  # fmt: skip
     """The vehicle's course and altitude commands (``where``: ``_course_point`` on WGS-84)."""
@@ -306,7 +306,7 @@ def levelling_height(state: VehicleState, airframe: Airframe, mission: Mission) 
     """Where a vehicle would level off, told to hold its height now: its altitude and the
     lead TECS's height demand has at the vertical speed it flies
     (``prediction.height_demand_now``)."""
-    vector = assurance.motion_vector(motion(state, airframe, mission))
+    vector = vehicle_motion.motion_vector(motion(state, airframe, mission))
     return float(prediction.height_demand_now(vector))
 
 
@@ -430,7 +430,7 @@ def slowest_airspeed(mission: Mission, airframe: Airframe) -> float:
 
 async def command_holds(
     fleet: Sender, circles: dict[int, holding.Hold], ids: list[int],
-    motions: list[assurance.Motion], orders: Orders, keep: assurance.KeepOut, hold_s: float,
+    motions: list[vehicle_motion.Motion], orders: Orders, keep: assurance.KeepOut, hold_s: float,
     event: Callable[..., None], escaping: dict[int, assurance.Escape], now_s: float,
 ) -> dict[int, assurance.Verdict]:  # fmt: skip
     """One tick of the holding phase flown by the service (``service.hold_flight``): each of
@@ -445,7 +445,7 @@ async def command_holds(
         c = circles[vid]
         course = holding.loiter_course(m.pos_m, c.x_m, c.y_m, holding.flown_radius_m(c.radius_m),
                                        m.speed_m_s, m.turn_rate_rad_s, m.heading_tau_s)  # fmt: skip
-        wanted.append(assurance.Command(course, c.z_m))
+        wanted.append(vehicle_motion.Command(course, c.z_m))
     verdicts = assurance.assure(motions, wanted, hold_s, keep, [escaping.get(i) for i in ids])
     for vid, m, v in zip(ids, motions, verdicts, strict=True):
         remember(escaping, vid, v, now_s)

@@ -9,7 +9,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as hs
 
-from gcs_ppf.guidance.assurance import Motion
 from gcs_ppf.guidance.holding import (
     Hold,
     approach_path,
@@ -18,6 +17,7 @@ from gcs_ppf.guidance.holding import (
     points_clearance,
     ring_clearance,
 )
+from gcs_ppf.guidance.vehicle_motion import Motion
 from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from gcs_ppf.planning.scene import Obstacles
 

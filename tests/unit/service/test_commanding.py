@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from gcs_ppf.guidance import assurance
+from gcs_ppf.guidance import assurance, vehicle_motion
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import VehicleState, guidance, scene_now
 from gcs_ppf.mavlink import commands
@@ -156,8 +156,8 @@ def test_the_way_an_escape_turned_is_remembered_for_a_while_after_it() -> None:
     """While a vehicle escapes its escape is in force; back on its plan, the way it turned
     is remembered for ``SIDE_MEMORY_S`` of mission time, then forgotten."""
     escaping: dict[int, assurance.Escape] = {}
-    escape = assurance.Command(0.5, 300.0)
-    planned = assurance.Command(0.0, 300.0)
+    escape = vehicle_motion.Command(0.5, 300.0)
+    planned = vehicle_motion.Command(0.0, 300.0)
     replaced = assurance.Verdict(escape, True, "obstacle", -5.0, 40.0, side=1)
     kept = assurance.Verdict(planned, False, None, 60.0, 60.0)
     remember(escaping, 7, replaced, 10.0)
