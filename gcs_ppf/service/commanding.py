@@ -103,8 +103,8 @@ def motion(
     climb_lag = 0.0 if tecs is None else CLIMB_LAG_PER_TECS_TCONST * tecs
     gain = math.inf if tecs is None else HEIGHT_GAIN_TIMES_TECS_TCONST / tecs
     return vehicle_motion.Motion(state.pos_m, state.yaw_rad, v, turn, climb, sink, tau,
-                            state.yaw_rate_rad_s, roll_lag, roll_rate, vz, climb_lag,
-                            gain)  # fmt: skip
+                                 state.yaw_rate_rad_s, roll_lag, roll_rate, vz, climb_lag,
+                                 gain)  # fmt: skip
 
 
 def planned_commands(

@@ -23,6 +23,7 @@ from gcs_ppf.service.commanding import (
     command_fleet,
     hold_plan,
     motion,
+    override_event,
     remember,
     stack_level,
 )
@@ -269,3 +270,24 @@ def test_a_loiter_course_that_would_cut_a_keep_out_is_replaced_by_an_escape() ->
     assert headings_sent(fleet, 1) == [
         pytest.approx(90.0 - math.degrees(verdicts[1].command.course_rad), abs=1e-3)
     ]
+
+
+def test_an_override_event_names_the_teammate_given_way_to_by_its_id() -> None:
+    """``Verdict.gives_way_to`` indexes the vehicles assured; the event names that vehicle's
+    system id, and an override that gives way to no one carries no such field."""
+    seen: list[tuple[str, int, dict[str, Any]]] = []
+
+    def event(kind: str, vid: int, **detail: Any) -> None:
+        seen.append((kind, vid, detail))
+
+    sent = vehicle_motion.Command(0.5, 300.0)
+    giving = assurance.Verdict(sent, True, "teammate", 80.0, 90.0, -1, gives_way_to=1)
+    override_event(event, 7, giving, [7, 9], phase="hold")
+    escaping = assurance.Verdict(sent, True, "obstacle", -5.0, 30.0, 1)
+    override_event(event, 9, escaping, [7, 9])
+    assert seen[0] == ("assurance_override", 7, {
+        "keep_out": "teammate", "planned_margin_m": 80.0, "sent_margin_m": 90.0,
+        "turn": "right", "phase": "hold", "gives_way_to": 9,
+    })  # fmt: skip
+    assert "gives_way_to" not in seen[1][2]
+    assert seen[1][2]["turn"] == "left"
