@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import subprocess
 import sys
 import time
@@ -31,7 +30,15 @@ import numpy as np
 from pymavlink import mavutil
 
 from gcs_ppf.mission import Mission
-from gcs_ppf.tools.observer import Observer, free_port_block, judge, tracks_enu
+from gcs_ppf.tools.campaign_tables import format_tables, progress_line, summarize
+from gcs_ppf.tools.observer import (
+    Observer,
+    formation_offsets,
+    free_port_block,
+    judge,
+    longest_formed_s,
+    tracks_enu,
+)
 
 ROOT = Path(__file__).resolve().parents[2]  # the repository (gcs_ppf/tools/ → ../..)
 EXAMPLES = ROOT / "examples"
@@ -302,6 +309,24 @@ def _judge_run(
     rec["sank"] = [
         v for v, h in j.lowest_m.items() if h is not None and h < lim.safe_distance_obstacle
     ]
+    rec["formation_m"], rec["formation_held_s"] = formation_seen(
+        mission, tracks, flight.start_v, end_v
+    )
+
+
+def formation_seen(
+    mission: Mission, tracks: dict[int, Any], start_s: float, end_s: float
+) -> tuple[float | None, float | None]:
+    """The formation as the observer saw it during the run, [start_s, end_s] of vehicle
+    time: the worst wingman's distance from its slot (Eq. 6) at the best moment, and the
+    longest time every wingman stayed within the target accuracy at once.  None for a
+    lone leader, or a vehicle never heard."""
+    ids = [mission.leader.id, *(w.id for w in mission.wingmen)]
+    if not mission.wingmen or end_s <= start_s or any(len(tracks.get(v, ())) == 0 for v in ids):
+        return None, None
+    heard = {v: tracks[v] for v in ids}
+    _, worst = formation_offsets(mission, heard, start_s, end_s - start_s)
+    return _r(worst), _r(longest_formed_s(mission, heard, start_s, end_s - start_s))
 
 
 def _r(x: float | None) -> float | None:
@@ -380,91 +405,10 @@ def run_campaign(
                     with (out / "runs.jsonl").open("a") as f:
                         f.write(json.dumps(rec) + "\n")
                     progress(f"[{len(results)}/{total}] {progress_line(rec)}")
-    summary = summarize(results)
+    summary = summarize(results, CONDITIONS)
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
     (out / "table.txt").write_text(format_tables(summary))
     return results
-
-
-def progress_line(rec: dict[str, Any]) -> str:
-    if rec.get("error"):
-        return f"{rec['mission']} ({rec['condition']}) run {rec['run']}: ERROR {rec['error']}"
-    extra = f" fail delay {rec['fail_delay_s']} s" if "fail_delay_s" in rec else ""
-    return (f"{rec['mission']} ({rec['condition']}) run {rec['run']}: {rec['state']}"
-            f" sep {rec['min_separation_m']} m clr {rec['min_clearance_m']} m flown"
-            f" {rec['mission_time_s']} s wall {rec['wall_s']} s{extra}"
-            + (f"  VIOLATION {'; '.join(rec['violations'])}"
-               if rec["violations"] else ""))  # fmt: skip
-
-
-def _stats(values: list[float]) -> tuple[float | None, float | None]:
-    return (min(values), statistics.median(values)) if values else (None, None)
-
-
-def summarize(results: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    """Per condition, per mission and all missions: runs, violations, runs ending as
-    expected, separation and clearance (min, median), flown and wall time (median)."""
-    out: dict[str, Any] = {}
-    for key in dict.fromkeys(r["condition"] for r in results):
-        rows = [r for r in results if r["condition"] == key]
-        groups = {
-            m: [r for r in rows if r["mission"] == m]
-            for m in dict.fromkeys(r["mission"] for r in rows)
-        }
-        if len(groups) > 1:
-            groups["all"] = rows
-        out[key] = {"label": CONDITIONS[key].label, "expect": CONDITIONS[key].expect,
-                    "missions": {m: _group(g) for m, g in groups.items()}}  # fmt: skip
-    return out
-
-
-def _group(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    def vals(k: str) -> list[float]:
-        return [float(r[k]) for r in rows if r.get(k) is not None]
-
-    sep, clr = _stats(vals("min_separation_m")), _stats(vals("min_clearance_m"))
-    return {
-        "runs": len(rows), "errors": sum(1 for r in rows if r.get("error")),
-        "violations": sum(1 for r in rows if r["violations"]),
-        "as_expected": sum(1 for r in rows if r["ok"]),
-        "states": {s: sum(1 for r in rows if r["state"] == s) for s in {r["state"] for r in rows}},
-        "separation_min_m": sep[0], "separation_median_m": sep[1],
-        "clearance_min_m": clr[0], "clearance_median_m": clr[1],
-        "uncontrolled_clearance_min_m": _stats(vals("uncontrolled_clearance_m"))[0],
-        "sank": sum(1 for r in rows if r.get("sank")),
-        "fail_delay_max_s": max(vals("fail_delay_s"), default=None),
-        "flown_median_s": _stats(vals("mission_time_s"))[1],
-        "wall_median_s": _stats(vals("wall_s"))[1],
-    }  # fmt: skip
-
-
-def format_tables(summary: dict[str, Any]) -> str:
-    """One table per condition, a row per mission."""
-    lines = []
-    head = (f"{'mission':<18}{'runs':>5}{'viol':>5}{'ok':>4}{'sep min':>9}{'sep med':>9}"
-            f"{'clr min':>9}{'clr med':>9}{'flown':>7}{'wall':>6}  note")  # fmt: skip
-
-    def f(x: float | None, w: int) -> str:
-        return f"{'-' if x is None else f'{x:.1f}':>{w}}"
-
-    for key, c in summary.items():
-        lines += ["", f"({key}) {c['label']}: ok = ended {c['expect']}"
-                  + (" within the lost-vehicle timeout" if key == "e" else ""), head]  # fmt: skip
-        for m, g in c["missions"].items():
-            note = [f"{s} {k}" for s, k in sorted(g["states"].items()) if s != c["expect"]]
-            if g["uncontrolled_clearance_min_m"] is not None:
-                note.append(f"stuck wingman's clearance {g['uncontrolled_clearance_min_m']:.1f}")
-            if g["fail_delay_max_s"] is not None:
-                note.append(f"failed <= {g['fail_delay_max_s']:.1f} s after silence")
-            if g["sank"]:
-                note.append(f"{g['sank']} below the ground keep-out")
-            lines.append(
-                f"{m[:17]:<18}{g['runs']:>5}{g['violations']:>5}{g['as_expected']:>4}"
-                f"{f(g['separation_min_m'], 9)}{f(g['separation_median_m'], 9)}"
-                f"{f(g['clearance_min_m'], 9)}{f(g['clearance_median_m'], 9)}"
-                f"{f(g['flown_median_s'], 7)}{f(g['wall_median_s'], 6)}  {'; '.join(note)}"
-            )
-    return "\n".join(lines) + "\n"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -491,7 +435,7 @@ def main(argv: list[str] | None = None) -> int:
             p.error(f"no mission file {m}")
     results = run_campaign(missions, conditions, a.runs, a.out, jobs=a.jobs,
                            event_at_s=a.event_at, after_s=a.after)  # fmt: skip
-    print(format_tables(summarize(results)), end="")
+    print(format_tables(summarize(results, CONDITIONS)), end="")
     print(f"runs: {a.out / 'runs.jsonl'}; summary: {a.out / 'summary.json'}")
     return 0
 

@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from gcs_ppf.tools.campaign import CONDITIONS, format_tables, run_campaign, summarize
+from gcs_ppf.tools.campaign import CONDITIONS, run_campaign
+from gcs_ppf.tools.campaign_tables import format_tables, summarize
 from tests.conftest import EXAMPLES
 
 RUNS = 2
@@ -24,7 +25,7 @@ def test_reduced_campaign_table3_has_no_violation_and_completes(tmp_path: Path) 
     results = run_campaign(
         [EXAMPLES / "paper_table3.json"], ["a", "c"], RUNS, tmp_path, progress=lines.append
     )
-    print("\n" + "\n".join(lines) + "\n" + format_tables(summarize(results)))
+    print("\n" + "\n".join(lines) + "\n" + format_tables(summarize(results, CONDITIONS)))
     assert len(results) == 2 * RUNS
     assert len((tmp_path / "runs.jsonl").read_text().splitlines()) == 2 * RUNS
     assert set(json.loads((tmp_path / "summary.json").read_text())) == {"a", "c"}
@@ -36,3 +37,5 @@ def test_reduced_campaign_table3_has_no_violation_and_completes(tmp_path: Path) 
         assert rec["min_clearance_m"] >= 25.0, rec
         lo, hi = rec["window_s"]
         assert hi - lo >= rec["mission_time_s"] + 30.0  # watched 30 s past the end
+        assert rec["formation_m"] is not None, rec
+        assert rec["formation_m"] >= 0.0, rec
