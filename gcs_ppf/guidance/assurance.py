@@ -216,7 +216,8 @@ def assure(
     50 m, came to 37.1 m of each other (the safe distance 50 m)."""
     vectors = [motion_vector(m) for m in motions]
     after = max((int(prediction.escape_steps(v)) for v in vectors), default=1)
-    first = _in_order(motions, commands, hold_s, keep, escaping, vectors, after, {})
+    yields = [_yields(motions, i, hold_s, keep) for i in range(len(motions))]
+    first = _in_order(motions, commands, hold_s, keep, escaping, vectors, after, yields, {})
     forced: dict[int, tuple[int, Command]] = {}
     for i in cornered(motions, first.verdicts):
         way = _make_way(motions, commands, hold_s, keep, vectors, after, first, i)
@@ -224,7 +225,7 @@ def assure(
             forced[way[0]] = (i, way[1])
     if not forced:
         return first.verdicts
-    second = _in_order(motions, commands, hold_s, keep, escaping, vectors, after, forced)
+    second = _in_order(motions, commands, hold_s, keep, escaping, vectors, after, yields, forced)
     if shortfall(motions, second.verdicts) < shortfall(motions, first.verdicts):
         return second.verdicts
     return first.verdicts
@@ -268,11 +269,11 @@ def _yields(motions: list[Motion], i: int, hold_s: float, keep: KeepOut) -> list
 def _in_order(
     motions: list[Motion], commands: list[Command], hold_s: float, keep: KeepOut,
     escaping: Sequence[Escape | None] | None, vectors: list[FloatArray], after: int,
-    forced: dict[int, tuple[int, Command]],
+    yields: list[list[int]], forced: dict[int, tuple[int, Command]],
 ) -> _Pass:  # fmt: skip
-    """``assure``'s pass in priority order; ``forced``: the vehicles sent what
-    ``_make_way`` found for them (for whom, and what), whatever their own search would
-    choose."""
+    """``assure``'s pass in priority order; ``yields``: whom each vehicle yields to
+    (``_yields``); ``forced``: the vehicles sent what ``_make_way`` found for them (for
+    whom, and what), whatever their own search would choose."""
     verdicts: list[Verdict] = []
     paths: list[Track] = []
     yielded: list[dict[int, Track]] = []
@@ -281,7 +282,7 @@ def _in_order(
             j: paths[j] if j < i
             else track(vectors[j], forced[j][1], hold_s, after) if j in forced
             else straight_track(motions[j], hold_s, after)
-            for j in _yields(motions, i, hold_s, keep)
+            for j in yields[i]
         }  # fmt: skip
         vector, prepared = vectors[i], _Near.of(list(to.values()), hold_s)
         planned, reason = _score(vector, c, hold_s, keep, prepared)

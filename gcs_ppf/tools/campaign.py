@@ -32,11 +32,12 @@ from pymavlink import mavutil
 from gcs_ppf.mission import Mission
 from gcs_ppf.tools.campaign_tables import format_tables, progress_line, summarize
 from gcs_ppf.tools.observer import (
+    FloatArray,
     Observer,
-    formation_offsets,
     free_port_block,
+    held_s,
     judge,
-    longest_formed_s,
+    slot_distances,
     tracks_enu,
 )
 
@@ -315,7 +316,7 @@ def _judge_run(
 
 
 def formation_seen(
-    mission: Mission, tracks: dict[int, Any], start_s: float, end_s: float
+    mission: Mission, tracks: dict[int, FloatArray], start_s: float, end_s: float
 ) -> tuple[float | None, float | None]:
     """The formation as the observer saw it during the run, [start_s, end_s] of vehicle
     time: the worst wingman's distance from its slot (Eq. 6) at the best moment, and the
@@ -324,9 +325,10 @@ def formation_seen(
     ids = [mission.leader.id, *(w.id for w in mission.wingmen)]
     if not mission.wingmen or end_s <= start_s or any(len(tracks.get(v, ())) == 0 for v in ids):
         return None, None
-    heard = {v: tracks[v] for v in ids}
-    _, worst = formation_offsets(mission, heard, start_s, end_s - start_s)
-    return _r(worst), _r(longest_formed_s(mission, heard, start_s, end_s - start_s))
+    step = 0.1
+    offsets = slot_distances(mission, {v: tracks[v] for v in ids}, np.arange(start_s, end_s, step))
+    worst = np.max(np.stack(list(offsets.values())), axis=0)
+    return _r(float(worst.min())), _r(held_s(worst, mission.limits.target_accuracy, step))
 
 
 def _r(x: float | None) -> float | None:

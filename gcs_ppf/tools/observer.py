@@ -285,12 +285,18 @@ def longest_formed_s(
     step = 0.1
     t = np.arange(start_s, start_s + duration_s, step)
     offsets = slot_distances(mission, tracks, t)
-    formed = np.max(np.stack(list(offsets.values())), axis=0) <= mission.limits.target_accuracy
+    worst = np.max(np.stack(list(offsets.values())), axis=0)
+    return held_s(worst, mission.limits.target_accuracy, step)
+
+
+def held_s(worst_m: FloatArray, accuracy_m: float, step_s: float) -> float:
+    """The longest stretch (s) of the worst wingman's distances ``worst_m`` (``step_s``
+    apart) within ``accuracy_m``."""
     longest = run = 0
-    for f in formed:
+    for f in worst_m <= accuracy_m:
         run = run + 1 if f else 0
         longest = max(longest, run)
-    return longest * step
+    return longest * step_s
 
 
 # ---- judging -----------------------------------------------------------------------------
