@@ -15,10 +15,12 @@ plane.parm defaults, ``../shared/arduplane-traces``):
 - ``MAV_CMD_GUIDED_CHANGE_ALTITUDE``: param3 > 0 is not a climb-rate cap (each update moves
   the demand from the *current* altitude by param3 × Δt, and TECS barely climbs: 3.6 m in
   60 s asked at 2 m/s); param3 = 0 is "as fast as possible" (TECS at up to TECS_CLMB_MAX,
-  4.0 m/s over a 50 m step).  So the service sends param3 = 0 and shapes the demand itself:
-  the planned altitude a few seconds ahead, never further from the current altitude than
-  TECS can climb (sink) in that time.  z = 0 and z = −1 are DENIED (``is_equal`` with a
-  float epsilon): never sent.
+  4.0 m/s over a 50 m step).  So the service sends param3 = 0 and shapes the demand itself
+  (``tecs_altitude_demand``): TECS climbs at 1.75 / TECS_TIME_CONST × the height error, so
+  the demand that makes it fly the planned vertical speed v_z is v_z × TECS_TIME_CONST / 1.75
+  above the planned altitude, never further from the current altitude than TECS can climb
+  (sink) in a few seconds.  z = 0 and z = −1 are DENIED (``is_equal`` with a float
+  epsilon): never sent.
 """
 
 from __future__ import annotations
@@ -26,9 +28,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from gcs_ppf.guidance.airframe import G_M_S2, Airframe
 from gcs_ppf.guidance.online import Guidance
-from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
+from gcs_ppf.mavlink.ardupilot import (
+    CLIMB_LAG_PER_TECS_TCONST,
+    HEIGHT_GAIN_TIMES_TECS_TCONST,
+    TURN_EFFICIENCY,
+)
 
 LATERAL_ACCEL_MARGIN = 1.5
 """param3 of the heading command allows this many times the planned turn's lateral
@@ -128,6 +136,80 @@ def altitude_demand(
     return min(max(planned_z_m, bottom), top)
 
 
+def tecs_altitude_demand(
+    g: Guidance, i: int, current_z_m: float, tecs_time_constant_s: float, trim_m_s: float = 0.0
+) -> float | None:
+    """The altitude demand (ICS z) under which TECS flies vehicle ``i``'s planned vertical
+    speed: its altitude now plus the vertical speed planned a climb lag on (the vertical
+    speed follows TECS's demand CLIMB_LAG_PER_TECS_TCONST × TECS_TIME_CONST behind) over
+    TECS's height gain (HEIGHT_GAIN_TIMES_TECS_TCONST / TECS_TIME_CONST per second: TECS
+    climbs at that gain × the height error).  The plan starts where the vehicle is when the
+    command acts (the service carries each state on to that moment).  None without the
+    plan's climb profile.  ``trim_m_s`` is added to the planned vertical speed
+    (``climb_trim``).
+
+    The planned altitude a look-ahead (3 s) on asks for more: at the paper's scale
+    (TECS_TIME_CONST 1 s, a height gain of 1.75 /s) a demand 3 s of climb ahead is 5× what
+    TECS needs, every vehicle climbed at its pitch limit whatever the plan asked, and the
+    wingmen flew 70–105 m above or below their slots in the leader's climbing frame.  At
+    ArduPlane's (5 s: 0.35 /s, a 2 s lag) the two demands are nearly the same."""
+    if g.climb_plan_m_s is None or g.speed_plan_t_s is None:
+        return None
+    lag_s = CLIMB_LAG_PER_TECS_TCONST * tecs_time_constant_s
+    climb = float(np.interp(lag_s, g.speed_plan_t_s, g.climb_plan_m_s[:, i])) + trim_m_s
+    return current_z_m + climb * tecs_time_constant_s / HEIGHT_GAIN_TIMES_TECS_TCONST
+
+
+def planned_climb_m_s(g: Guidance, i: int, tecs_time_constant_s: float) -> float | None:
+    """The vertical speed ``tecs_altitude_demand`` asks vehicle ``i`` for, without the trim."""
+    if g.climb_plan_m_s is None or g.speed_plan_t_s is None:
+        return None
+    lag_s = CLIMB_LAG_PER_TECS_TCONST * tecs_time_constant_s
+    return float(np.interp(lag_s, g.speed_plan_t_s, g.climb_plan_m_s[:, i]))
+
+
+CLIMB_TRIM_RESPONSES = 2.0
+"""The climb trim integrates over this many of TECS's vertical responses (its climb lag
+plus the inverse of its height gain: 1 s at the paper's scale, 4.9 s at ArduPlane's)."""
+CLIMB_TRIM_SHARE = 0.25
+"""The climb trim is kept within this share of TECS_CLMB_MAX / TECS_SINK_MAX."""
+
+
+@dataclass(frozen=True)
+class ClimbTrim:
+    """What one vehicle's vertical channel has learnt (``climb_trim``): the vertical speed
+    added to the plan's so that the vehicle flies the plan's, and the one asked last."""
+
+    trim_m_s: float = 0.0
+    asked_m_s: float | None = None
+    """The vertical speed the last command asked for (None: no TECS-led command)."""
+    at_s: float | None = None
+    """Mission time of that command."""
+
+
+def climb_trim(
+    trim: ClimbTrim, flown_m_s: float | None, now_s: float, airframe: Airframe
+) -> ClimbTrim:
+    """``trim`` after the vehicle flew ``flown_m_s`` where its last command asked
+    ``trim.asked_m_s``: the shortfall integrated over ``CLIMB_TRIM_RESPONSES`` of TECS's
+    responses, within ``CLIMB_TRIM_SHARE`` of its climb and sink limits.
+
+    TECS climbs at its height gain × the height error, so a demand a few metres off the
+    altitude the vehicle has when the command lands (telemetry a stream interval old, the
+    link's delay) flies another vertical speed: at the paper's scale (1.75 /s) 8 m are
+    14 m/s, and flown, the leader climbed at 33° where its plans asked 39°, which left the
+    wingmen 40–70 m below their slots in the plan's climbing frame."""
+    tecs, climb, sink = airframe.tecs_time_constant_s, airframe.climb_max_m_s, airframe.sink_max_m_s
+    if (trim.asked_m_s is None or trim.at_s is None or flown_m_s is None or tecs is None
+            or climb is None or sink is None or now_s <= trim.at_s):  # fmt: skip
+        return trim
+    response_s = (CLIMB_LAG_PER_TECS_TCONST + 1.0 / HEIGHT_GAIN_TIMES_TECS_TCONST) * tecs
+    gain = min((now_s - trim.at_s) / (CLIMB_TRIM_RESPONSES * response_s), 1.0)
+    value = trim.trim_m_s + gain * (trim.asked_m_s - flown_m_s)
+    value = min(max(value, -CLIMB_TRIM_SHARE * sink), CLIMB_TRIM_SHARE * climb)
+    return ClimbTrim(value, trim.asked_m_s, trim.at_s)
+
+
 REFUSED_ALTITUDES = (0.0, -1.0)
 """ArduPlane DENIES a CHANGE_ALTITUDE to these (``is_equal`` within a float epsilon)."""
 _REFUSED_WINDOW_M = 0.01
@@ -152,6 +234,9 @@ class SlewCommand:
     """ICS altitude demand (MAV_CMD_GUIDED_CHANGE_ALTITUDE z after conversion)."""
     rate_m_s: float
     """param3 of the altitude command: 0 is "as fast as possible"."""
+    climb_m_s: float | None = None
+    """The vertical speed the altitude demand asks TECS for (``tecs_altitude_demand``),
+    None when it is not led so."""
 
 
 def slew_command(
@@ -162,11 +247,14 @@ def slew_command(
     plan_accel_limit_m_s2: float,
     horizon_s: float,
     current_course_rad: float | None = None,
+    climb_trim_m_s: float = 0.0,
 ) -> SlewCommand:
     """Vehicle ``i`` of ``g``'s course (led for its P-controller when it reports GUIDED_P,
     the lead cut against the turn from ``current_course_rad``, ``opposing_lead_rad``) and
     altitude: with TECS limits known, param3 = 0 and the demand shaped
-    (``altitude_demand``, the planned altitude ``horizon_s`` ahead); without, the planned
+    (``altitude_demand`` of ``tecs_altitude_demand`` when TECS_TIME_CONST is known and the
+    plan's climb is finite, else of the planned altitude ``horizon_s`` ahead, as on the
+    leader's final approach); without, the planned
     altitude at the planned vertical speed (how ArduPlane-like simulators without TECS
     were flown).  A vertical resolution is flown as fast as possible, unshaped (the guard
     asks only what the airframe climbs within its horizon)."""
@@ -186,10 +274,15 @@ def slew_command(
     climb, sink = airframe.climb_max_m_s, airframe.sink_max_m_s
     if resolving:
         return SlewCommand(course, accel, planned_z, 0.0)
-    if climb is not None and sink is not None:
-        z = altitude_demand(planned_z, current_z_m, horizon_s, climb, sink)
-        return SlewCommand(course, accel, z, 0.0)
     rate = float(g.climb_rate_m_s[i])
+    if climb is not None and sink is not None:
+        tecs = airframe.tecs_time_constant_s
+        led = asked = None
+        if tecs is not None and math.isfinite(rate):
+            led = tecs_altitude_demand(g, i, current_z_m, tecs, climb_trim_m_s)
+            asked = planned_climb_m_s(g, i, tecs)
+        z = altitude_demand(planned_z if led is None else led, current_z_m, horizon_s, climb, sink)
+        return SlewCommand(course, accel, z, 0.0, asked)
     return SlewCommand(course, accel, planned_z, rate if math.isfinite(rate) else 0.0)
 
 

@@ -239,10 +239,18 @@ def _attitude(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[
     return {"roll_rad": float(msg.roll), "pitch_rad": float(msg.pitch), "yaw_rad": float(msg.yaw)}
 
 
-def _speed_ratio_mean(tel: VehicleTelemetry, airspeed: float, groundspeed: float) -> float | None:
-    """The airspeed / ground speed ratio averaged over ``SPEED_RATIO_SMOOTHING_S`` of vehicle
-    time (VFR_HUD carries no time of its own: the vehicle's latest; restarted after a gap of
-    more than 2 s); a sample on the ground or implausible is left out."""
+def _speed_ratio_mean(
+    tel: VehicleTelemetry, airspeed: float, groundspeed: float, climb: float
+) -> float | None:
+    """The airspeed / speed over the ground ratio averaged over ``SPEED_RATIO_SMOOTHING_S``
+    of vehicle time (VFR_HUD carries no time of its own: the vehicle's latest; restarted
+    after a gap of more than 2 s); a sample on the ground or implausible is left out.
+
+    The speed over the ground is along the flight path, √(groundspeed² + climb²), as the
+    airspeed and the plan's speed are: VFR_HUD's groundspeed is horizontal, and over it a
+    vehicle climbing at 58° showed a ratio of 1.9, its planned 100 m/s was commanded as
+    190 and it sped up to 300 m/s."""
+    groundspeed = math.hypot(groundspeed, climb)
     if groundspeed <= SPEED_RATIO_MIN_GROUNDSPEED_M_S or not 0.5 <= airspeed / groundspeed <= 2.0:
         return tel.speed_ratio_mean
     ratio = airspeed / groundspeed
@@ -257,12 +265,12 @@ def _speed_ratio_mean(tel: VehicleTelemetry, airspeed: float, groundspeed: float
 
 
 def _vfr_hud(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:
-    airspeed, groundspeed = float(msg.airspeed), float(msg.groundspeed)
+    airspeed, groundspeed, climb = float(msg.airspeed), float(msg.groundspeed), float(msg.climb)
     return {
         "airspeed_m_s": airspeed,
         "groundspeed_m_s": groundspeed,
-        "climb_m_s": float(msg.climb),
-        "speed_ratio_mean": _speed_ratio_mean(tel, airspeed, groundspeed),
+        "climb_m_s": climb,
+        "speed_ratio_mean": _speed_ratio_mean(tel, airspeed, groundspeed, climb),
         "hud_boot_ms": tel.time_boot_ms,
     }
 

@@ -109,7 +109,7 @@ def motion(
 
 def planned_commands(
     g: Guidance, states: dict[int, VehicleState], airframes: list[Airframe], orders: Orders,
-    turn_accel_m_s2: float, cut: bool,
+    turn_accel_m_s2: float, cut: bool, trims: dict[int, slew.ClimbTrim] | None = None,
 ) -> list[slew.SlewCommand]:  # fmt: skip
     """Each vehicle's course and altitude as the plan asks (in ``g``'s order); in point
     guidance the course is the bearing to the guided point.  The course lead is ``cut``
@@ -125,8 +125,10 @@ def planned_commands(
             out.append(slew.SlewCommand(math.atan2(y - py, x - px), 0.0, z, 0.0))
             continue
         s = states[vid]
+        trim = 0.0 if trims is None or vid not in trims else trims[vid].trim_m_s
+        course = s.yaw_rad if cut else None
         out.append(slew.slew_command(g, i, airframes[i], s.pos_m[2], turn_accel_m_s2,
-                                     orders.lookahead_s, s.yaw_rad if cut else None))  # fmt: skip
+                                     orders.lookahead_s, course, trim))  # fmt: skip
     return out
 
 
@@ -143,15 +145,22 @@ async def command_fleet(
     event: Callable[..., None],
     escaping: dict[int, assurance.Escape],
     now_s: float,
+    trims: dict[int, slew.ClimbTrim] | None = None,
 ) -> dict[int, assurance.Verdict]:
     """Send every active vehicle its commands for this tick, each assured first; returns
     each one's verdict (the command it was sent).  ``escaping`` holds each vehicle's escape
     in force, or the way its last one turned for ``SIDE_MEMORY_S`` after it ended (mission
-    time ``now_s``), updated here."""
+    time ``now_s``), updated here; ``trims`` each vehicle's climb trim
+    (``slew.climb_trim``), updated here too."""
     mission = orders.mission
     turn_accel = mission.limits.v_max * mission.limits.max_yaw_rate  # the plan limits turns
     follows = speed_reference.follows_speed_plan(mission.limits.accel, mission.limits.decel)
-    planned = planned_commands(g, states, airframes, orders, turn_accel, follows)
+    if trims is not None:
+        for i, vid in enumerate(g.ids):
+            if vid in active and vid in trims:
+                trims[vid] = slew.climb_trim(trims[vid], states[vid].climb_rate_m_s, now_s,
+                                             airframes[i])  # fmt: skip
+    planned = planned_commands(g, states, airframes, orders, turn_accel, follows, trims)
     idx = [i for i, vid in enumerate(g.ids) if vid in active]
     ahead = g.speed_m_s if g.speed_ahead_m_s is None else g.speed_ahead_m_s
     motions = [motion(states[g.ids[i]], airframes[i], mission, float(ahead[i])) for i in idx]
@@ -168,6 +177,10 @@ async def command_fleet(
             course_deg = round(90.0 - math.degrees(v.command.course_rad), 1)
             override_event(event, vid, v, [g.ids[j] for j in idx], course_deg=course_deg)
         where = (float(lats[k]), float(lons[k]), float(alts[k]))
+        if trims is not None:  # what the vertical channel asked, to learn from next tick
+            held = trims.get(vid, slew.ClimbTrim())
+            asked = None if v.replaced else planned[i].climb_m_s
+            trims[vid] = slew.ClimbTrim(held.trim_m_s, asked, now_s)
         await _send_course(fleet, vid, planned[i], v, m, orders, where)
         slowest = mission.limits.v_min if v.replaced else None
         await _send_speed(fleet, vid, g, i, airframes[i], commanded_speed, follows, slowest)
@@ -260,9 +273,10 @@ async def _send_speed(
     if not follows:
         lead, deadband = speed_reference.LEGACY_COMMAND_LEAD_S, speed_reference.LEGACY_DEADBAND_M_S
     planned = speed_reference.speed_to_command(g, i, lead) if slowest_m_s is None else slowest_m_s
-    speed = slew.airspeed_command(
-        planned, t.airspeed_m_s, t.groundspeed_m_s, airframe, t.speed_ratio_mean
-    )
+    path_speed = None  # along the flight path, as the airspeed (VFR_HUD's is horizontal)
+    if t.groundspeed_m_s is not None:
+        path_speed = math.hypot(t.groundspeed_m_s, t.climb_m_s or 0.0)
+    speed = slew.airspeed_command(planned, t.airspeed_m_s, path_speed, airframe, t.speed_ratio_mean)
     if abs(commanded_speed.get(vid, -1.0) - speed) >= deadband:
         commanded_speed[vid] = speed
         await fleet.send(vid, commands.change_speed(vid, speed))

@@ -319,6 +319,7 @@ async def plan_and_command(
     verdicts = await commanding.command_fleet(
         station.fleet, g, active, states, ordered, run.orders, keep, hold_s,
         run.commanded_speed, station.events_of(run), run.escaping, run.mission_time_s,
+        run.climb_trims,
     )  # fmt: skip
     for vid, v in verdicts.items():
         sent = run.sent_courses.setdefault(vid, deque(maxlen=SENT_COURSES_KEPT))

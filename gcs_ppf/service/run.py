@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs_ppf.guidance import assurance, lag, obedience, safety_monitor
+from gcs_ppf.guidance import assurance, lag, obedience, safety_monitor, slew
 from gcs_ppf.guidance.online import Guidance
 from gcs_ppf.guidance.speed_reference import SpeedPlan
 from gcs_ppf.mission import Mission
@@ -68,6 +68,8 @@ class Run:
     abort: asyncio.Event = field(default_factory=asyncio.Event)
     lost_ids: set[int] = field(default_factory=set)
     commanded_speed: dict[int, float] = field(default_factory=dict)
+    climb_trims: dict[int, slew.ClimbTrim] = field(default_factory=dict)
+    """Each vehicle's climb trim (``gcs_ppf.guidance.slew.climb_trim``)."""
     ended_vehicle_s: float | None = None
     """The fleet's vehicle time when the run ended (``service.station.Station.fleet_time_s``)."""
     escaping: dict[int, assurance.Escape] = field(default_factory=dict)

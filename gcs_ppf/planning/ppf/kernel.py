@@ -77,6 +77,7 @@ from gcs_ppf.planning.ppf.primitives import (
     follow_direction,
     from_vcs,
     influence_radius,
+    leader_limits,
     limit_climb,
     lowest_climb,
     obstacles_first,
@@ -272,6 +273,7 @@ def fleet_step(
     wait_speed = formation_targets(pos, slot, active, trig, direction, lim, local_target, formed)
     ux, uy, uz = direction[0, 0], direction[0, 1], direction[0, 2]  # the leader's direction
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    leader_lim = leader_limits(lim)
     for i in range(pos.shape[0]):
         if not active[i]:
             continue
@@ -305,7 +307,7 @@ def fleet_step(
         # Trend matrix f (Eq. 16–20): pitch and yaw; speed (Eq. 21–24); kinematics (Eq. 3–5).
         f_pitch, f_yaw, along_field, s = steer(
             fx, fy, fz, rx, ry, rz, ox, oy, oz, moving_obstacle or mate, pos[i, 2], speed[i],
-            pitch[i], yaw[i], cp, sp, cy, sy, lim, dt,
+            pitch[i], yaw[i], cp, sp, cy, sy, leader_lim if i == 0 and not repelled else lim, dt,
         )  # fmt: skip
         f_speed, state[i] = speed_trend(
             i, along_field, repelled, wait_speed, pos, speed, ax, ay, az, direction,

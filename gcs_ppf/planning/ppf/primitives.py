@@ -73,6 +73,34 @@ def airframe_limited(lim: KernelLimits) -> bool:
     return min(lim.max_climb_angle, lim.max_dive_angle) < MAX_AVOID_PITCH
 
 
+LEADER_PATH_ANGLE_SHARE = 0.75
+"""Share of the airframe's flight-path limits the leader climbs and dives at while it
+follows its target (``leader_limits``)."""
+
+
+@njit(cache=True)
+def leader_limits(lim: KernelLimits) -> KernelLimits:
+    """The limits the leader follows its target with: its climb and dive angles kept to
+    ``LEADER_PATH_ANGLE_SHARE`` of the airframe's where those bind (``airframe_limited``).
+
+    The slots lie in the leader's climbing frame (Eq. 6): climbing at θ₀, a slot 300 m
+    behind it is 300 sin θ₀ below it.  A wingman below its slot while the leader climbs at
+    the airframe's limit can never climb faster than the slot does, as a wingman behind it
+    could never catch up a leader at v_max; the paper's leader waits at low speed (Eq. 24)
+    and, in the same way, leaves its wingmen room to climb and dive.  Planned with
+    ArduPlane's +20°/−25°, neither Table 2 nor Table 3 formed offline (a wingman stayed
+    ~100 m below its slot through the climb).  Avoiding an obstacle, it keeps the whole
+    envelope (``fleet_step``)."""
+    if not airframe_limited(lim):
+        return lim
+    return KernelLimits(
+        lim.v_min, lim.v_max, lim.accel, lim.decel, lim.max_pitch_rate, lim.max_yaw_rate,
+        lim.target_accuracy, lim.safe_distance_uav, lim.safe_distance_obstacle, lim.ground,
+        min(lim.max_climb_angle, MAX_AVOID_PITCH) * LEADER_PATH_ANGLE_SHARE,
+        min(lim.max_dive_angle, MAX_AVOID_PITCH) * LEADER_PATH_ANGLE_SHARE,
+    )  # fmt: skip
+
+
 @njit(cache=True)
 def influence_radius(speed: float, turn_rate: float, keep_out: float) -> float:
     """Distance from an obstacle's centre at which avoidance must begin (Eq. 10–11, erratum 4).

@@ -27,6 +27,7 @@ from gcs_ppf.planning.ppf.kernel import (
     SIDEWAYS_EPS,
     KernelLimits,
     airframe_limited,
+    leader_limits,
     limit_climb,
 )
 from gcs_ppf.planning.scene import BoolArray, FloatArray, IntArray
@@ -322,13 +323,15 @@ def _wanted_direction(
         np.minimum(-ratio, math.sin(MAX_FOLLOW_PITCH)),
     )
 
-    # No steeper than MAX_AVOID_PITCH or the airframe (the kernel's limit_climb, by vehicle).
+    # No steeper than MAX_AVOID_PITCH or the airframe (the kernel's limit_climb, by vehicle);
+    # the leader following its target within its share of it (``leader_limits``).
     px_ = cp * fvx - sp * fvz  # VCS → ICS
     d = np.stack([cy * px_ - sy * fvy, sy * px_ + cy * fvy, sp * fvx + cp * fvz], axis=1)
     for i in range(n):
         d[i] = limit_climb(
             d[i, 0], d[i, 1], d[i, 2], r.rep[i, 0], r.rep[i, 1], r.rep[i, 2],
-            bool(closing_in[i]), cy[i], sy[i], float(lowest[i]), lim,
+            bool(closing_in[i]), cy[i], sy[i], float(lowest[i]),
+            leader_limits(lim) if i == 0 and not repelled[i] else lim,
         )  # fmt: skip
     bx = cy * d[:, 0] + sy * d[:, 1]  # ICS → VCS
     fv = np.stack(

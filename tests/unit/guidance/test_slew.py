@@ -4,6 +4,8 @@ lateral-acceleration limit, and the altitude demand shaped within TECS's limits.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,8 +13,11 @@ import pytest
 from gcs_ppf.guidance.airframe import G_M_S2, Airframe
 from gcs_ppf.guidance.online import Guidance
 from gcs_ppf.guidance.slew import (
+    CLIMB_TRIM_SHARE,
+    ClimbTrim,
     airspeed_command,
     altitude_demand,
+    climb_trim,
     course_command_rad,
     course_lead_rad,
     lateral_accel_limit,
@@ -223,3 +228,70 @@ def test_the_airspeed_commanded_flies_the_planned_speed_over_the_ground() -> Non
 def test_an_averaged_ratio_is_used_before_the_instants() -> None:
     assert airspeed_command(20.0, 22.0, 23.0, ARDUPLANE, 0.94) == pytest.approx(20.0 * 0.94)
     assert airspeed_command(20.0, 22.0, 22.0, ARDUPLANE, 3.0) == pytest.approx(20.0)  # implausible
+
+
+def _climbing_guidance(climb_m_s: float) -> Guidance:
+    """One vehicle whose plan climbs at ``climb_m_s`` throughout its 3 s."""
+    g = _guidance(400.0, abs(climb_m_s) + 1.0)
+    t = np.linspace(0.0, 3.0, 301)
+    return replace(g, speed_plan_t_s=t, climb_plan_m_s=np.full((t.size, 1), climb_m_s))
+
+
+PAPER_SCALE = Airframe(climb_max_m_s=260.0, sink_max_m_s=260.0, tecs_time_constant_s=1.0)
+
+
+def _tecs_flown_climb(demand: Callable[[float, float], float], seconds: float) -> float:
+    """The vertical speed the SITL's TECS (height gain 1.75 / T, the climb lagging 0.4 T,
+    T = 1 s) flies after ``seconds`` when sent ``demand(z, trim)`` every 0.1 s, the trim
+    learnt from what it flew as the service learns it (``climb_trim``)."""
+    z = vz = 0.0
+    dt = 0.01
+    trim = ClimbTrim()
+    h = 0.0
+    for k in range(int(seconds / dt)):
+        if k % 10 == 0:
+            t = k * dt
+            trim = climb_trim(trim, vz, t, PAPER_SCALE)
+            h = demand(z, trim.trim_m_s)
+            trim = ClimbTrim(trim.trim_m_s, 30.0, t)
+        vz += (1.75 * (h - z) - vz) * dt / 0.4
+        z += vz * dt
+    return vz
+
+
+def test_the_tecs_led_demand_flies_the_planned_climb_where_the_look_ahead_saturated() -> None:
+    """At the paper's scale (TECS_TIME_CONST 1 s) the altitude demand a look-ahead of climb
+    on asked TECS for 5× the planned vertical speed; led by TECS's own gain, and trimmed for
+    the climb within each tick, it flies it."""
+    g = _climbing_guidance(30.0)
+    led = _tecs_flown_climb(
+        lambda z, trim: slew_command(g, 0, PAPER_SCALE, z, 8.4, 3.0, climb_trim_m_s=trim).z_m, 20.0
+    )
+    assert led == pytest.approx(30.0, rel=0.01)
+    untrimmed = _tecs_flown_climb(
+        lambda z, trim: slew_command(g, 0, PAPER_SCALE, z, 8.4, 3.0).z_m, 20.0
+    )
+    assert untrimmed == pytest.approx(30.0, rel=0.15)
+    ahead = _tecs_flown_climb(lambda z, trim: z + 3.0 * 30.0, 20.0)  # the planned altitude 3 s on
+    assert ahead > 100.0
+
+
+def test_the_climb_trim_learns_what_the_vehicle_falls_short_of_and_stays_bounded() -> None:
+    trim = ClimbTrim(0.0, 80.0, 10.0)
+    learnt = climb_trim(trim, 70.0, 10.1, PAPER_SCALE)
+    assert 0.0 < learnt.trim_m_s < 10.0  # part of the 10 m/s shortfall in one tick
+    for k in range(200):  # a shortfall that never ends is trimmed no further than the share
+        learnt = climb_trim(replace(learnt, at_s=10.0 + 0.1 * k), 0.0, 10.1 + 0.1 * k, PAPER_SCALE)
+    assert learnt.trim_m_s == pytest.approx(CLIMB_TRIM_SHARE * 260.0)
+    assert climb_trim(ClimbTrim(3.0), 70.0, 11.0, PAPER_SCALE) == ClimbTrim(3.0)  # nothing asked
+    assert climb_trim(trim, 70.0, 10.1, Airframe()) == trim  # no TECS parameters
+
+
+def test_the_trim_is_added_to_the_planned_climb_and_the_leader_on_final_is_not_led() -> None:
+    g = _climbing_guidance(30.0)
+    plain = slew_command(g, 0, PAPER_SCALE, 0.0, 8.4, 3.0)
+    trimmed = slew_command(g, 0, PAPER_SCALE, 0.0, 8.4, 3.0, climb_trim_m_s=7.0)
+    assert plain.climb_m_s == trimmed.climb_m_s == pytest.approx(30.0)
+    assert trimmed.z_m - plain.z_m == pytest.approx(7.0 / 1.75)
+    final = replace(g, climb_rate_m_s=np.array([math.inf]))  # climbs as it can: the old demand
+    assert slew_command(final, 0, PAPER_SCALE, 0.0, 8.4, 3.0).climb_m_s is None

@@ -256,3 +256,15 @@ def test_the_airspeed_ratio_is_averaged_and_leaves_out_the_runway() -> None:
     tel = apply(tel, _wire(mavlink2.MAVLink_attitude_message(200_000, 0, 0, 0, 0, 0, 0)), 602)
     tel = apply(tel, _hud(20.0, 25.0), 602)
     assert tel.speed_ratio_mean == pytest.approx(0.8)
+
+
+def test_the_airspeed_ratio_is_taken_along_the_flight_path() -> None:
+    """VFR_HUD's groundspeed is horizontal, the airspeed along the flight path: climbing at
+    60° with no wind the two speeds are the same, not 2 : 1 (over the horizontal speed,
+    a vehicle planned at 100 m/s was commanded 190 and sped up to 300)."""
+    tel = apply(None, _heartbeat(), 0.0)
+    climb = 100.0 * math.sin(math.radians(60.0))
+    horizontal = 100.0 * math.cos(math.radians(60.0))
+    msg = _wire(mavlink2.MAVLink_vfr_hud_message(100.0, horizontal, 0, 50, 650.0, climb))
+    tel = apply(tel, msg, 0.0)
+    assert tel.speed_ratio_mean == pytest.approx(1.0)

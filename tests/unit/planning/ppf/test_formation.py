@@ -3,18 +3,23 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from gcs_ppf.mission import Mission
+from gcs_ppf.planning.planner import advance
 from gcs_ppf.planning.ppf.kernel import (
     catching_up_speed,
     crossing_point,
     falling_back_speed,
 )
+from gcs_ppf.planning.ppf.primitives import LEADER_PATH_ANGLE_SHARE, leader_limits
 from gcs_ppf.planning.ppf.reference import _crossing
+from gcs_ppf.planning.scene import Scene, scene_from_mission
 
 EAST = (1.0, 0.0, 0.0)
 CLEARANCE = 127.0
@@ -128,3 +133,36 @@ def test_near_the_slot_the_speed_laws_are_linear_and_meet_at_the_leaders_speed()
     assert falling_back_speed(100.0, 2.0, 10.0, gain) == pytest.approx(100.0 - 2.0 * gain)
     # Far from it, the ground given back is what the acceleration can take back.
     assert falling_back_speed(100.0, 500.0, 10.0, gain) == pytest.approx(100.0 - 100.0)
+
+
+def _climbing_pair(climb_angle: float) -> Scene:
+    """A leader climbing at ``climb_angle`` towards a target far above and ahead, its wingman
+    100 m below its slot (150 m behind it in its climbing frame)."""
+    mission = Mission.model_validate({
+        "limits": {"v_min": 100.0, "v_max": 300.0, "accel": 10.0, "decel": 40.0},
+        "target": [60000.0, 0.0, 60000.0],
+        "vehicles": [
+            {"id": 1, "role": "leader", "position": [0.0, 0.0, 1000.0], "pitch": climb_angle,
+             "yaw": 0.0},
+            {"id": 2, "role": "wingman", "position": [-150.0 * math.cos(climb_angle),
+             -300.0, 1000.0 - 150.0 * math.sin(climb_angle) - 100.0], "pitch": climb_angle,
+             "yaw": 0.0, "slot": [-150.0, -300.0, 0.0]},
+        ],
+    })  # fmt: skip
+    scene = scene_from_mission(mission)
+    limits = scene.limits._replace(max_climb_angle=climb_angle, max_dive_angle=math.radians(25))
+    return replace(scene, limits=limits)
+
+
+def test_the_leader_leaves_a_wingman_below_its_slot_room_to_climb_into_it() -> None:
+    """Climbing at the airframe's limit (+20°), the leader keeps a share of it in hand, as
+    it keeps speed in hand (Eq. 24): a wingman 100 m below its slot climbs into it; the
+    paper's free pitch is left as it was."""
+    scene = _climbing_pair(math.radians(20.0))
+    limited = leader_limits(scene.limits)
+    assert limited.max_climb_angle == pytest.approx(LEADER_PATH_ANGLE_SHARE * math.radians(20))
+    assert limited.max_dive_angle == pytest.approx(LEADER_PATH_ANGLE_SHARE * math.radians(25))
+    free = scene.limits._replace(max_climb_angle=math.pi / 2, max_dive_angle=math.pi / 2)
+    assert leader_limits(free) == free
+    run = advance(scene, 0.01, 3000)
+    assert run.trajectory.formed[-1, 1]  # within the target accuracy of its slot after 30 s
