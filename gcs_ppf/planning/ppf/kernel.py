@@ -129,6 +129,7 @@ __all__ = [
     "from_vcs",
     "influence_radius",
     "kinematics",
+    "leader_limits",
     "limit_climb",
     "lowest_climb",
     "move",
