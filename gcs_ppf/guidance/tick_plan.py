@@ -81,9 +81,14 @@ def teammate_margin_m(mission: Mission, planning_margin_m: float) -> float:
     alike, and their separation closed loop is kept by the run-time assurance (their
     predicted response) and the separation guard (its own speed × lag margin); obstacles
     keep the whole margin.  At the paper's speeds the margin stays on both, as the
-    campaigns measured it."""
+    campaigns measured it, but never more than ``formation_tolerance`` (half of what the
+    closest two slots have beyond the safe distance): Table 3's slots are 141 m from the
+    leader and from each other, and with the whole 100 m on its 50 m no wingman could ever
+    be planned into its slot."""
     lim = mission.limits
-    return 0.0 if follows_speed_plan(lim.accel, lim.decel) else planning_margin_m
+    if follows_speed_plan(lim.accel, lim.decel):
+        return 0.0
+    return min(planning_margin_m, formation_tolerance(mission))
 
 
 def plan(

@@ -73,6 +73,8 @@ CONDITIONS: dict[str, Condition] = {
     "c": Condition("c", "x5, latency 300 ms, 20 % loss", 5.0, ("--fault", "latency=300,loss=20")),
     "d": Condition("d", "x10, a wingman ignores commands", 10.0, event="stuck"),
     "e": Condition("e", "x10, the leader's link dies", 10.0, event="kill", expect="failed"),
+    "f": Condition("f", "x5, idle", 5.0),
+    "g": Condition("g", "x5, a CPU burner per core", 5.0, burn_cpus=True),
 }
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from gcs_ppf.guidance.online import VehicleState, scene_now
@@ -30,3 +31,14 @@ def test_the_teammates_margin_is_dropped_at_arduplanes_scale_only(
                     teammate_margin_m=teammate_margin_m(mission, 45.0)).limits  # fmt: skip
     assert lim.safe_distance_uav == pytest.approx(mission.limits.safe_distance_uav + on_teammates)
     assert lim.safe_distance_obstacle == pytest.approx(mission.limits.safe_distance_obstacle + 45.0)
+
+
+@pytest.mark.parametrize("name", ["paper_table2", "paper_table3"])
+def test_the_teammates_margin_never_puts_the_slots_inside_each_others_keep_out(name: str) -> None:
+    """With the whole 100 m on Table 3's 50 m, slots 141 m apart could never be flown."""
+    mission = load_mission_file(EXAMPLES / f"{name}.json")
+    margin = teammate_margin_m(mission, 100.0)
+    slots = np.array([[0.0, 0.0, 0.0], *(w.slot for w in mission.wingmen)])
+    gaps = np.linalg.norm(slots[:, None] - slots[None], axis=-1)[np.triu_indices(len(slots), 1)]
+    assert mission.limits.safe_distance_uav + margin < gaps.min()
+    assert margin == (100.0 if name == "paper_table2" else pytest.approx((gaps.min() - 50.0) / 2))
