@@ -171,7 +171,8 @@ def fly_once(
     base = free_port_block(10 * len(mission.vehicles))
     api_port = free_port_block(1)
     ports = {v.id: base + 10 * k for k, v in enumerate(mission.vehicles)}
-    rec: dict[str, Any] = {"mission": mission.name, "condition": cond.key, "dir": str(workdir)}
+    rec: dict[str, Any] = {"mission": mission.name, "mission_file": str(mission_path),
+                           "condition": cond.key, "dir": str(workdir)}  # fmt: skip
     sitl = [sys.executable, "-m", "sitl", str(mission_path), "--speedup", f"{cond.speedup:g}",
             "--base-port", str(base), "--seed", str(seed), *cond.sitl_args]  # fmt: skip
     serve = [sys.executable, "-m", "gcs_ppf.cli", "serve", "--port", str(api_port),

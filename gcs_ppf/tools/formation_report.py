@@ -1,0 +1,155 @@
+"""The formation each campaign run flew, as its independent observer saw it.
+
+``python -m gcs_ppf.tools.formation_report CAMPAIGN_DIR [--plans]`` reads a campaign's
+``runs.jsonl`` and each run's ``observer.json`` (the pymavlink observer's samples on the
+vehicles' own clock; nothing from the service) and prints, per mission and condition, how
+long the formation took to form after the run started, the share of the flight after that
+in formation (every wingman within the target accuracy of its slot at once, Eq. 6), the
+worst wingman's RMS and 95th-percentile slot error while formed, the longest hold, and the
+flight time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gcs_ppf.geodesy import geodetic_to_enu
+from gcs_ppf.mission import Mission
+from gcs_ppf.planning.scene import FloatArray
+from gcs_ppf.tools.campaign import AFTER_S, EXAMPLES, mission_path
+from gcs_ppf.tools.observer import held_s, slot_distances
+
+STEP_S = 0.1
+
+
+@dataclass(frozen=True)
+class FormationFlown:
+    """One run's formation, from ``formed_after_s`` (since the run started) to its end."""
+
+    formed_after_s: float | None
+    in_formation_share: float
+    formed_rms_m: float | None
+    formed_p95_m: float | None
+    held_s: float
+    flown_s: float
+
+
+def formation_flown(
+    mission: Mission, tracks: dict[int, FloatArray], start_s: float, end_s: float
+) -> FormationFlown | None:
+    """The formation over [start_s, end_s] of vehicle time (None for a lone leader or a
+    vehicle never heard)."""
+    ids = [mission.leader.id, *(w.id for w in mission.wingmen)]
+    if not mission.wingmen or end_s <= start_s or any(len(tracks.get(v, ())) == 0 for v in ids):
+        return None
+    t = np.arange(start_s, end_s, STEP_S)
+    offsets = slot_distances(mission, {v: tracks[v] for v in ids}, t)
+    worst = np.max(np.stack(list(offsets.values())), axis=0)
+    accuracy = mission.limits.target_accuracy
+    formed = worst <= accuracy
+    flown = end_s - start_s
+    if not formed.any():
+        return FormationFlown(None, 0.0, None, None, 0.0, flown)
+    first = int(np.argmax(formed))
+    after = formed[first:]
+    while_formed = worst[formed]
+    return FormationFlown(
+        formed_after_s=float(t[first] - start_s),
+        in_formation_share=float(after.mean()),
+        formed_rms_m=float(np.sqrt(np.mean(while_formed**2))),
+        formed_p95_m=float(np.percentile(while_formed, 95)),
+        held_s=held_s(worst, accuracy, STEP_S),
+        flown_s=flown,
+    )
+
+
+def observed_tracks(path: Path, mission: Mission) -> dict[int, FloatArray]:
+    """[K,5] rows (vehicle s, ICS x, y, z, height above home) per vehicle, from a run's
+    ``observer.json`` (``campaign.fly_once``)."""
+    raw = json.loads(path.read_text())
+    out = {}
+    for key, rec in raw.items():
+        if not key.isdigit():
+            continue
+        rows = [(tbm / 1000.0, *geodetic_to_enu(la, lo, al, mission.origin), h)
+                for _, tbm, la, lo, al, h in rec["pos"]]  # fmt: skip
+        out[int(key)] = np.array(rows, dtype=float).reshape(-1, 5)
+    return out
+
+
+def record_mission(rec: dict[str, Any]) -> Mission:
+    """The mission a campaign record flew: its ``mission_file``, or the example of its name."""
+    if "mission_file" in rec:
+        return Mission.model_validate(json.loads(mission_path(rec["mission_file"]).read_text()))
+    for path in sorted(EXAMPLES.glob("*.json")):
+        mission = Mission.model_validate(json.loads(path.read_text()))
+        if mission.name == rec["mission"]:
+            return mission
+    raise ValueError(f"no mission file for {rec['mission']!r}: the record has no mission_file")
+
+
+def run_formation(rec: dict[str, Any], after_s: float = AFTER_S) -> FormationFlown | None:
+    """The formation of one campaign record (its observer's window less the watch after it)."""
+    mission = record_mission(rec)
+    start, end = rec["window_s"][0], rec["window_s"][1] - after_s
+    tracks = observed_tracks(Path(rec["dir"]) / "observer.json", mission)
+    return formation_flown(mission, tracks, start, end)
+
+
+def _median(values: list[float]) -> float | None:
+    return float(np.median(values)) if values else None
+
+
+def _cell(x: float | None, width: int, digits: int = 1) -> str:
+    return f"{'-' if x is None else f'{x:.{digits}f}':>{width}}"
+
+
+def report(records: list[dict[str, Any]]) -> str:
+    """One line per (mission, condition): runs, formed (of runs), time to form (min /
+    median / max), share in formation after it (min / median), RMS and p95 while formed
+    (median), longest hold (median), flight time (median)."""
+    groups: dict[tuple[str, str], list[FormationFlown | None]] = {}
+    for rec in records:
+        groups.setdefault((rec["mission"], rec["condition"]), []).append(run_formation(rec))
+    head = (f"{'mission':<14}{'cond':>5}{'runs':>5}{'formed':>7}{'form s min/med/max':>21}"
+            f"{'share min/med':>15}{'rms':>6}{'p95':>6}{'held':>6}{'flown':>7}")  # fmt: skip
+    lines = [head]
+    for (name, cond), runs in sorted(groups.items()):
+        seen = [r for r in runs if r is not None and r.formed_after_s is not None]
+        times = [r.formed_after_s for r in seen if r.formed_after_s is not None]
+        shares = [r.in_formation_share for r in seen]
+        flown = [r.flown_s for r in runs if r is not None]
+        spread = (min(times, default=None), _median(times), max(times, default=None))
+        form = "/".join(_cell(x, 5).strip() for x in spread)
+        low_share = min(shares, default=None)
+        share = "/".join(_cell(x, 4, 2).strip() for x in (low_share, _median(shares)))
+        lines.append(
+            f"{name:<14}{cond:>5}{len(runs):>5}{len(seen):>7}{form:>21}{share:>15}"
+            f"{_cell(_median([r.formed_rms_m for r in seen if r.formed_rms_m is not None]), 6)}"
+            f"{_cell(_median([r.formed_p95_m for r in seen if r.formed_p95_m is not None]), 6)}"
+            f"{_cell(_median([r.held_s for r in seen]), 6)}{_cell(_median(flown), 7)}"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m gcs_ppf.tools.formation_report",
+                                     description=__doc__.split("\n\n")[0])  # fmt: skip
+    parser.add_argument("campaign", type=Path, help="a campaign's --out directory")
+    args = parser.parse_args(argv)
+    files = sorted(args.campaign.rglob("runs.jsonl"))
+    if not files:
+        parser.error(f"no runs.jsonl under {args.campaign}")
+    records = [json.loads(line) for f in files for line in f.read_text().splitlines() if line]
+    print(report(records), end="")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

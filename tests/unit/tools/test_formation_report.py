@@ -1,0 +1,78 @@
+"""The formation report: time to form, share in formation, errors while formed, from the
+observer's tracks alone."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gcs_ppf.geodesy import enu_to_geodetic_many
+from gcs_ppf.mission import Mission, load_mission_file
+from gcs_ppf.tools.campaign import ROOT
+from gcs_ppf.tools.formation_report import formation_flown, observed_tracks, report
+
+
+def _line_east(t: np.ndarray, offset: tuple[float, float, float]) -> np.ndarray:
+    """A track [t, x, y, z, height] flying east at 100 m/s at 300 m, shifted by ``offset``."""
+    x, y, z = 100.0 * t + offset[0], np.full_like(t, offset[1]), np.full_like(t, 300.0 + offset[2])
+    return np.column_stack([t, x, y, z, z])
+
+
+def _flown(mission: Mission, t: np.ndarray, off_m: np.ndarray) -> dict[int, np.ndarray]:
+    """The leader east, every wingman on its slot but the first, ``off_m`` [T] to its left."""
+    tracks = {mission.leader.id: _line_east(t, (0.0, 0.0, 0.0))}
+    for k, w in enumerate(mission.wingmen):
+        assert w.slot is not None
+        x, y, z = w.slot
+        track = _line_east(t, (x, y, z))
+        if k == 0:
+            track[:, 2] += off_m
+        tracks[w.id] = track
+    return tracks
+
+
+def test_the_formation_forms_when_the_last_wingman_reaches_its_slot() -> None:
+    """Off by 30 m until 20 s, on its slot after, but 15 m off for 5 s from 30 s: formed
+    15 s into a run from 5 s, in formation 10 of the 15 s after it, the longest hold 10 s,
+    the errors while formed those of the slots (0 m)."""
+    mission = load_mission_file(ROOT / "examples" / "paper_table3.json")
+    t = np.arange(0.0, 40.0, 0.05)
+    off = np.where(t < 20.0, 30.0, np.where((t >= 30.0) & (t < 35.0), 15.0, 0.0))
+    f = formation_flown(mission, _flown(mission, t, off), 5.0, 40.0)
+    assert f is not None
+    assert f.formed_after_s == pytest.approx(15.0, abs=0.6)
+    assert f.in_formation_share == pytest.approx(15.0 / 20.0, abs=0.05)
+    assert f.held_s == pytest.approx(10.0, abs=0.6)
+    assert f.formed_rms_m is not None
+    assert f.formed_rms_m < 1.0
+    never = formation_flown(mission, _flown(mission, t, np.full_like(t, 30.0)), 5.0, 40.0)
+    assert never is not None
+    assert never.formed_after_s is None
+    assert never.in_formation_share == 0.0
+
+
+def test_a_campaign_directory_is_reported_from_the_observers_samples(tmp_path: Path) -> None:
+    """The samples as the campaign stores them (wall, boot ms, lat, lon, alt, height)."""
+    path = ROOT / "examples" / "paper_table3.json"
+    mission = load_mission_file(path)
+    t = np.arange(0.0, 40.0, 0.1)
+    tracks = _flown(mission, t, np.where(t < 20.0, 30.0, 0.0))
+    raw: dict[str, object] = {"end_wall": 0.0}
+    for vid, track in tracks.items():
+        lat, lon, alt = enu_to_geodetic_many(track[:, 1:4], mission.origin)
+        rows = np.column_stack([np.zeros_like(t), np.round(1000 * t), lat, lon, alt, track[:, 4]])
+        raw[str(vid)] = {"pos": rows.tolist()}
+    (tmp_path / "observer.json").write_text(json.dumps(raw))
+    back = observed_tracks(tmp_path / "observer.json", mission)
+    assert np.allclose(
+        back[mission.leader.id][:, 1:4], tracks[mission.leader.id][:, 1:4], atol=0.05
+    )
+    rec = {"mission": mission.name, "mission_file": str(path), "condition": "f",
+           "dir": str(tmp_path), "window_s": [5.0, 70.0]}  # fmt: skip
+    table = report([rec])
+    row = table.splitlines()[1].split()
+    assert row[:4] == [mission.name, "f", "1", "1"]
+    assert row[4].split("/")[1] == "15.0"  # formed 15 s after the run's start
