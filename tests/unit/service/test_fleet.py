@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 from collections.abc import Coroutine
 from pathlib import Path
 from typing import Any
@@ -13,7 +14,14 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage
 from gcs_ppf.mavlink.telemetry import AIRFRAME_PARAMS, VehicleTelemetry
-from gcs_ppf.service.fleet import ALL_SILENT_FACTOR, STREAMED, Fleet, Vehicle, silent_vehicles
+from gcs_ppf.service.fleet import (
+    ALL_SILENT_FACTOR,
+    PARAM_ASKS,
+    STREAMED,
+    Fleet,
+    Vehicle,
+    silent_vehicles,
+)
 from gcs_ppf.service.settings import Settings
 
 
@@ -68,6 +76,30 @@ def test_missing_parameters_are_asked_again_and_the_airframe_is_shown(tmp_path: 
     assert shown["airframe"]["climb_max_m_s"] == 5.0
     assert shown["airframe"]["guided_p"] == 5000.0
     assert shown["airframe"]["roll_limit_deg"] is None
+
+
+def test_parameters_not_answered_are_asked_again_with_our_heartbeats_a_few_times(
+    tmp_path: Path,
+) -> None:
+    """A lossy link loses PARAM_VALUEs: each heartbeat asks again for those missing, at most
+    ``PARAM_ASKS`` times; one answered meanwhile is not asked for again."""
+    fleet = Recording(tmp_path)
+    fleet.settings = fleet.settings.model_copy(update={"heartbeat_hz": 1000.0})
+    fleet._on_message(1, _wire(mavlink2.MAVLink_heartbeat_message(1, 3, 0, 0, 3, 3)))
+    fleet.spawned[0].close()
+    fleet._on_message(
+        1, _wire(mavlink2.MAVLink_param_value_message(b"TECS_CLMB_MAX", 5.0, 9, 100, 1))
+    )
+
+    async def beat_for(seconds: float) -> None:
+        with contextlib.suppress(TimeoutError):
+            await asyncio.wait_for(fleet.heartbeats(), seconds)
+
+    asyncio.run(beat_for(0.3))
+    asked = [m.param_id for _, m in fleet.sent if m.get_type() == "PARAM_REQUEST_READ"]
+    assert "TECS_CLMB_MAX" not in asked
+    assert asked.count("TECS_SINK_MAX") == PARAM_ASKS
+    assert len(asked) == PARAM_ASKS * (len(AIRFRAME_PARAMS) - 1)
 
 
 def _heard(sysid: int, last_heard_s: float, rate: float = 1.0, since_s: float = 90.0) -> Vehicle:
