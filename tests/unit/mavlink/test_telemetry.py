@@ -269,25 +269,3 @@ def test_the_airspeed_ratio_is_taken_along_the_flight_path() -> None:
     tel = apply(tel, msg, 0.0)
     assert tel.speed_ratio_mean == pytest.approx(1.0)
 
-
-def test_the_flight_path_is_averaged_over_a_share_of_the_vehicles_tecs_time_constant() -> None:
-    """2 s without TECS_TIME_CONST (ArduPlane's 5 s gives the same); 0.4 s for the paper's
-    airframe (1 s), whose flight path changes five times as fast."""
-
-    def averaged_after_step(tecs_time_constant_s: float | None) -> float | None:
-        tel = apply(None, _heartbeat(), 0.0)
-        if tecs_time_constant_s is not None:
-            tel = apply(tel, _param("TECS_TIME_CONST", tecs_time_constant_s), 0.0)
-        tel = apply(tel, _climbing(1000, 0.0), 0.0)
-        for k in range(1, 11):  # 1 s of a 10 m/s descent at 10 Hz
-            tel = apply(tel, _climbing(1000 + 100 * k, 10.0), 0.1 * k)
-        return tel.vd_mean_m_s
-
-    unknown, arduplane, paper = (
-        averaged_after_step(None),
-        averaged_after_step(5.0),
-        averaged_after_step(1.0),
-    )
-    assert unknown == pytest.approx(10.0 * (1.0 - math.exp(-1.0 / 2.0)), rel=1e-6)
-    assert arduplane == pytest.approx(unknown, rel=1e-9)
-    assert paper == pytest.approx(10.0 * (1.0 - math.exp(-1.0 / 0.4)), rel=1e-6)
