@@ -268,4 +268,3 @@ def test_the_airspeed_ratio_is_taken_along_the_flight_path() -> None:
     msg = _wire(mavlink2.MAVLink_vfr_hud_message(100.0, horizontal, 0, 50, 650.0, climb))
     tel = apply(tel, msg, 0.0)
     assert tel.speed_ratio_mean == pytest.approx(1.0)
-
