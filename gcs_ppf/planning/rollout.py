@@ -126,7 +126,7 @@ def rollout_buffers(
         np.zeros(n + 1, dtype=np.int64),
         np.empty(4 * n, dtype=np.int64),
     )
-    trig = np.empty((n, 7))
+    trig = np.empty((n, 11))
     attitude_trig(pitch, yaw, trig)
     return scratch, lists, np.empty((n, 3)), np.empty((n, 3)), trig
 

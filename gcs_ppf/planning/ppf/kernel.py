@@ -10,6 +10,8 @@ one module per group:
   (``repulsion``)
 * ``teammate_conflicts``    Eq. 12–13 with teammates of higher priority as moving obstacles
   (``repulsion``)
+* ``yielding_back``         Eq. 12–13 the other way round: giving way back to a teammate of
+  lower priority that has not solved a conflict alone (``repulsion``)
 * ``attraction``            Eq. 14–15: towards the target point while nothing repels
   (``formation``)
 * ``escape_local_minimum``  Eq. 20: state s2, F_add along +z_v (``steering``)
@@ -68,6 +70,7 @@ from gcs_ppf.planning.ppf.primitives import (
     S2_LOCAL_MINIMUM,
     S3_FORMATION,
     SIDEWAYS_EPS,
+    YIELD_BACK_TURNS,
     KernelLimits,
     airframe_limited,
     away_from_obstacles,
@@ -89,6 +92,7 @@ from gcs_ppf.planning.ppf.repulsion import (
     obstacle_repulsion,
     teammate_conflict,
     teammate_conflicts,
+    yielding_back,
 )
 from gcs_ppf.planning.ppf.steering import (
     escape_local_minimum,
@@ -111,6 +115,7 @@ __all__ = [
     "S2_LOCAL_MINIMUM",
     "S3_FORMATION",
     "SIDEWAYS_EPS",
+    "YIELD_BACK_TURNS",
     "KernelLimits",
     "airframe_limited",
     "attitude_trig",
@@ -146,6 +151,7 @@ __all__ = [
     "trend",
     "trend_matrix",
     "unit_velocities",
+    "yielding_back",
 ]
 
 
@@ -265,13 +271,15 @@ def fleet_step(
     Vehicle i considers only the obstacles ``near_obstacles[near_start[i]:near_start[i+1]]``
     (see ``nearby_obstacles``), and only the teammates ``mates[mate_start[i]:mate_start[i+1]]``
     (see ``nearby_teammates``; every active teammate of higher priority for all pairs).
-    ``trig[N,7]`` holds cos θ, sin θ, cos ψ, sin ψ of every vehicle on entry
-    (``attitude_trig``) and of its new attitude on return; its last columns are scratch.
+    ``trig[N,11]`` holds cos θ, sin θ, cos ψ, sin ψ of every vehicle on entry
+    (``attitude_trig``) and of its new attitude on return; its last columns are scratch
+    (the velocities, and who gives way back: ``yielding_back``).
     Every vehicle decides from the fleet's state at the start of the step (``rank`` through
     the teammate lists).  Obstacles are moved at the end of the step.
     """
     unit_velocities(speed, trig, direction)  # Eq. 5
     wait_speed = formation_targets(pos, slot, active, trig, direction, lim, local_target, formed)
+    yielding_back(pos, speed, trig, active, mate_start, mates, formed, lim, dt)  # Eq. 12–13
     ux, uy, uz = direction[0, 0], direction[0, 1], direction[0, 2]  # the leader's direction
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     leader_lim = leader_limits(lim)

@@ -35,6 +35,9 @@ MAX_AVOID_PITCH = math.pi / 3  # steepest flight path any wanted direction may h
 INFLUENCE_STEPS = 3.0  # steps of travel added to the influence radius (discrete turning)
 SIDEWAYS_EPS = 1e-9  # |F_v^y| below this fraction of |F_v| counts as 0 in Eq. 19 (round-off)
 CONFLICT_HORIZON_TURNS = 1.0  # teammate conflicts are looked for this many quarter turns ahead
+# A conflict this many quarter turns from its closest approach is one the vehicle giving way
+# has not solved alone: the one it gives way to gives way too (``teammate_conflicts``).
+YIELD_BACK_TURNS = 0.25
 
 
 class KernelLimits(NamedTuple):

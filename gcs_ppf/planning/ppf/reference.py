@@ -25,6 +25,7 @@ from gcs_ppf.planning.ppf.kernel import (
     S2_LOCAL_MINIMUM,
     S3_FORMATION,
     SIDEWAYS_EPS,
+    YIELD_BACK_TURNS,
     KernelLimits,
     airframe_limited,
     leader_limits,
@@ -133,17 +134,18 @@ def _obstacle_repulsion(
 def _conflicts(
     pos: FloatArray, vel: FloatArray, mate_vel: FloatArray, speed: FloatArray, rank: IntArray,
     active: BoolArray, formed: BoolArray, lim: KernelLimits, dt: float,
+    horizon_turns: float = CONFLICT_HORIZON_TURNS,
 ) -> tuple[BoolArray, BoolArray, FloatArray]:  # fmt: skip
     """Teammates of higher priority as moving obstacles, by closest point of approach
-    within a quarter turn: [i,k] whether mate k is near (a conflict or just clear of one)
-    and a conflict for vehicle i flying ``vel[i]`` (mates at ``mate_vel``), and the unit
-    miss vectors [i,k,3]."""
+    within ``horizon_turns`` quarter turns: [i,k] whether mate k is near (a conflict or
+    just clear of one) and a conflict for vehicle i flying ``vel[i]`` (mates at
+    ``mate_vel``), and the unit miss vectors [i,k,3]."""
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     d_m = pos[:, None, :] - pos[None]  # [i,k,3]: from mate k to vehicle i
     w = mate_vel[None] - vel[:, None]  # mate k relative to vehicle i
     approach = (w * d_m).sum(-1)
     w2 = (w**2).sum(-1)
-    horizon = CONFLICT_HORIZON_TURNS * AVOIDANCE_TURN_ANGLE / omega
+    horizon = horizon_turns * AVOIDANCE_TURN_ANGLE / omega
     t_cpa = np.minimum(np.divide(approach, w2, out=np.zeros_like(approach), where=w2 > 0), horizon)
     miss2 = (d_m**2).sum(-1) - 2 * approach * t_cpa + w2 * t_cpa**2
     leader = np.zeros(pos.shape[0], dtype=bool)
@@ -175,18 +177,24 @@ def _repulsion(
     """Eq. 12–13 with the teammates of higher priority as moving obstacles (``_conflicts``),
     added to the obstacles' repulsion (Eq. 10–13), never pushing a vehicle into an
     obstacle (the kernel's ``obstacles_first``).  Just clear of a conflict a vehicle holds
-    course if flying ``follow`` (unit, [N,3]) at its speed would make it a conflict."""
+    course if flying ``follow`` (unit, [N,3]) at its speed would make it a conflict.  A
+    conflict [i,k] within ``YIELD_BACK_TURNS`` quarter turns also pushes k, the other way
+    (the kernel's ``yielding_back``)."""
     n = pos.shape[0]
     rep, moving = obstacles
     near, threat, push = _conflicts(pos, a.vel, a.vel, speed, rank, active, formed, lim, dt)
     _, threat_after, _ = _conflicts(pos, speed[:, None] * follow, a.vel, speed, rank, active,
                                     formed, lim, dt)  # fmt: skip
+    _, late, push_late = _conflicts(pos, a.vel, a.vel, speed, rank, active, formed, lim, dt,
+                                    YIELD_BACK_TURNS)  # fmt: skip
+    late = late & active[:, None]
     hold: BoolArray = np.any(near & ~threat & threat_after, axis=1)
-    total = rep + EPSILON_1 * (push * threat[..., None]).sum(1)
+    back = -(push_late * late[..., None]).sum(0)
+    total = rep + EPSILON_1 * (push * threat[..., None]).sum(1) + EPSILON_1 * back
     o2 = (rep**2).sum(1)
     into = np.divide(((total - rep) * rep).sum(1), o2, out=np.zeros(n), where=o2 > 0)
     total = total - np.minimum(into, 0.0)[:, None] * rep
-    return Repulsion(total, rep, moving | threat.any(1), hold)
+    return Repulsion(total, rep, moving | threat.any(1) | late.any(0), hold)
 
 
 def _crossing(

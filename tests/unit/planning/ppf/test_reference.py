@@ -12,10 +12,13 @@ import pytest
 from gcs_ppf.mission import load_mission_file
 from gcs_ppf.offline.plan import PlanRun
 from gcs_ppf.planning.planner import Trajectory, advance
+from gcs_ppf.planning.ppf.kernel import YIELD_BACK_TURNS, influence_radius, teammate_conflict
 from gcs_ppf.planning.ppf.reference import reference_step
+from gcs_ppf.planning.ppf.repulsion import CONFLICT
 from gcs_ppf.planning.scene import Fleet, Scene, scene_from_mission
 
 EXAMPLES = Path(__file__).resolve().parents[4] / "examples"
+BREACHES = Path(__file__).resolve().parents[3] / "data" / "breaches"
 
 
 def _state_at(scene: Scene, tr: Trajectory, k: int) -> Scene:
@@ -29,7 +32,12 @@ def _state_at(scene: Scene, tr: Trajectory, k: int) -> Scene:
 def _agree_step_by_step(scene: Scene, tr: Trajectory, dt: float, n_records: int) -> set[int]:
     """Check one kernel step against the reference from ``n_records`` states of the plan
     ``tr`` made from ``scene``; the PPF states seen."""
-    records = np.linspace(0, len(tr) - 2, n_records).astype(int)
+    return _agree_at(scene, tr, dt, np.linspace(0, len(tr) - 2, n_records).astype(int))
+
+
+def _agree_at(scene: Scene, tr: Trajectory, dt: float, records: np.ndarray) -> set[int]:
+    """Check one kernel step against the reference from the states ``records`` of the plan
+    ``tr`` made from ``scene``; the PPF states seen."""
     states_seen: set[int] = set()
     for k in records:
         s = _state_at(scene, tr, int(k))
@@ -66,6 +74,32 @@ def test_one_step_from_states_along_the_paper_plans(
 ) -> None:
     run: PlanRun = request.getfixturevalue(scene)
     assert {1, 3} <= _agree_step_by_step(run.scene, run.trajectory, run.dt, 400)
+
+
+def test_one_step_agrees_while_a_vehicle_gives_way_back() -> None:
+    """The kept breach (tests/data/breaches): wingman 2 gives way back to wingman 3 (of
+    lower priority) just before they pass; the reference agrees on every step near it."""
+    mission = load_mission_file(BREACHES / "feasible_ground_49_6m.json")
+    scene = scene_from_mission(mission)
+    tr = advance(scene, mission.planner.dt, 1500).trajectory  # 15 s
+    gap = np.linalg.norm(tr.pos[:, 1] - tr.pos[:, 2], axis=1)
+    near = np.flatnonzero(gap < 300.0)
+    near = near[near < len(tr) - 1]
+    assert any(_gives_way_back(scene, tr, int(k), mission.planner.dt) for k in near)
+    _agree_at(scene, tr, mission.planner.dt, near)
+
+
+def _gives_way_back(scene: Scene, tr: Trajectory, k: int, dt: float) -> bool:
+    """Whether wingman 2 (index 1) gives way back to wingman 3 (index 2) in record ``k``."""
+    lim, speed = scene.limits, tr.speed[k]
+    cp = np.cos(tr.pitch[k])
+    vel = speed[:, None] * np.stack([cp * np.cos(tr.yaw[k]), cp * np.sin(tr.yaw[k]),
+                                     np.sin(tr.pitch[k])], axis=1)  # fmt: skip
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    reach = influence_radius(speed[2], omega, lim.safe_distance_uav) + speed[2] * dt
+    kind, *_ = teammate_conflict(*(tr.pos[k, 2] - tr.pos[k, 1]), *(vel[1] - vel[2]), speed[2],
+                                 speed[1], reach, lim, dt, False, YIELD_BACK_TURNS)  # fmt: skip
+    return bool(kind == CONFLICT)
 
 
 @pytest.mark.parametrize("name", ["paper_table2.json", "paper_table3.json"])
