@@ -16,7 +16,8 @@ and each wingman's slot error; no clock, no I/O.
   noise at the threshold raises no events.  A broken formation is dated back to the tick
   the worst wingman first went out: that is when the hold ended, and the ticks of a failed
   grace count as out of formation.  A tick with no wingman measured (every one lost, or the
-  leader without a velocity) counts as out of formation.
+  leader without a velocity), or with a wingman that counts left unmeasured, is out of
+  formation; the service counts every wingman not lost.
 
 Figures of a run (``Figures``), over the ticks fed:
 
@@ -161,11 +162,14 @@ class FormationWatch:
             return 0.0
         return self.mission_time_s - self._formed_since_s
 
-    def update(self, mission_time_s: float, slot_errors_m: Mapping[int, float]) -> list[Change]:
-        """One tick: ``slot_errors_m`` maps each wingman measured to its slot error (m).
-        Errors that are not finite non-negative numbers are left out; a tick earlier than
-        the last one fed, or at a time that is not finite, is ignored.  Returns what
-        changed (at most one)."""
+    def update(
+        self, mission_time_s: float, slot_errors_m: Mapping[int, float], unmeasured: int = 0
+    ) -> list[Change]:
+        """One tick: ``slot_errors_m`` maps each wingman measured to its slot error (m);
+        ``unmeasured`` wingmen that count but could not be measured (not heard yet) keep the
+        formation from being in formation.  Errors that are not finite non-negative numbers
+        are left out; a tick earlier than the last one fed, or at a time that is not finite,
+        is ignored.  Returns what changed (at most one)."""
         if not math.isfinite(mission_time_s) or (
             self.mission_time_s is not None and mission_time_s < self.mission_time_s
         ):
@@ -174,7 +178,7 @@ class FormationWatch:
         self.errors_m = {int(k): float(e) for k, e in slot_errors_m.items() if _is_distance(e)}
         worst = self.worst
         worst_id, worst_m = worst if worst is not None else (None, None)
-        within = worst_m is not None and worst_m <= self.accuracy_m
+        within = worst_m is not None and worst_m <= self.accuracy_m and unmeasured <= 0
         errors = list(self.errors_m.values())
         if not self.formed:
             if not within:

@@ -119,6 +119,13 @@ def test_a_lost_wingman_or_no_measurement_counts_as_out_of_formation() -> None:
     assert leader_only.figures().fraction_in_formation is None
 
 
+def test_a_wingman_not_measured_yet_keeps_the_formation_from_forming() -> None:
+    watch = FormationWatch(ACCURACY_M)
+    assert watch.update(1.0, {2: 1.0}, unmeasured=1) == []
+    assert not watch.formed
+    assert [c.kind for c in watch.update(1.1, {2: 1.0, 3: 2.0})] == ["formation_formed"]
+
+
 def test_bad_input_is_ignored_and_never_raises() -> None:
     watch = FormationWatch(ACCURACY_M)
     assert watch.update(math.nan, {2: 1.0}) == []
