@@ -17,13 +17,15 @@ from collections import deque
 
 import numpy as np
 
+from gcs_ppf.geodesy import velocity_ned_to_enu
 from gcs_ppf.guidance import assurance, lag, obedience, speed_reference, tick_plan
 from gcs_ppf.guidance.airframe import Airframe
+from gcs_ppf.guidance.formation_watch import slot_errors_m
 from gcs_ppf.guidance.online import VehicleState, clearance, home_ground, separations
 from gcs_ppf.guidance.tick_plan import passes_within, traffic_radius_m
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_HEADING
-from gcs_ppf.planning.scene import Obstacles, obstacles_from_mission
+from gcs_ppf.planning.scene import FloatArray, Obstacles, obstacles_from_mission
 from gcs_ppf.service import commanding, launch
 from gcs_ppf.service.ending import end, hold_during_launch
 from gcs_ppf.service.fleet import planning_states
@@ -240,6 +242,7 @@ async def tick(station: Station, run: Run) -> bool:
     together = reported_together(reporting)
     watch_safety(station, run, ids, together,
                  mission.ground if mission.ground is not None else ground)  # fmt: skip
+    watch_formation(station, run, reporting, together)
     recent = list(itertools.islice(reversed(run.tick_latency_s), RECENT_TICKS))
     work = statistics.median(recent) if recent else 0.0
     states, active, lags = planning_states(located, work)
@@ -278,6 +281,33 @@ async def tick(station: Station, run: Run) -> bool:
         obstacles = obedience.with_obstacles(obstacles, traffic)
     await plan_and_command(station, run, airframes, states, active, obstacles, ground)
     return False
+
+
+def watch_formation(station: Station, run: Run, reporting: Located, together: FloatArray) -> None:
+    """The flown formation this tick (``run.formation``): each wingman's slot error from the
+    positions reported on one instant (``together``, [N,3] in ``reporting``'s order) and the
+    leader's reported velocity; ``formation_formed`` / ``formation_broken`` events with the
+    wingman farthest from its slot.  Every wingman not lost counts: one not heard yet keeps
+    the formation from forming."""
+    mission = run.mission
+    at = {v.system_id: k for k, (v, _) in enumerate(reporting)}
+    errors: dict[int, float] = {}
+    leader_k = at.get(mission.leader.id)
+    if leader_k is not None:
+        t = reporting[leader_k][0].telemetry
+        if t.vn_m_s is not None and t.ve_m_s is not None and t.vd_m_s is not None:
+            wingmen = {w.id: (together[at[w.id]].tolist(), w.slot) for w in mission.wingmen
+                       if w.id in at and w.slot is not None}  # fmt: skip
+            velocity = velocity_ned_to_enu(t.vn_m_s, t.ve_m_s, t.vd_m_s)
+            errors = slot_errors_m(together[leader_k].tolist(), velocity, wingmen)
+    counted = [w.id for w in mission.wingmen if w.id not in run.lost_ids]
+    unmeasured = sum(1 for vid in counted if vid not in at)
+    for change in run.formation.update(run.mission_time_s, errors, unmeasured):
+        station.event(
+            run, change.kind, None, worst_wingman_id=change.worst_wingman_id,
+            worst_error_m=None if change.worst_error_m is None else round(change.worst_error_m, 1),
+            since_s=round(change.since_s, 2),
+        )  # fmt: skip
 
 
 async def plan_and_command(

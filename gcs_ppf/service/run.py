@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from gcs_ppf.guidance import assurance, lag, obedience, safety_monitor, slew
+from gcs_ppf.guidance.formation_watch import FormationWatch
 from gcs_ppf.guidance.online import Guidance
 from gcs_ppf.guidance.speed_reference import SpeedPlan
 from gcs_ppf.mission import Mission
@@ -64,7 +65,9 @@ class Run:
     """The formation is held: the leader keeps its speed (``speed_reference.leader_held``)."""
     min_separation_m: float | None = None
     min_clearance_m: float | None = None
-    formed: bool = False
+    formation: FormationWatch = field(init=False)
+    """The formation flown (``guidance.formation_watch``): each wingman's slot error from
+    the reported positions every tick, formed or broken, the run's formation figures."""
     abort: asyncio.Event = field(default_factory=asyncio.Event)
     lost_ids: set[int] = field(default_factory=set)
     commanded_speed: dict[int, float] = field(default_factory=dict)
@@ -91,6 +94,9 @@ class Run:
     fleet_lag: lag.Lag = field(default_factory=lambda: lag.Lag(0.0, 0.0))
     """The fleet's lag at the last tick (``gcs_ppf.guidance.lag``), vehicle seconds."""
     lag_budget: lag.Budget = field(default_factory=lambda: lag.Budget(LAG_BUDGET_S))
+
+    def __post_init__(self) -> None:
+        self.formation = FormationWatch(self.mission.limits.target_accuracy)
 
 
 RECENT_GAPS = 50
@@ -130,6 +136,7 @@ def summary(run: Run) -> dict[str, Any]:
         "deepest_violation_m": run.safety.deepest_m,
         "tick_latency_ms": latency_ms(run),
         "worst_lag_s": round(run.lag_budget.worst_s, 3),
+        "formation": run.formation.figures().as_dict(),
     }
 
 
@@ -155,7 +162,8 @@ def status(run: Run) -> dict[str, Any]:
         "state": run.state,
         "outcome": run.outcome,
         "mission_time_s": round(run.mission_time_s, 3),
-        "formation_formed": run.formed,
+        "formation_formed": run.formation.formed,
+        "formation": run.formation.status(),
         "min_separation_m": run.min_separation_m,
         "min_obstacle_clearance_m": run.min_clearance_m,
         "safety_violations": run.safety.count,
@@ -171,14 +179,11 @@ def status(run: Run) -> dict[str, Any]:
 
 
 def changes(run: Run, g: Guidance) -> list[tuple[str, int | None]]:
-    """The events of what changed since the run's last tick (``run.last``), as (kind,
-    vehicle id); updates ``run.formed``."""
+    """The events of what changed in the plan since the run's last tick (``run.last``), as
+    (kind, vehicle id).  The formation's events are the flown formation's
+    (``run.formation``, fed in ``service.flight``), not the plan's."""
     out: list[tuple[str, int | None]] = []
     before = run.last
-    wingmen_formed = all(f for i, f in enumerate(g.formed) if i and g.ids[i] not in run.lost_ids)
-    if wingmen_formed != run.formed:
-        run.formed = wingmen_formed
-        out.append(("formation_formed" if wingmen_formed else "formation_broken", None))
     if before is None:
         return out
     for i, vid in enumerate(g.ids):
