@@ -18,14 +18,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from gcs_ppf.geodesy import geodetic_to_enu
 from gcs_ppf.mission import Mission
-from gcs_ppf.planning.scene import FloatArray
 from gcs_ppf.tools.campaign import AFTER_S, EXAMPLES, mission_path
 from gcs_ppf.tools.observer import held_s, slot_distances
 
 STEP_S = 0.1
+FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
