@@ -45,6 +45,28 @@ def _wait_vehicles(api: str, n: int, timeout_s: float) -> bool:
     return False
 
 
+def formation_line(formation: dict[str, Any] | None) -> str:
+    """The formation now, from the status: the worst wingman's slot error and the hold."""
+    if not formation or formation.get("worst_error_m") is None:
+        return "formation -"
+    mark = "formed" if formation.get("formed") else "not formed"
+    worst, held = formation["worst_error_m"], formation.get("current_hold_s") or 0.0
+    wingman = formation.get("worst_wingman_id")
+    return f"formation {mark}: worst {worst:6.1f} m (wingman {wingman}), held {held:4.1f} s"
+
+
+def formation_summary(formation: dict[str, Any] | None) -> str:
+    """The run's formation figures, from the status at its end."""
+    figures = formation or {}
+    if figures.get("time_to_form_s") is None:
+        return "formation: never formed"
+    return (f"formation: formed after {figures['time_to_form_s']:.1f} s, in formation "
+            f"{100 * (figures.get('fraction_in_formation') or 0):.0f} % of the flight after, "
+            f"longest hold {figures.get('longest_hold_s', 0):.1f} s, "
+            f"slot error while formed RMS {figures.get('rms_slot_error_m')} m, "
+            f"p95 {figures.get('p95_slot_error_m')} m")  # fmt: skip
+
+
 def run_demo(mission_path: Path, mission: Mission, *, speedup: float, port: int,
              base_port: int, workdir: Path) -> int:  # fmt: skip
     api = f"http://127.0.0.1:{port}"
@@ -88,11 +110,13 @@ def run_demo(mission_path: Path, mission: Mission, *, speedup: float, port: int,
                 states = " ".join(f"{v['id']}:{v['ppf_state']}" for v in s.get("vehicles", []))
                 print(f"t={s.get('mission_time_s', 0):6.1f} s  {s['state']:<9} "
                       f"min separation {sep or float('nan'):6.1f} m  "
-                      f"min clearance {clear or float('nan'):6.1f} m  PPF {states}")  # fmt: skip
+                      f"min clearance {clear or float('nan'):6.1f} m  "
+                      f"{formation_line(s.get('formation'))}  PPF {states}")  # fmt: skip
             if s["state"] in FINISHED:
                 break
             time.sleep(0.2)
         print(f"mission {s['state']}; vehicles loiter. API still at {api}/docs — Ctrl-C stops.")
+        print(formation_summary(s.get("formation")))
         while all(p.poll() is None for p in procs):
             time.sleep(0.5)
         return 0
