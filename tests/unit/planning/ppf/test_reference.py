@@ -97,9 +97,9 @@ def _gives_way_back(scene: Scene, tr: Trajectory, k: int, dt: float) -> bool:
                                      np.sin(tr.pitch[k])], axis=1)  # fmt: skip
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     reach = influence_radius(speed[2], omega, lim.safe_distance_uav) + speed[2] * dt
-    kind, *_ = teammate_conflict(  # type: ignore[call-arg]  # numba's Dispatcher
-        *(tr.pos[k, 2] - tr.pos[k, 1]), *(vel[1] - vel[2]), speed[2],
-                                 speed[1], reach, lim, dt, False, YIELD_BACK_TURNS)  # fmt: skip
+    d, w = tr.pos[k, 2] - tr.pos[k, 1], vel[1] - vel[2]
+    kind, _, _, _ = teammate_conflict(d[0], d[1], d[2], w[0], w[1], w[2], speed[2], speed[1],
+                                      reach, lim, dt, False, YIELD_BACK_TURNS)  # fmt: skip
     return bool(kind == CONFLICT)
 
 
