@@ -119,9 +119,12 @@ def planned_commands(
     constants are far apart and the lead is flown as before."""
     out = []
     for i, vid in enumerate(g.ids):
-        if orders.guidance_mode == "point":
+        if orders.guidance_mode == "point":  # the point's altitude led as the course mode's
             x, y, z = (float(c) for c in g.guided_point_m[i])
-            px, py, _ = states[vid].pos_m
+            px, py, pz = states[vid].pos_m
+            tecs = airframes[i].tecs_time_constant_s
+            if tecs is not None and math.isfinite(float(g.climb_rate_m_s[i])):
+                z = slew.tecs_altitude_demand(g, i, pz, tecs) or z
             out.append(slew.SlewCommand(math.atan2(y - py, x - px), 0.0, z, 0.0))
             continue
         s = states[vid]
@@ -231,8 +234,8 @@ def _course_point(
     if orders.guidance_mode == "point":
         if v.replaced:
             return along(m, v.command)
-        x, y, z = (float(c) for c in guided_point)
-        return x, y, z
+        x, y, _ = (float(c) for c in guided_point)
+        return x, y, cmd.z_m  # the altitude assured (``planned_commands``)
     return m.pos_m[0], m.pos_m[1], v.command.z_m
 
 
