@@ -73,6 +73,26 @@ def free_port_block(span: int, offsets: Sequence[int] = PORT_OFFSETS) -> int:
     raise RuntimeError("no free port block")
 
 
+def free_port() -> int:
+    """One port free on 127.0.0.1 for TCP and UDP, below the ephemeral range.  A port the
+    kernel handed out for ``bind(0)`` came from the ephemeral range and was taken by an
+    outgoing connection (the browser driver's) before the service bound it: "address
+    already in use" (CI)."""
+    low = LOWEST_PORT
+    high = ephemeral_ports()[0] - 1
+    rng = random.Random()
+    for _ in range(200):
+        port = rng.randrange(low, high)
+        try:
+            for kind in (socket.SOCK_STREAM, socket.SOCK_DGRAM):
+                with socket.socket(socket.AF_INET, kind) as t:
+                    t.bind(("127.0.0.1", port))
+            return port
+        except OSError:
+            continue
+    raise RuntimeError("no free port")
+
+
 @dataclass
 class Record:
     """What the observer heard from one vehicle.  ``pos`` rows: (arrival wall time s

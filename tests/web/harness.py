@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import socket
 import subprocess
 import sys
 import tempfile
@@ -22,9 +21,10 @@ from selenium.webdriver.chrome.service import Service as ChromeService
 from selenium.webdriver.chrome.webdriver import WebDriver
 
 from gcs_ppf.tools.campaign import process, stop
+from gcs_ppf.tools.observer import free_port
 from tests.checks import wait_for
 
-__all__ = ["process", "stop", "wait_for"]  # with the rest below, for the page's tests
+__all__ = ["free_port", "process", "stop", "wait_for"]  # with the rest below, for the page's tests
 
 ROOT = Path(__file__).resolve().parents[2]
 CHROMIUM = os.environ.get("GCS_PPF_CHROMIUM", "/usr/bin/chromium")
@@ -70,12 +70,6 @@ def page_errors(driver: WebDriver) -> list[str]:
         str(e["message"]) for e in driver.get_log("browser")  # type: ignore[no-untyped-call]
         if e["level"] == "SEVERE" and e.get("source") != "network"
     ]  # fmt: skip
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def serve_args(port: int, db: Path, links: Sequence[str] = ()) -> list[str]:

@@ -9,7 +9,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import random
-import socket
 import time
 from collections.abc import Callable, Coroutine
 from pathlib import Path
@@ -23,6 +22,7 @@ from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.codec import MAVLinkMessage
 from gcs_ppf.service.links import LinkKind, LinkUrl, MavlinkLink, parse_link_url
+from gcs_ppf.tools.observer import free_port
 
 TEST_TIMEOUT_S = 8.0
 HEARTBEAT_PERIOD_S = 0.05
@@ -42,12 +42,6 @@ async def wait_until(pred: Callable[[], bool], timeout_s: float = 3.0) -> None:
     async with asyncio.timeout(timeout_s):
         while not pred():
             await asyncio.sleep(0.01)
-
-
-def free_port(kind: int = socket.SOCK_STREAM) -> int:
-    with socket.socket(socket.AF_INET, kind) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def vehicle_heartbeat(mav: Any) -> bytes:
@@ -385,7 +379,7 @@ async def udp_peer(**kwargs: Any) -> tuple[asyncio.DatagramTransport, UdpPeer]:
 
 def test_udpin_answers_the_last_sender() -> None:
     async def body() -> None:
-        port = free_port(socket.SOCK_DGRAM)
+        port = free_port()
         inbox = Inbox()
         link = MavlinkLink(f"udpin:127.0.0.1:{port}", inbox)
         transport, vehicle = await udp_peer(remote_addr=("127.0.0.1", port))
