@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -20,6 +21,7 @@ from pymavlink import mavutil
 from selenium.webdriver.chrome.webdriver import WebDriver
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
+from selenium.webdriver.remote.webelement import WebElement
 
 from gcs_ppf.planning.ppf.primitives import influence_radius
 from gcs_ppf.tools.observer import free_port_block
@@ -131,6 +133,14 @@ def test_upload_preview_fly_and_replay_table3(tmp_path: Path) -> None:
         assert len(trails) == 5
         assert min(trails) > 10, trails
         assert "Every vehicle in GUIDED" in text(driver, "events")
+        # The formation flown, as the service's watch measures it: the header's figure and
+        # each wingman's slot error in its row.
+        shown = text(driver, "formation")
+        assert re.fullmatch(r"(not formed|formed) worst \d+\.\d m \(≤ [\d.]+\).*", shown), shown
+        wingmen = [v["id"] for v in doc["vehicles"] if v.get("role") == "wingman"]
+        for vid in wingmen:
+            row = driver.find_element(By.CSS_SELECTOR, f"#vehicles-table tr[data-vehicle='{vid}']")
+            assert re.fullmatch(r"\d+\.\d m( ✓)?", cell_text(row, 9))
         screenshot(driver, "mid-run")
         finished = ("completed", "completed_unsafe", "aborted", "failed")
         wait_for(lambda: js(driver, "document.getElementById('run-state').dataset.state")
@@ -160,10 +170,20 @@ def test_upload_preview_fly_and_replay_table3(tmp_path: Path) -> None:
         t_half = js(driver, "window.gcs.state.replay.t")
         assert t_half == pytest.approx(js(driver, "window.gcs.state.replay.T") / 2)
         assert f"REPLAY of run #1 ({final})" in text(driver, "map-mode")
+        stored = http("GET", f"{api}/runs")[1][-1]["summary"]["formation"]
+        words = "never formed" if stored["time_to_form_s"] is None else "formed at"
+        assert text(driver, "formation").startswith(words), text(driver, "formation")
+        run_item = driver.find_element(By.CSS_SELECTOR, "#runs li[data-run='1']").text
+        assert f"formation: {words}" in run_item, run_item
         future = driver.find_elements(By.CSS_SELECTOR, "#events li.future")
         assert any("Run completed" in li.text for li in future)  # after half-time
         screenshot(driver, "replay")
         assert page_errors(driver) == []
+
+
+def cell_text(row: WebElement, k: int) -> str:
+    """A table cell's text, shown or not (the Fleet tab may be hidden)."""
+    return str(row.find_elements(By.TAG_NAME, "td")[k].get_attribute("textContent"))
 
 
 def kill(port: int, vehicle_id: int) -> None:

@@ -281,6 +281,38 @@ function updateHeader(scene) {
   $("fig-clr").classList.toggle("alarm", below(clrNow, safeClr) || below(clrMin, safeClr));
   $("violations").textContent = run && run.safety_violations !== undefined ? String(run.safety_violations) : "–";
   $("violations").parentElement.classList.toggle("alarm", Boolean(run && run.safety_violations));
+  showFormation(run && run.formation);
+}
+
+// The formation flown (the status's "formation", or a stored run's summary figures).
+function formationText(f) {
+  if (!f) return "–";
+  const pct = (x) => (x === null || x === undefined ? "" : `, ${(100 * x).toFixed(0)} % in formation`);
+  const worst = f.worst_error_m === null || f.worst_error_m === undefined ? "" :
+    ` worst ${f.worst_error_m.toFixed(1)} m (≤ ${f.accuracy_m})`;
+  if (f.formed === undefined) {  // a stored summary: figures only
+    return f.time_to_form_s === null ? "never formed" :
+      `formed at ${f.time_to_form_s.toFixed(1)} s${pct(f.fraction_in_formation)}, longest hold ${f.longest_hold_s.toFixed(1)} s`;
+  }
+  if (f.formed) return `formed${worst}, held ${f.current_hold_s.toFixed(0)} s${pct(f.fraction_in_formation)}`;
+  const before = f.time_to_form_s === null ? "" : ` (formed at ${f.time_to_form_s.toFixed(1)} s)`;
+  return `not formed${worst}${before}`;
+}
+
+function showFormation(f) {
+  const el = $("formation");
+  el.textContent = formationText(f);
+  el.parentElement.dataset.formed = f && f.formed ? "yes" : "no";
+  state.slotErrors = new Map(((f && f.wingmen) || []).map((w) => [w.id, w]));
+}
+
+// A wingman's slot error as the service's formation watch measures it (Eq. 6 from the
+// reported positions); the plan's distance to its local target when there is no run.
+function slotError(v) {
+  const w = state.slotErrors && state.slotErrors.get(v.id);
+  if (w) return `${w.slot_error_m.toFixed(1)} m${w.within ? " ✓" : ""}`;
+  const d = v.local_target_distance_m;
+  return d === null || d === undefined ? "–" : `${d.toFixed(1)} m`;
 }
 
 function updateVehicleTable(f) {
@@ -291,7 +323,7 @@ function updateVehicleTable(f) {
     state.notResponding.has(v.id) ? "not responding" : v.ppf_state ?? "–",
     v.pos_m ? v.pos_m.map((c) => c.toFixed(0)).join(", ") : "–",
     v.speed_m_s === null ? "–" : `${v.speed_m_s.toFixed(1)} m/s`,
-    v.local_target_distance_m === null || v.local_target_distance_m === undefined ? "–" : `${v.local_target_distance_m.toFixed(1)} m`,
+    slotError(v),
   ]);
   while (body.rows.length > rows.length) body.deleteRow(-1);
   rows.forEach((cells, i) => {
@@ -638,7 +670,8 @@ async function refreshRuns() {
     const t = r.summary && r.summary.mission_time_s !== undefined ? `${r.summary.mission_time_s.toFixed(1)} s` : "";
     li.textContent = `Run #${r.id}: ${names.get(r.mission_id) || "mission"} (#${r.mission_id}), ${r.state} ${t}`;
     const small = document.createElement("small");
-    small.textContent = `${when}${r.outcome ? " — " + r.outcome : ""}`;
+    const formation = r.summary && r.summary.formation ? ` — formation: ${formationText(r.summary.formation)}` : "";
+    small.textContent = `${when}${r.outcome ? " — " + r.outcome : ""}${formation}`;
     li.append(small);
     li.addEventListener("click", () => startReplay(r));
     list.append(li);
@@ -687,6 +720,7 @@ async function startReplay(run) {
   $("sep").textContent = `– / ${m(s.min_separation_m)} (safe ${mission.mission.limits.safe_distance_uav})`;
   $("clr").textContent = `– / ${m(s.min_obstacle_clearance_m)} (safe ${mission.mission.limits.safe_distance_obstacle})`;
   $("violations").textContent = s.safety_violations !== undefined ? String(s.safety_violations) : "–";
+  showFormation(s.formation);
 }
 
 function stopReplay() {
