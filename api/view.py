@@ -150,6 +150,7 @@ def frame(
         "mission_id": mission_id,
         "run": status,
         "target_m": list(mission.target) if mission else None,
+        "route": [w.model_dump() for w in mission.route] if mission else [],
         "obstacles": [obstacle_view(o, mission.limits, t) for o in mission.obstacles]
         if mission
         else [],

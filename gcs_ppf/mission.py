@@ -108,6 +108,15 @@ class Obstacle(_Strict):
     velocity: Vec3 = (0.0, 0.0, 0.0)
 
 
+class Waypoint(_Strict):
+    """A point of the leader's route, reached when the leader passes within
+    ``acceptance_radius`` of it or crosses the line through it square to the leg (as
+    ArduPlane's WP_RADIUS and its finish line)."""
+
+    position: Vec3
+    acceptance_radius: PositiveFloat = 100.0
+
+
 def _distance(a: Sequence[float], b: Sequence[float]) -> float:
     return math.dist(a, b)
 
@@ -120,6 +129,13 @@ class Mission(_Strict):
     limits: Limits = Limits()
     planner: PlannerSettings = PlannerSettings()
     target: Vec3
+    route: list[Waypoint] = Field(default_factory=list, max_length=1000)
+    """The waypoints the leader flies through, in order, before ``target`` (the route's
+    last point, reached within ``limits.target_accuracy``); empty: straight to the target."""
+    turns: Literal["hold", "free"] | None = None
+    """How the leader turns in formation: ``"hold"`` keeps its speed and turn rate to what
+    every slot can follow (``gcs_ppf.planning.turns``); ``"free"`` is the paper's leader.
+    None (default): ``"hold"`` on a route, ``"free"`` without one."""
     ground: float | None = None
     """ICS z (metres) of flat ground that vehicles keep ``limits.safe_distance_obstacle``
     above; None (default) is the paper's free space.  The service falls back on the
@@ -140,6 +156,11 @@ class Mission(_Strict):
     @property
     def wingmen(self) -> list[Vehicle]:
         return [v for v in self.vehicles if v.role == "wingman"]
+
+    @property
+    def holds_turns(self) -> bool:
+        """Whether the leader turns as the formation can follow (``turns``)."""
+        return self.turns == "hold" if self.turns is not None else bool(self.route)
 
 
 def mission_problems(mission: Mission) -> list[str]:
@@ -172,6 +193,12 @@ def mission_problems(mission: Mission) -> list[str]:
                 )
         if _distance(mission.target, o.center) < o.radius + lim.target_accuracy:
             problems.append(f"target: inside obstacles[{j}]")
+        for w, wp in enumerate(mission.route):
+            if _distance(wp.position, o.center) < o.radius + lim.safe_distance_obstacle:
+                problems.append(
+                    f"route[{w}].position: inside obstacles[{j}] "
+                    f"(closer than radius + limits.safe_distance_obstacle)"
+                )
 
     if mission.ground is not None:
         for k, v in enumerate(mission.vehicles):
@@ -179,6 +206,12 @@ def mission_problems(mission: Mission) -> list[str]:
                 problems.append(
                     f"vehicles[{k}].position: below the ground + collision_radius "
                     f"({mission.ground + lim.collision_radius:g} m)"
+                )
+        for w, wp in enumerate(mission.route):
+            if wp.position[2] < mission.ground + lim.safe_distance_obstacle:
+                problems.append(
+                    f"route[{w}].position: below the ground + limits.safe_distance_obstacle "
+                    f"({mission.ground + lim.safe_distance_obstacle:g} m)"
                 )
         if mission.target[2] < mission.ground + lim.safe_distance_obstacle:
             problems.append(

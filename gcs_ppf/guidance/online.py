@@ -20,6 +20,7 @@ from gcs_ppf.mission import Mission
 from gcs_ppf.planning.planner import STATE_NAMES, Trajectory, advance
 from gcs_ppf.planning.ppf.kernel import KernelLimits
 from gcs_ppf.planning.scene import FloatArray, Obstacles, Scene, scene_from_mission
+from gcs_ppf.planning.turns import formation_turn_limits
 
 
 @dataclass(frozen=True)
@@ -139,6 +140,8 @@ def scene_now(
     )
     if envelope is not None:
         base = replace(base, limits=_within_envelope(base.limits, envelope))
+        if mission.holds_turns:  # the turns the formation follows, in the airframes' range
+            base = replace(base, limits=formation_turn_limits(base.limits, base.fleet.slot[1:]))
     fleet = base.fleet.copy()
     lim = base.limits
     for i, vid in enumerate(fleet.ids.tolist()):
@@ -217,6 +220,7 @@ def guidance(
     climb_rate_floor_m_s: float = 1.0,
     turn_window_s: float = 0.5,
     speed_lead_s: float = 1.0,
+    final_leg: bool = True,
 ) -> Guidance:
     """Run PPF ``lookahead_s`` ahead from ``scene`` and read off, for each vehicle, its speed,
     course and climb rate as planned ``lead_s`` on, its speed ``speed_lead_s`` on, and its
@@ -247,14 +251,17 @@ def guidance(
     of Eq. 19 can alternate between full and partial steps), 0 for the leader flying the
     line of sight or going around.
     """
-    run = advance(scene, dt, max(1, round(lookahead_s / dt)))
+    # A route's waypoint (``final_leg`` False) is flown through: the look-ahead does not
+    # stop at it, and the leader has no final approach to it.
+    run = advance(scene, dt, max(1, round(lookahead_s / dt)),
+                  goal_radius_m=None if final_leg else 0.0)  # fmt: skip
     tr = run.trajectory
     k_lead = _record_at(len(tr), lead_s, dt)
     aim = _planned_aim(scene, tr, k_lead, climb_rate_floor_m_s, turn_window_s)
     climb_plan = np.concatenate(
         [scene.fleet.speed[None] * np.sin(scene.fleet.pitch[None]), tr.speed * np.sin(tr.pitch)]
     )
-    sighted = _leader_closes(scene, aim, run.arrived)
+    sighted = _leader_closes(scene, aim, run.arrived) if final_leg else None
     if sighted is not None:  # on the line of sight, the leader climbs along it
         climb_plan[:, 0] = sighted
         aim.climb_rate_m_s[0] = abs(sighted) + climb_rate_floor_m_s

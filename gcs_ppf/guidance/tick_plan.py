@@ -17,6 +17,7 @@ from gcs_ppf.guidance.airframe import Airframe, guard_tuning, tick_envelope
 from gcs_ppf.guidance.online import Guidance, VehicleState, guidance, scene_now
 from gcs_ppf.guidance.speed_reference import follows_speed_plan
 from gcs_ppf.mission import Mission
+from gcs_ppf.planning.route import Leg
 from gcs_ppf.planning.scene import Obstacles
 
 
@@ -101,8 +102,10 @@ def plan(
     tuning: Tuning,
     lagging_s: float,
     previous: Guidance | None,
+    leg: Leg | None = None,
 ) -> tuple[Guidance, list[Airframe]]:
-    """The guidance for the ``active`` vehicles, and their airframes in its order.
+    """The guidance for the ``active`` vehicles, and their airframes in its order, the
+    leader flying the route's ``leg`` (None: straight to the target).
 
     ``lagging_s`` (the telemetry interval and the measured lag, vehicle seconds) is what the
     planning margin and the guard's margins must cover (``gcs_ppf.guidance.airframe``)."""
@@ -116,9 +119,12 @@ def plan(
         mission, states, active, obstacles, margin, ground_z_m, envelope=envelope.limits,
         teammate_margin_m=teammate_margin_m(mission, margin),
     )  # fmt: skip
+    if leg is not None:
+        scene = replace(scene, target=leg.end_m)
     g = guidance(
-        scene, lookahead_s=tuning.lookahead_s, dt=tuning.planner_dt_s, carrot_m=tuning.carrot_m
-    )
+        scene, lookahead_s=tuning.lookahead_s, dt=tuning.planner_dt_s, carrot_m=tuning.carrot_m,
+        final_leg=leg is None or leg.final,
+    )  # fmt: skip
     ordered = [airframes.get(vid, Airframe()) for vid in g.ids]
     if tuning.guard_horizon_s == 0.0:
         return g, ordered

@@ -8,13 +8,16 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import Any
+
+import numpy as np
 
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.metrics import FlightContext, compute_metrics
 from gcs_ppf.planning.planner import Method, Trajectory, advance, initial_record
-from gcs_ppf.planning.scene import Scene, scene_from_mission
+from gcs_ppf.planning.route import legs
+from gcs_ppf.planning.scene import FloatArray, Scene, scene_from_mission
 
 Progress = Callable[[float], None]  # called with the flight time planned so far
 
@@ -30,6 +33,8 @@ class PlanRun:
     arrived: bool
     wall_time_s: float
     metrics: dict[str, Any]
+    waypoints: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    """[W,3] the route's waypoints before the target (ICS)."""
 
 
 PROGRESS_CHUNKS = 10  # chunks planned between two progress reports
@@ -60,7 +65,8 @@ def plan_mission(
     progress: Progress | None = None,
     chunk_s: float = 1.0,
 ) -> PlanRun:
-    """Plan ``mission`` until the leader reaches its target or ``planner.max_time``, in
+    """Plan ``mission`` until the leader reaches its target (through the route's waypoints,
+    leg by leg: ``gcs_ppf.planning.route``) or ``planner.max_time``, in
     chunks of ``chunk_s`` of flight (``advance`` with ``chunk_steps``: record times are
     summed chunk by chunk), reporting ``progress`` every ``PROGRESS_CHUNKS`` chunks."""
     method = method or mission.planner.method
@@ -70,20 +76,31 @@ def plan_mission(
     chunk = max(1, round(chunk_s / dt))
     total_steps = max(1, round(mission.planner.max_time / dt))
     parts = [initial_record(scene)]
+    route = legs(mission)
     state, t, steps, wall, arrived = scene, 0.0, 0, 0.0, False
+    leg, leg_times = route[0], []
+    state = replace(state, target=leg.end_m)
     while steps < total_steps and not arrived:
         n = min(PROGRESS_CHUNKS * chunk, total_steps - steps)
         start = time.perf_counter()
-        result = advance(state, dt, n, method=method, t0=t, chunk_steps=chunk)
+        result = advance(state, dt, n, method=method, t0=t, chunk_steps=chunk,
+                         goal_radius_m=leg.radius_m, finish_normal=leg.finish_normal)  # fmt: skip
         wall += time.perf_counter() - start
         parts.append(result.trajectory)
         state, arrived = result.scene, result.arrived
         steps += result.steps
         t = result.t_s
+        if arrived and not leg.final:  # on to the next leg
+            leg_times.append(round(t, 3))
+            leg, arrived = route[leg.index + 1], False
+            state = replace(state, target=leg.end_m)
         if progress is not None:
             progress(t)
     trajectory = Trajectory.concatenate(parts)
     metrics = compute_metrics(trajectory, flight_context(mission, scene), planning_wall_time_s=wall)
     metrics["method"] = method
     metrics["dt_s"] = dt
-    return PlanRun(method, dt, scene, trajectory, arrived, wall, metrics)
+    if mission.route:
+        metrics["waypoint_times_s"] = leg_times
+    waypoints = np.array([w.position for w in mission.route], dtype=float).reshape(-1, 3)
+    return PlanRun(method, dt, scene, trajectory, arrived, wall, metrics, waypoints)

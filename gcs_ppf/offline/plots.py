@@ -176,6 +176,11 @@ def paths_3d(run: PlanRun, path: Path) -> None:
     starts = tr.pos[0]
     ax.scatter(starts[:, 0], starts[:, 1], starts[:, 2], color="red", marker="o", s=25)
     ax.scatter(*run.scene.target, color="red", marker="^", s=60, label="target")
+    if len(run.waypoints):  # the leader's route, waypoint by waypoint to the target
+        route = np.vstack([run.waypoints, run.scene.target])
+        ax.plot(route[:, 0], route[:, 1], route[:, 2], color="red", ls=":", lw=1.0)
+        w = run.waypoints
+        ax.scatter(w[:, 0], w[:, 1], w[:, 2], color="red", marker="s", s=30, label="waypoints")
     ax.set_xlabel("x east (m)")
     ax.set_ylabel("y north (m)")
     ax.set_zlabel("z up (m)")

@@ -114,6 +114,8 @@ def advance(
     t0: float = 0.0,
     mates: MateSearch = "auto",
     chunk_steps: int | None = None,
+    goal_radius_m: float | None = None,
+    finish_normal: FloatArray | None = None,
 ) -> Advance:
     """Run ``n_steps`` planner steps of ``dt`` seconds from ``scene`` (stopping early when
     the leader reaches the target).  Records every ``record_every``-th step and the last;
@@ -122,7 +124,10 @@ def advance(
     choice gives the same plan.  With ``chunk_steps``, the result is exactly that of calls
     of ``chunk_steps`` steps one after the other, each from the last one's scene and time
     (``t_s``), their trajectories joined: the same plan, recorded from each chunk's start,
-    its times the same floating-point sums (``run_chunks``), in one call."""
+    its times the same floating-point sums (``run_chunks``), in one call.  The leader
+    reaches ``scene.target`` within ``goal_radius_m`` (the target accuracy if None; 0:
+    never) or across the finish line square to ``finish_normal`` (a route leg's end;
+    ``gcs_ppf.planning.route``)."""
     if dt <= 0.0 or n_steps < 0 or record_every < 1 or (chunk_steps or 1) < 1:
         raise ValueError(
             "advance: dt > 0, n_steps >= 0, record_every >= 1 and chunk_steps >= 1 are required"
@@ -136,12 +141,14 @@ def advance(
         _room_for_records(k, n)
     )
     f, o, code = fleet, obstacles, PPF if method == "ppf" else APF
+    radius = scene.limits.target_accuracy if goal_radius_m is None else float(goal_radius_m)
+    finish = np.zeros(3) if finish_normal is None else np.asarray(finish_normal, dtype=float)
     if chunk_steps is None:
         steps, records, elapsed, arrived = run_fleet(
             f.pos, f.pitch, f.yaw, f.speed, f.slot, f.rank, f.active, o.center, o.radius,
             o.velocity, scene.target, scene.limits, float(dt), code, int(n_steps),
             int(record_every), rec_t, rec_pos, rec_pitch, rec_yaw, rec_speed, rec_state,
-            rec_avoiding, rec_formed, _MATE_SEARCH[mates],
+            rec_avoiding, rec_formed, _MATE_SEARCH[mates], radius, finish,
         )  # fmt: skip
         t_s, times = t0 + elapsed, t0 + rec_t[:records]
     else:
@@ -149,7 +156,7 @@ def advance(
             f.pos, f.pitch, f.yaw, f.speed, f.slot, f.rank, f.active, o.center, o.radius,
             o.velocity, scene.target, scene.limits, float(dt), code, int(n_steps),
             int(record_every), int(chunk_steps), float(t0), rec_t, rec_pos, rec_pitch, rec_yaw,
-            rec_speed, rec_state, rec_avoiding, rec_formed, _MATE_SEARCH[mates],
+            rec_speed, rec_state, rec_avoiding, rec_formed, _MATE_SEARCH[mates], radius, finish,
         )  # fmt: skip
         elapsed, times = t_s - t0, rec_t[:records]
     trajectory = Trajectory(

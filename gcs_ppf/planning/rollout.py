@@ -68,6 +68,26 @@ def wrap_angle(a: float) -> float:
 
 
 @njit(cache=True)
+def finish_line_fraction(
+    start: np.ndarray, end: np.ndarray, waypoint: np.ndarray, normal: np.ndarray
+) -> float:
+    """Fraction s ∈ [0, 1] of the step start → end at which it crosses the plane through
+    ``waypoint`` square to ``normal`` (a route leg's finish line, ArduPlane's way of
+    counting a waypoint passed wide as reached), or −1 if it does not cross it forwards;
+    −1 always for a zero ``normal`` (no finish line: the route's target)."""
+    a = 0.0
+    b = 0.0
+    for c in range(3):
+        a += (start[c] - waypoint[c]) * normal[c]
+        b += (end[c] - waypoint[c]) * normal[c]
+    if normal[0] == 0.0 and normal[1] == 0.0 and normal[2] == 0.0:
+        return -1.0
+    if a < 0.0 <= b:
+        return a / (a - b)
+    return -1.0
+
+
+@njit(cache=True)
 def cut_step_at(
     s: float,
     pos: np.ndarray,
@@ -181,6 +201,7 @@ def run_steps(
     direction: np.ndarray, local_target: np.ndarray, next_motion: np.ndarray,
     near_start: np.ndarray, near_obstacles: np.ndarray, mate_start: np.ndarray,
     mates: np.ndarray, prev_pos: np.ndarray, prev_motion: np.ndarray, trig: np.ndarray,
+    goal_radius: float, finish: np.ndarray,
 ) -> tuple[int, int, float, bool]:  # fmt: skip
     """Steps ``first`` to ``last`` − 1 of ``run_fleet`` (of ``n_steps``) with the neighbour
     lists as they are, recording and stopping at the leader's arrival as ``run_fleet``
@@ -205,7 +226,9 @@ def run_steps(
                 obs_velocity, target, lim, dt, state, avoiding, formed, direction,
                 local_target, next_motion,
             )  # fmt: skip
-        s = leader_arrival_fraction(prev_pos[0], pos[0], target, lim.target_accuracy)
+        s = leader_arrival_fraction(prev_pos[0], pos[0], target, goal_radius)
+        if s < 0.0:
+            s = finish_line_fraction(prev_pos[0], pos[0], target, finish)
         arrived = s >= 0.0
         if arrived:
             cut_step_at(s, pos, pitch, yaw, speed, active, prev_pos, prev_motion,
@@ -229,9 +252,12 @@ def run_fleet(
     obs_velocity: np.ndarray, target: np.ndarray, lim: KernelLimits, dt: float, method: int,
     n_steps: int, record_every: int, rec_dt: np.ndarray, rec_pos: np.ndarray,
     rec_pitch: np.ndarray, rec_yaw: np.ndarray, rec_speed: np.ndarray, rec_state: np.ndarray,
-    rec_avoiding: np.ndarray, rec_formed: np.ndarray, mate_search: int,
+    rec_avoiding: np.ndarray, rec_formed: np.ndarray, mate_search: int, goal_radius: float,
+    finish: np.ndarray,
 ) -> tuple[int, int, float, bool]:  # fmt: skip
-    """Run up to ``n_steps`` steps in place, stopping when the leader reaches the target.
+    """Run up to ``n_steps`` steps in place, stopping when the leader reaches the target:
+    within ``goal_radius`` of it, or across its finish line (``finish``, the normal of the
+    plane through it; zeros for none: ``finish_line_fraction``).
 
     ``mate_search`` is how PPF finds the teammates a vehicle looks at (``nearby_teammates``:
     ``MATES_ALL_PAIRS``, ``MATES_GRID`` or ``MATES_AUTO``; the plan is the same).
@@ -277,6 +303,7 @@ def run_fleet(
             rec_dt, rec_pos, rec_pitch, rec_yaw, rec_speed, rec_state, rec_avoiding,
             rec_formed, state, avoiding, formed, direction, local_target, next_motion,
             near_start, near_obstacles, step_start, step_mates, prev_pos, prev_motion, trig,
+            goal_radius, finish,
         )  # fmt: skip
     return step, records, elapsed, arrived
 
@@ -289,6 +316,7 @@ def run_chunks(
     n_steps: int, record_every: int, chunk_steps: int, t0: float, rec_t: np.ndarray,
     rec_pos: np.ndarray, rec_pitch: np.ndarray, rec_yaw: np.ndarray, rec_speed: np.ndarray,
     rec_state: np.ndarray, rec_avoiding: np.ndarray, rec_formed: np.ndarray, mate_search: int,
+    goal_radius: float, finish: np.ndarray,
 ) -> tuple[int, int, float, bool]:  # fmt: skip
     """``run_fleet`` ``chunk_steps`` steps at a time, exactly as that many calls of it one
     after the other: each chunk records from its own start (``record_every``), its record
@@ -302,7 +330,7 @@ def run_chunks(
             pos, pitch, yaw, speed, slot, rank, active, obs_center, obs_radius, obs_velocity,
             target, lim, dt, method, n, record_every, rec_t[records:], rec_pos[records:],
             rec_pitch[records:], rec_yaw[records:], rec_speed[records:], rec_state[records:],
-            rec_avoiding[records:], rec_formed[records:], mate_search,
+            rec_avoiding[records:], rec_formed[records:], mate_search, goal_radius, finish,
         )  # fmt: skip
         for r in range(records, records + written):
             rec_t[r] = t + rec_t[r]

@@ -15,6 +15,7 @@ from numpy.typing import NDArray
 
 from gcs_ppf.mission import Limits, Mission, Vehicle
 from gcs_ppf.planning.ppf.kernel import KernelLimits
+from gcs_ppf.planning.turns import formation_turn_limits
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -107,7 +108,10 @@ def obstacles_from_mission(mission: Mission) -> Obstacles:
 
 
 def scene_from_mission(mission: Mission) -> Scene:
-    """Arrays of a validated mission: leader at index 0, wingmen by priority."""
+    """Arrays of a validated mission: leader at index 0, wingmen by priority; the leader's
+    turns those its formation follows if the mission holds them (``gcs_ppf.planning.turns``).
+    The target is the mission's: the shells fly a route leg by leg
+    (``gcs_ppf.planning.route``)."""
     by_priority = sorted(mission.vehicles, key=_priority_key)
     rank_of = {v.id: r for r, v in enumerate(by_priority)}
     ordered = [mission.leader] + [v for v in by_priority if v.role != "leader"]
@@ -122,9 +126,12 @@ def scene_from_mission(mission: Mission) -> Scene:
         rank=np.array([rank_of[v.id] for v in ordered], dtype=np.int64),
         active=np.ones(len(ordered), dtype=bool),
     )
+    limits = kernel_limits(lim, mission.ground)
+    if mission.holds_turns:
+        limits = formation_turn_limits(limits, fleet.slot[1:])
     return Scene(
         fleet=fleet,
         obstacles=obstacles_from_mission(mission),
         target=np.array(mission.target, dtype=float),
-        limits=kernel_limits(lim, mission.ground),
+        limits=limits,
     )

@@ -14,6 +14,7 @@ import math
 import statistics
 import time
 from collections import deque
+from typing import Any
 
 import numpy as np
 
@@ -25,6 +26,7 @@ from gcs_ppf.guidance.online import VehicleState, clearance, home_ground, separa
 from gcs_ppf.guidance.tick_plan import passes_within, traffic_radius_m
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_HEADING
+from gcs_ppf.planning.route import leg_flown
 from gcs_ppf.planning.scene import FloatArray, Obstacles, obstacles_from_mission
 from gcs_ppf.service import commanding, launch
 from gcs_ppf.service.ending import end, hold_during_launch
@@ -260,7 +262,8 @@ async def tick(station: Station, run: Run) -> bool:
 
     leader_pos = np.array(reported[leader_id])
     previous, run.leader_pos = run.leader_pos, leader_pos
-    if passes_within(
+    follow_route(station, run, previous, leader_pos)
+    if run.legs[run.leg].final and passes_within(
         previous, leader_pos, np.array(mission.target), mission.limits.target_accuracy
     ):
         end(station, run, RunState.COMPLETED, "leader reached the target", states)
@@ -281,6 +284,19 @@ async def tick(station: Station, run: Run) -> bool:
         obstacles = obedience.with_obstacles(obstacles, traffic)
     await plan_and_command(station, run, airframes, states, active, obstacles, ground)
     return False
+
+
+def follow_route(station: Station, run: Run, previous: Any, leader_pos: FloatArray) -> None:
+    """On to the route's next leg once the leader, as reported, has flown this one
+    (``route.leg_flown``): a ``waypoint_reached`` event with the waypoint's index."""
+    leg = run.legs[run.leg]
+    if leg.final or not leg_flown(leg, previous, leader_pos):
+        return
+    run.leg += 1
+    run.waypoint_times_s.append(round(run.mission_time_s, 3))
+    distance_m = round(float(np.linalg.norm(leader_pos - leg.end_m)), 1)
+    station.event(run, "waypoint_reached", run.mission.leader.id, waypoint=leg.index,
+                  legs=len(run.legs), distance_m=distance_m)  # fmt: skip
 
 
 def watch_formation(station: Station, run: Run, reporting: Located, together: FloatArray) -> None:
@@ -329,7 +345,7 @@ async def plan_and_command(
     planning = speed_reference.reference_states(states, reference, run.mission_time_s)
     g, ordered = tick_plan.plan(
         mission, planning, active, obstacles, ground, airframes,
-        tick_plan.Tuning.of(settings), lagging_s, run.last,
+        tick_plan.Tuning.of(settings), lagging_s, run.last, run.legs[run.leg],
     )  # fmt: skip
     held = follows and speed_reference.formation_holds(g, lim.target_accuracy, run.formation_held)
     run.formation_held = held

@@ -16,6 +16,7 @@ from gcs_ppf.guidance.formation_watch import FormationWatch
 from gcs_ppf.guidance.online import Guidance
 from gcs_ppf.guidance.speed_reference import SpeedPlan
 from gcs_ppf.mission import Mission
+from gcs_ppf.planning.route import Leg, legs
 from gcs_ppf.service import commanding
 from gcs_ppf.service.store import StoredRun
 
@@ -65,6 +66,12 @@ class Run:
     """The formation is held: the leader keeps its speed (``speed_reference.leader_held``)."""
     min_separation_m: float | None = None
     min_clearance_m: float | None = None
+    legs: list[Leg] = field(init=False)
+    """The leader's route, leg by leg (``gcs_ppf.planning.route``); one leg without one."""
+    leg: int = 0
+    """The leg the leader flies now (an index into ``legs``)."""
+    waypoint_times_s: list[float] = field(default_factory=list)
+    """Mission time at which each waypoint of the route was reached."""
     formation: FormationWatch = field(init=False)
     """The formation flown (``guidance.formation_watch``): each wingman's slot error from
     the reported positions every tick, formed or broken, the run's formation figures."""
@@ -97,6 +104,7 @@ class Run:
 
     def __post_init__(self) -> None:
         self.formation = FormationWatch(self.mission.limits.target_accuracy)
+        self.legs = legs(self.mission)
 
 
 RECENT_GAPS = 50
@@ -137,6 +145,7 @@ def summary(run: Run) -> dict[str, Any]:
         "tick_latency_ms": latency_ms(run),
         "worst_lag_s": round(run.lag_budget.worst_s, 3),
         "formation": run.formation.figures().as_dict(),
+        "waypoint_times_s": list(run.waypoint_times_s),
     }
 
 
@@ -164,6 +173,7 @@ def status(run: Run) -> dict[str, Any]:
         "mission_time_s": round(run.mission_time_s, 3),
         "formation_formed": run.formation.formed,
         "formation": run.formation.status(),
+        "leg": leg_status(run),
         "min_separation_m": run.min_separation_m,
         "min_obstacle_clearance_m": run.min_clearance_m,
         "safety_violations": run.safety.count,
@@ -175,6 +185,18 @@ def status(run: Run) -> dict[str, Any]:
             "over_budget": run.lag_budget.over,
         },
         "vehicles": per_vehicle,
+    }
+
+
+def leg_status(run: Run) -> dict[str, Any]:
+    """The leg of the route the leader flies: its index, of how many, where it ends."""
+    leg = run.legs[run.leg]
+    return {
+        "index": leg.index,
+        "of": len(run.legs),
+        "to_m": [round(float(c), 2) for c in leg.end_m],
+        "final": leg.final,
+        "waypoint_times_s": list(run.waypoint_times_s),
     }
 
 

@@ -85,6 +85,8 @@ function buildScene() {
   return {
     obstacles,
     target_m: own ? (Array.isArray(doc.target) && doc.target.every(Number.isFinite) ? doc.target : null) : f && f.target_m,
+    route: validRoute(own ? doc.route : f && f.route),
+    leg: run && run.leg ? run.leg.index : null,
     accuracy_m: limits ? limits.target_accuracy : 10,
     ground: doc ? doc.ground : null,
     limits,
@@ -265,7 +267,8 @@ function updateHeader(scene) {
   pill.dataset.state = run ? run.state : "none";
   pill.textContent = run ? `mission ${run.mission_id}: ${run.state}` : "no run";
   pill.title = run && run.outcome ? run.outcome : "";
-  $("mission-time").textContent = run && run.mission_time_s !== undefined ? `${run.mission_time_s.toFixed(1)} s` : "–";
+  const leg = run && run.leg && run.leg.of > 1 ? ` · leg ${run.leg.index + 1}/${run.leg.of}` : "";
+  $("mission-time").textContent = run && run.mission_time_s !== undefined ? `${run.mission_time_s.toFixed(1)} s${leg}` : "–";
   const lim = scene.limits;
   const active = run && ACTIVE.has(run.state);
   const sepNow = active ? nowSeparation(scene.vehicles) : null;
@@ -501,6 +504,12 @@ function deleteObstacle(index) {
   state.obstaclesDirty = true;
   renderMission();
   staleEdit();
+}
+
+// The route's waypoints that can be drawn (a document being edited may hold others).
+function validRoute(route) {
+  return (Array.isArray(route) ? route : []).filter((w) => w && Array.isArray(w.position) &&
+    w.position.length === 3 && w.position.every(Number.isFinite));
 }
 
 function highlightObstacleRow() {
@@ -819,6 +828,8 @@ function replayScene() {
       return g;
     }),
     target_m: r.mission.target,
+    route: validRoute(r.mission.route),
+    leg: null,
     accuracy_m: lim.target_accuracy,
     ground: r.mission.ground,
     limits: lim,

@@ -143,6 +143,7 @@ export class TopView {
     };
     for (const o of s.obstacles || []) add(o.center_m[0], o.center_m[1], o.keep_out_m || o.radius_m);
     if (s.target_m) add(s.target_m[0], s.target_m[1], 100);
+    for (const w of s.route || []) add(w.position[0], w.position[1], w.acceptance_radius || 100);
     for (const v of s.starts || []) add(v.pos[0], v.pos[1], 100);
     for (const v of s.vehicles || []) if (v.pos_m) add(v.pos_m[0], v.pos_m[1], 100);
     for (const id in s.plan || {}) for (const p of s.plan[id].position_m) add(p[0], p[1]);
@@ -307,6 +308,33 @@ export class TopView {
         else ctx.moveTo(x, y);
       });
       ctx.stroke();
+    }
+
+    // The leader's route: its waypoints with their acceptance radii, joined up to the
+    // target; the leg flown now drawn bold.
+    const route = s.route || [];
+    if (route.length && s.target_m) {
+      const pts = [...route.map((w) => w.position), s.target_m];
+      ctx.strokeStyle = col.target;
+      pts.slice(1).forEach((p, j) => {
+        const [ax, ay] = this.toScreen(pts[j][0], pts[j][1]);
+        const [bx, by] = this.toScreen(p[0], p[1]);
+        ctx.lineWidth = (s.leg === j + 1 ? 3 : 1) * dpr;
+        ctx.setLineDash([6 * dpr, 4 * dpr]);
+        ctx.beginPath(); ctx.moveTo(ax, ay); ctx.lineTo(bx, by); ctx.stroke();
+      });
+      ctx.setLineDash([]);
+      route.forEach((w, j) => {
+        const [x, y] = this.toScreen(w.position[0], w.position[1]);
+        ctx.lineWidth = (s.leg === j ? 3 : 1.5) * dpr;
+        ctx.beginPath();
+        ctx.arc(x, y, Math.max(5 * dpr, (w.acceptance_radius || 100) * k), 0, 2 * Math.PI);
+        ctx.stroke();
+        ctx.fillStyle = col.target;
+        ctx.font = font(12);
+        ctx.textAlign = "left";
+        ctx.fillText(`WP${j + 1}`, x + 8 * dpr, y - 6 * dpr);
+      });
     }
 
     // The leader's target and its accuracy.

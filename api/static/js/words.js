@@ -12,6 +12,7 @@ const WORDS = {
   run_failed: (e) => `Run FAILED: ${d(e).outcome || ""}`,
   formation_formed: () => "Formation formed: every wingman at its slot",
   formation_broken: () => "Formation broken",
+  waypoint_reached: (e) => `Waypoint ${d(e).waypoint + 1} reached (${d(e).distance_m} m off): leg ${d(e).waypoint + 2} of ${d(e).legs}`,
   avoidance_entered: (e) => `${v(e)} avoiding (inside an influence sphere)`,
   avoidance_left: (e) => `${v(e)} clear again`,
   conflict_resolution_began: (e) => `${v(e)}: conflict with a teammate, vertical resolution`,
@@ -32,7 +33,7 @@ const WORDS = {
 };
 
 const LEVEL = {
-  run_completed: "ok", formation_formed: "ok", vehicle_responding: "ok",
+  run_completed: "ok", formation_formed: "ok", vehicle_responding: "ok", waypoint_reached: "ok",
   run_completed_unsafe: "bad", run_aborted: "warn", run_failed: "bad", vehicle_lost: "bad",
   vehicle_not_responding: "bad", safety_violation: "bad", takeoff_failed: "bad",
   formation_broken: "warn", avoidance_entered: "warn", conflict_resolution_began: "warn",

@@ -231,7 +231,8 @@ def speed_trend(
 ) -> tuple[float, int]:
     """The speed entry f_l of the trend matrix (Eq. 19): the sign of F_v^x (``along_field``),
     except that the leader slows to ``wait_speed`` while the formation forms (s3, Eq. 24;
-    see ``formation_targets``), and
+    see ``formation_targets``) and otherwise, nothing repelling it, keeps its
+    ``leader_cruise_speed`` when it has one (``gcs_ppf.planning.turns``), and
     a wingman that nothing repels brakes so as to arrive at the leader's speed (Eq. 21–23
     relative to its moving local target point, ``catching_up_speed``; s3 once
     d_i ≤ Δd'_i) or, with its slot behind it, gives the ground back (``falling_back_speed``);
@@ -245,6 +246,10 @@ def speed_trend(
         if wait_speed > 0.0:
             a_cmd = lim.accel if wait_speed >= speed[0] else lim.decel
             return trend(wait_speed - speed[0], a_cmd, dt), S3_FORMATION
+        if not repelled and lim.leader_cruise_speed < lim.v_max:  # turning in formation
+            cruise = max(lim.leader_cruise_speed, lim.v_min)
+            a_cmd = lim.accel if cruise >= speed[0] else lim.decel
+            return trend(cruise - speed[0], a_cmd, dt), state
         return f_speed, state
     if repelled or not along_field > 0.0:
         return f_speed, state

@@ -313,17 +313,19 @@ def fleet_step(
             fx, fy, fz = rx, ry, rz
         elif hold_course:
             fx, fy, fz = direction[i, 0], direction[i, 1], direction[i, 2]
-        # Trend matrix f (Eq. 16–20): pitch and yaw; speed (Eq. 21–24); kinematics (Eq. 3–5).
+        # Trend matrix f (Eq. 16–20): pitch and yaw; speed (Eq. 21–24); kinematics (Eq. 3–5),
+        # the leader following its target within ``leader_limits``.
+        own_lim = leader_lim if i == 0 and not repelled else lim
         f_pitch, f_yaw, along_field, s = steer(
             fx, fy, fz, rx, ry, rz, ox, oy, oz, moving_obstacle or mate, pos[i, 2], speed[i],
-            pitch[i], yaw[i], cp, sp, cy, sy, leader_lim if i == 0 and not repelled else lim, dt,
+            pitch[i], yaw[i], cp, sp, cy, sy, own_lim, dt,
         )  # fmt: skip
         f_speed, state[i] = speed_trend(
             i, along_field, repelled, wait_speed, pos, speed, ax, ay, az, direction,
             formed, lim, dt, s,
         )  # fmt: skip
         next_motion[i, 0], next_motion[i, 1], next_motion[i, 2] = kinematics(
-            speed[i], pitch[i], yaw[i], f_speed, f_pitch, f_yaw, lim, dt
+            speed[i], pitch[i], yaw[i], f_speed, f_pitch, f_yaw, own_lim, dt
         )
     for i in range(pos.shape[0]):  # Eq. 5: every vehicle flies its new motion
         if active[i]:

@@ -60,6 +60,11 @@ class KernelLimits(NamedTuple):
     π/2 for the paper's vehicles, whose pitch is limited by Eq. 1 only."""
     max_dive_angle: float = math.pi / 2
     """Steepest flight-path angle down, as a positive angle (ArduPlane −PTCH_LIM_MIN_DEG)."""
+    leader_cruise_speed: float = math.inf
+    """The speed the leader keeps while it follows its target (∞: the paper's leader, which
+    speeds up to v_max once formed); ``gcs_ppf.planning.turns`` for a formation that turns."""
+    leader_turn_rate: float = math.inf
+    """The fastest the leader turns while it follows its target (∞: ``max_yaw_rate``)."""
 
 
 @njit(cache=True)
@@ -93,14 +98,17 @@ def leader_limits(lim: KernelLimits) -> KernelLimits:
     and, in the same way, leaves its wingmen room to climb and dive.  Planned with
     ArduPlane's +20°/−25°, neither Table 2 nor Table 3 formed offline (a wingman stayed
     ~100 m below its slot through the climb).  Avoiding an obstacle, it keeps the whole
-    envelope (``fleet_step``)."""
-    if not airframe_limited(lim):
-        return lim
+    envelope (``fleet_step``).  Its yaw rate is kept to ``leader_turn_rate``: the turn
+    its formation can follow (``gcs_ppf.planning.turns``)."""
+    climb, dive = lim.max_climb_angle, lim.max_dive_angle
+    if airframe_limited(lim):
+        climb = min(lim.max_climb_angle, MAX_AVOID_PITCH) * LEADER_PATH_ANGLE_SHARE
+        dive = min(lim.max_dive_angle, MAX_AVOID_PITCH) * LEADER_PATH_ANGLE_SHARE
     return KernelLimits(
-        lim.v_min, lim.v_max, lim.accel, lim.decel, lim.max_pitch_rate, lim.max_yaw_rate,
-        lim.target_accuracy, lim.safe_distance_uav, lim.safe_distance_obstacle, lim.ground,
-        min(lim.max_climb_angle, MAX_AVOID_PITCH) * LEADER_PATH_ANGLE_SHARE,
-        min(lim.max_dive_angle, MAX_AVOID_PITCH) * LEADER_PATH_ANGLE_SHARE,
+        lim.v_min, lim.v_max, lim.accel, lim.decel, lim.max_pitch_rate,
+        min(lim.max_yaw_rate, lim.leader_turn_rate), lim.target_accuracy,
+        lim.safe_distance_uav, lim.safe_distance_obstacle, lim.ground, climb, dive,
+        lim.leader_cruise_speed, lim.leader_turn_rate,
     )  # fmt: skip
 
 

@@ -350,11 +350,11 @@ def _wanted_direction(
 
 def _turn_trends(
     fv: FloatArray, d: FloatArray, lowest: FloatArray, pitch: FloatArray, yaw: FloatArray,
-    a: Attitude, r: Repulsion, lim: KernelLimits, dt: float,
+    a: Attitude, r: Repulsion, lim: KernelLimits, dt: float, yaw_rate: FloatArray,
 ) -> tuple[FloatArray, FloatArray]:  # fmt: skip
     """Eq. 19 (erratum 2), saturated: the pitch and yaw entries of the trend matrix, the
     yaw never turning further towards a repelling obstacle when the other sense does not
-    (the kernel's ``away_from_obstacles``)."""
+    (the kernel's ``away_from_obstacles``); ``yaw_rate`` [N] each vehicle's ω_ψ."""
     fvx, fvy, fvz = fv.T
     elevation = np.arctan2(fvz, np.hypot(fvx, fvy))
     behind = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1])) - pitch
@@ -365,11 +365,11 @@ def _turn_trends(
     azimuth = np.where(np.abs(fvy) > SIDEWAYS_EPS * wanted, np.arctan2(fvy, fvx), 0.0)
     azimuth = np.where((fvx < 0) & (azimuth == 0.0), math.pi, azimuth)
     f_pitch = np.clip(elevation / (lim.max_pitch_rate * dt), -1, 1)
-    f_yaw = np.clip(azimuth / (lim.max_yaw_rate * dt), -1, 1)
+    f_yaw = np.clip(azimuth / (yaw_rate * dt), -1, 1)
     o = r.obstacles
     now = (a.u * o).sum(1)
     th = pitch + f_pitch * lim.max_pitch_rate * dt
-    turn = f_yaw * lim.max_yaw_rate * dt
+    turn = f_yaw * yaw_rate * dt
 
     def towards(psi: FloatArray) -> FloatArray:
         along: FloatArray = np.cos(th) * (np.cos(psi) * o[:, 0] + np.sin(psi) * o[:, 1])
@@ -395,6 +395,10 @@ def _speed_trend(
         a_wait = lim.accel if f.wait_speed >= speed[0] else lim.decel
         f_speed[0] = np.clip((f.wait_speed - speed[0]) / (a_wait * dt), -1.0, 1.0)
         state[0] = S3_FORMATION
+    elif not repelled[0] and lim.leader_cruise_speed < lim.v_max:  # turning in formation
+        cruise = max(lim.leader_cruise_speed, lim.v_min)
+        a_cruise = lim.accel if cruise >= speed[0] else lim.decel
+        f_speed[0] = np.clip((cruise - speed[0]) / (a_cruise * dt), -1.0, 1.0)
     follow = f.wingman & ~repelled & (along_field > 0)
     along = (aim - pos) @ a.u[0]  # to the point made for, along the leader's track
     gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
@@ -414,13 +418,14 @@ def _speed_trend(
 def _kinematics(
     pos: FloatArray, pitch: FloatArray, yaw: FloatArray, speed: FloatArray, active: BoolArray,
     f_speed: FloatArray, f_pitch: FloatArray, f_yaw: FloatArray, lim: KernelLimits, dt: float,
+    yaw_rate: FloatArray,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:  # fmt: skip
-    """Eq. 3–5: the new speed, pitch and yaw within their limits, and one step of flight;
-    inactive vehicles keep theirs."""
+    """Eq. 3–5: the new speed, pitch and yaw within their limits (``yaw_rate`` [N] each
+    vehicle's ω_ψ), and one step of flight; inactive vehicles keep theirs."""
     a_l = np.where(f_speed > 0, lim.accel, lim.decel)
     new_speed = np.clip(speed + f_speed * a_l * dt, lim.v_min, lim.v_max)
     new_pitch = np.clip(pitch + f_pitch * lim.max_pitch_rate * dt, -math.pi / 2, math.pi / 2)
-    new_yaw = yaw + f_yaw * lim.max_yaw_rate * dt
+    new_yaw = yaw + f_yaw * yaw_rate * dt
     new_yaw = np.where(new_yaw > math.pi, new_yaw - 2 * math.pi, new_yaw)
     new_yaw = np.where(new_yaw <= -math.pi, new_yaw + 2 * math.pi, new_yaw)
     keep_old = ~active
@@ -452,7 +457,10 @@ def reference_step(
     field = _field(follow, a, r)
     fv, d, lowest, s2, along_field = _wanted_direction(field, pos, speed, a, r, lim, dt)
     state = np.where(s2, S2_LOCAL_MINIMUM, S1_FOLLOW).astype(np.int64)
-    f_pitch, f_yaw = _turn_trends(fv, d, lowest, pitch, yaw, a, r, lim, dt)
+    yaw_rate = np.full(pos.shape[0], lim.max_yaw_rate)
+    if not (r.rep[0] != 0).any():  # the leader following its target (``leader_limits``)
+        yaw_rate[0] = leader_limits(lim).max_yaw_rate
+    f_pitch, f_yaw = _turn_trends(fv, d, lowest, pitch, yaw, a, r, lim, dt, yaw_rate)
     f_speed = _speed_trend(along_field, pos, aim, speed, a, f, r, state, lim, dt)
-    new = _kinematics(pos, pitch, yaw, speed, active, f_speed, f_pitch, f_yaw, lim, dt)
+    new = _kinematics(pos, pitch, yaw, speed, active, f_speed, f_pitch, f_yaw, lim, dt, yaw_rate)
     return (*new, state)
