@@ -15,9 +15,10 @@ from hypothesis import strategies as st
 from gcs_ppf.mission import MissionError, load_mission, load_mission_file
 from gcs_ppf.offline.plan import plan_mission
 from gcs_ppf.planning.metrics import local_target_points
+from gcs_ppf.planning.planner import Trajectory
 from gcs_ppf.planning.ppf.primitives import KernelLimits
 from gcs_ppf.planning.route import leg_flown, legs
-from gcs_ppf.planning.scene import scene_from_mission
+from gcs_ppf.planning.scene import FloatArray, scene_from_mission
 from gcs_ppf.planning.turns import slot_turn_rates, turn_envelope
 
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
@@ -85,23 +86,24 @@ def test_a_document_without_a_route_is_the_papers_leader() -> None:
     assert load_mission_file(EXAMPLES / "arduplane_route_3.json").holds_turns
 
 
-def slot_speeds(v: float, omega: float, slots: np.ndarray) -> np.ndarray:
+def slot_speeds(v: float, omega: float, slots: FloatArray) -> FloatArray:
     """Speeds of the slots of a leader flying at v and turning at omega, by differentiating
     their positions over a short time (independent of the closed form in turns.py)."""
     h = 1e-4
     out = []
     for s in slots:
 
-        def at(t: float, s: np.ndarray = s) -> np.ndarray:
+        def at(t: float, s: FloatArray = s) -> FloatArray:
             if omega == 0.0:
                 centre_pos, psi = np.array([v * t, 0.0]), 0.0
             else:
                 psi = omega * t
                 centre_pos = np.array([v / omega * math.sin(psi), v / omega * (1 - math.cos(psi))])
             c, sn = math.cos(psi), math.sin(psi)
-            return centre_pos + np.array([c * s[0] - sn * s[1], sn * s[0] + c * s[1]])
+            where: FloatArray = centre_pos + np.array([c * s[0] - sn * s[1], sn * s[0] + c * s[1]])
+            return where
 
-        out.append(np.linalg.norm(at(h) - at(-h)) / (2 * h))
+        out.append(float(np.linalg.norm(at(h) - at(-h))) / (2 * h))
     return np.array(out)
 
 
@@ -132,9 +134,10 @@ def test_the_cruise_speed_is_where_the_formation_turns_fastest() -> None:
     assert 16.0 < env.cruise_speed_m_s < 28.0
 
 
-def yaw_rates(tr: Any) -> np.ndarray:
+def yaw_rates(tr: Trajectory) -> FloatArray:
     dyaw = np.angle(np.exp(1j * np.diff(tr.yaw, axis=0)))
-    return np.abs(dyaw) / np.diff(tr.t)[:, None]
+    rates: FloatArray = np.abs(dyaw) / np.diff(tr.t)[:, None]
+    return rates
 
 
 @pytest.mark.parametrize("name", ["arduplane_route_3.json", "paper_table3_route.json"])
