@@ -232,6 +232,21 @@ def formation_time(t: FloatArray, in_place: NDArray[np.bool_]) -> float | None:
     return float(t[np.argmax(all_in_place)]) if all_in_place.any() else None
 
 
+def formation_share(t: FloatArray, in_place: NDArray[np.bool_]) -> float | None:
+    """The share of the flight after the formation first formed (``formation_time``) with
+    every wingman within the target accuracy of its local target point, each record
+    counting for the time to the next; None if it never formed."""
+    k, n = in_place.shape
+    together = in_place[:, 1:].all(axis=1) if n > 1 else np.ones(k, dtype=bool)
+    if not together.any() or k < 2:
+        return None
+    first = int(np.argmax(together))
+    dt = np.diff(t)[first:]
+    if dt.sum() <= 0.0:
+        return 1.0
+    return float((dt * together[first:-1]).sum() / dt.sum())
+
+
 def compute_metrics(
     trajectory: Trajectory,
     context: FlightContext,
@@ -267,6 +282,7 @@ def compute_metrics(
         "reached": bool(reached),
         "flight_time_s": float(t[-1]) if reached else None,
         "formation_time_s": formation_time(t, in_place),
+        "formation_share_after_forming": formation_share(t, in_place),
         "min_separation_m": float(safe.separation.min()) if n > 1 else None,
         "min_obstacle_clearance_m": float(safe.clearance.min()) if has_obstacles else None,
         "min_ground_clearance_m": (

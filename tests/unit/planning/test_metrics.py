@@ -14,6 +14,7 @@ from gcs_ppf.planning.metrics import (
     FlightContext,
     compute_metrics,
     direction_vectors,
+    formation_share,
     local_target_points,
 )
 from gcs_ppf.planning.planner import Trajectory
@@ -85,6 +86,7 @@ FORMULA_METRICS: dict[str, Any] = {
     "reached": False,
     "flight_time_s": None,
     "formation_time_s": None,
+    "formation_share_after_forming": None,
     "min_separation_m": 141.42135623730894,
     "min_obstacle_clearance_m": 226.4739195447005,
     "min_ground_clearance_m": -8.539764169267022,
@@ -167,3 +169,12 @@ def test_metrics_of_a_table3_flight_are_those_computed_before_the_split() -> Non
     assert list(m["per_vehicle"]) == ["1", "2", "3", "4", "5"]
     for vid, row in FORMULA_PER_VEHICLE.items():
         assert _agrees(m["per_vehicle"][vid], row), vid
+
+
+def test_the_share_in_formation_counts_from_the_first_forming() -> None:
+    t = np.array([0.0, 1.0, 2.0, 3.0, 4.0, 6.0])
+    # leader, two wingmen: formed at t = 1, broken over [3, 4), formed again from 4 to 6
+    in_place = np.array([[1, 0, 0], [1, 1, 1], [1, 1, 1], [1, 1, 0], [1, 1, 1], [1, 1, 1]],
+                        dtype=bool)  # fmt: skip
+    assert formation_share(t, in_place) == pytest.approx(4.0 / 5.0)
+    assert formation_share(t, np.zeros((6, 3), dtype=bool)) is None
