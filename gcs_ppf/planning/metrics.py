@@ -237,7 +237,7 @@ def formation_share(t: FloatArray, in_place: NDArray[np.bool_]) -> float | None:
     every wingman within the target accuracy of its local target point, each record
     counting for the time to the next; None if it never formed."""
     k, n = in_place.shape
-    together: NDArray[np.bool_] = in_place[:, 1:].all(axis=1) if n > 1 else np.ones(k, dtype=bool)
+    together = np.asarray(in_place[:, 1:].all(axis=1) if n > 1 else np.ones(k), dtype=bool)
     if not together.any() or k < 2:
         return None
     first = int(np.argmax(together))
