@@ -22,6 +22,7 @@ from gcs_ppf.planning.ppf.neighbours import (
     nearby_teammates,
     refine_teammates,
 )
+from gcs_ppf.planning.ppf.primitives import TRIG_COLUMNS
 
 PPF = 0
 APF = 1
@@ -146,7 +147,7 @@ def rollout_buffers(
         np.zeros(n + 1, dtype=np.int64),
         np.empty(4 * n, dtype=np.int64),
     )
-    trig = np.empty((n, 11))
+    trig = np.zeros((n, TRIG_COLUMNS))
     attitude_trig(pitch, yaw, trig)
     return scratch, lists, np.empty((n, 3)), np.empty((n, 3)), trig
 

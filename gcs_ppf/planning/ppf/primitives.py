@@ -38,6 +38,10 @@ CONFLICT_HORIZON_TURNS = 1.0  # teammate conflicts are looked for this many quar
 # A conflict this many quarter turns from its closest approach is one the vehicle giving way
 # has not solved alone: the one it gives way to gives way too (``teammate_conflicts``).
 YIELD_BACK_TURNS = 0.25
+IN_SLOT = 11
+"""The column of the kernel's ``trig[N,12]`` that holds 1.0 for a vehicle in its slot for
+the teammate conflict test (``slot_tolerance``; the leader always), else 0.0."""
+TRIG_COLUMNS = 12
 
 
 class KernelLimits(NamedTuple):
@@ -65,6 +69,12 @@ class KernelLimits(NamedTuple):
     speeds up to v_max once formed); ``gcs_ppf.planning.turns`` for a formation that turns."""
     leader_turn_rate: float = math.inf
     """The fastest the leader turns while it follows its target (∞: ``max_yaw_rate``)."""
+    slot_tolerance: float = 0.0
+    """A wingman this near its local target point counts as in its slot for the teammate
+    conflict test (``teammate_conflict``'s ``in_formation``), if more than the target
+    accuracy: flown closed loop the wingmen hover 10–20 m off their slots, and neighbours
+    whose slots are 141 m apart were conflicts whenever they closed at all (0: the target
+    accuracy, the paper's)."""
 
 
 @njit(cache=True)
@@ -87,7 +97,24 @@ follows its target (``leader_limits``)."""
 
 
 @njit(cache=True)
-def leader_limits(lim: KernelLimits) -> KernelLimits:
+def inside_turn(
+    px: float, py: float, cy: float, sy: float, speed: float, rate: float, tx: float, ty: float
+) -> bool:
+    """Whether the point (tx, ty) lies inside the circle a vehicle at (px, py) heading
+    (cos ψ, sin ψ) = (cy, sy) flies turning towards it at ``rate`` (plan view): no turn at
+    that rate ever reaches it."""
+    if not 0.0 < rate < math.inf:
+        return False
+    r = speed / rate
+    dx, dy = tx - px, ty - py
+    left = cy * dy - sy * dx >= 0.0
+    nx, ny = (-sy, cy) if left else (sy, -cy)
+    ex, ey = dx - r * nx, dy - r * ny
+    return ex * ex + ey * ey < r * r
+
+
+@njit(cache=True)
+def leader_limits(lim: KernelLimits, target_inside_turn: bool = False) -> KernelLimits:
     """The limits the leader follows its target with: its climb and dive angles kept to
     ``LEADER_PATH_ANGLE_SHARE`` of the airframe's where those bind (``airframe_limited``).
 
@@ -98,17 +125,20 @@ def leader_limits(lim: KernelLimits) -> KernelLimits:
     and, in the same way, leaves its wingmen room to climb and dive.  Planned with
     ArduPlane's +20°/−25°, neither Table 2 nor Table 3 formed offline (a wingman stayed
     ~100 m below its slot through the climb).  Avoiding an obstacle, it keeps the whole
-    envelope (``fleet_step``).  Its yaw rate is kept to ``leader_turn_rate``: the turn
-    its formation can follow (``gcs_ppf.planning.turns``)."""
+    envelope (``fleet_step``).  Its yaw rate is kept to ``leader_turn_rate``, the turn its
+    formation can follow (``gcs_ppf.planning.turns``), unless its target lies inside that
+    turn (``inside_turn``): a waypoint 500 m off a leader whose formation turns on 633 m
+    was circled for ever."""
     climb, dive = lim.max_climb_angle, lim.max_dive_angle
     if airframe_limited(lim):
         climb = min(lim.max_climb_angle, MAX_AVOID_PITCH) * LEADER_PATH_ANGLE_SHARE
         dive = min(lim.max_dive_angle, MAX_AVOID_PITCH) * LEADER_PATH_ANGLE_SHARE
     return KernelLimits(
         lim.v_min, lim.v_max, lim.accel, lim.decel, lim.max_pitch_rate,
-        min(lim.max_yaw_rate, lim.leader_turn_rate), lim.target_accuracy,
+        lim.max_yaw_rate if target_inside_turn else min(lim.max_yaw_rate, lim.leader_turn_rate),
+        lim.target_accuracy,
         lim.safe_distance_uav, lim.safe_distance_obstacle, lim.ground, climb, dive,
-        lim.leader_cruise_speed, lim.leader_turn_rate,
+        lim.leader_cruise_speed, lim.leader_turn_rate, lim.slot_tolerance,
     )  # fmt: skip
 
 

@@ -16,7 +16,7 @@ from gcs_ppf.mission import MissionError, load_mission, load_mission_file
 from gcs_ppf.offline.plan import plan_mission
 from gcs_ppf.planning.metrics import local_target_points
 from gcs_ppf.planning.planner import Trajectory
-from gcs_ppf.planning.ppf.primitives import KernelLimits
+from gcs_ppf.planning.ppf.primitives import KernelLimits, inside_turn
 from gcs_ppf.planning.route import leg_flown, legs
 from gcs_ppf.planning.scene import FloatArray, scene_from_mission
 from gcs_ppf.planning.turns import slot_turn_rates, turn_envelope
@@ -157,8 +157,18 @@ def test_the_route_examples_are_flown_in_order_safely(name: str) -> None:
     for leg, t in zip(legs(m), times, strict=False):
         k = int(np.searchsorted(tr.t, t))
         assert leg_flown(leg, tr.pos[k - 1, 0], tr.pos[k, 0])
-    # the leader, following its target, turns no faster than its formation can follow
-    free = ~tr.avoiding[:-1, 0] & ~tr.avoiding[1:, 0]
+    # the leader, following its target, turns no faster than its formation can follow,
+    # unless the target lies inside that turn
+    ends = [leg.end_m for leg in legs(m)]
+    leg_of = np.searchsorted(np.array(times), tr.t[:-1], side="right")
+    inside = np.array([
+        inside_turn(p[0], p[1], math.cos(y), math.sin(y), v, lim.leader_turn_rate,
+                    ends[k][0], ends[k][1])
+        for p, y, v, k in zip(tr.pos[:-1, 0], tr.yaw[:-1, 0], tr.speed[:-1, 0], leg_of,
+                              strict=True)
+    ])  # fmt: skip
+    free = ~tr.avoiding[:-1, 0] & ~tr.avoiding[1:, 0] & ~inside
+    assert free.mean() > 0.5
     assert yaw_rates(tr)[free, 0].max() <= lim.leader_turn_rate * (1 + 1e-6)
 
 
@@ -196,3 +206,13 @@ def test_any_route_is_flown_waypoint_by_waypoint_within_the_limits(
     assert run.metrics["max_speed_m_s"] <= lim.v_max + 1e-9
     assert run.metrics["min_speed_m_s"] >= lim.v_min - 1e-9
     assert run.metrics["max_yaw_rate_rad_s"] <= lim.max_yaw_rate * (1 + 1e-6)
+
+
+def test_a_point_inside_the_turn_circle_is_one_no_turn_at_that_rate_reaches() -> None:
+    # heading +x at 20 m/s turning at 0.05 rad/s: circles of 400 m radius centred 400 m
+    # to the left (0, 400) and to the right (0, -400)
+    assert inside_turn(0.0, 0.0, 1.0, 0.0, 20.0, 0.05, 100.0, 300.0)
+    assert inside_turn(0.0, 0.0, 1.0, 0.0, 20.0, 0.05, 100.0, -300.0)
+    assert not inside_turn(0.0, 0.0, 1.0, 0.0, 20.0, 0.05, 2000.0, 300.0)
+    assert not inside_turn(0.0, 0.0, 1.0, 0.0, 20.0, 0.05, -900.0, 0.0)  # behind, outside both
+    assert not inside_turn(0.0, 0.0, 1.0, 0.0, 20.0, math.inf, 100.0, 300.0)
