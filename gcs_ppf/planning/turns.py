@@ -16,7 +16,9 @@ the target accuracy ε:
     ω·|y| ≤ √(2·a·ε)
 
 (planned without it, ArduPlane's 3-vehicle route turned at the first two limits alone
-and the wingmen fell 25–33 m off their slots through each turn; with it, 16 m).
+and the wingmen fell 25–33 m off their slots through each turn; with it, 16 m, and 13 m
+with each wingman matching its slot's speed rather than the leader's:
+``formation.slot_point_speed``).
 
 The paper's leader speeds up to v_max once the formation has formed and turns at ω_max:
 no wingman with a lateral offset can then follow it round (the outer one would need more

@@ -218,6 +218,20 @@ def attraction(
 
 
 @njit(cache=True, inline="always")
+def slot_point_speed(
+    leader_speed: float, ux: float, uy: float, uz: float, turn_rate: float, rx: float, ry: float
+) -> float:
+    """The speed of a slot (r = (rx, ry) from the leader, plan view) of a leader flying at
+    ``leader_speed`` along (ux, uy, uz) and turning at ``turn_rate`` (rad/s, +: left): its
+    velocity is v₀u₀ + ω ẑ × r (``gcs_ppf.planning.turns``); the leader's speed when it
+    flies straight."""
+    vx = leader_speed * ux - turn_rate * ry
+    vy = leader_speed * uy + turn_rate * rx
+    vz = leader_speed * uz
+    return math.sqrt(vx * vx + vy * vy + vz * vz)
+
+
+@njit(cache=True, inline="always")
 def speed_trend(
     i: int,
     along_field: float,
@@ -233,6 +247,7 @@ def speed_trend(
     lim: KernelLimits,
     dt: float,
     state: int,
+    slot_speed: float,
 ) -> tuple[float, int]:
     """The speed entry f_l of the trend matrix (Eq. 19): the sign of F_v^x (``along_field``),
     except that the leader slows to ``wait_speed`` while the formation forms (s3, Eq. 24;
@@ -243,8 +258,10 @@ def speed_trend(
     d_i ≤ Δd'_i) or, with its slot behind it, gives the ground back (``falling_back_speed``);
     d_i is measured along the leader's track, to the point the wingman makes for
     (``attraction``: G_i or a crossing point), and the speed is what makes that good at
-    the angle the wingman flies to the track.  Returns (f_l, the vehicle's state:
-    ``state`` or s3).
+    the angle the wingman flies to the track.  The speed matched is ``slot_speed``, the
+    speed of the slot (``slot_point_speed``): the leader's, but in a held turn
+    (``gcs_ppf.planning.turns``) that of the slot swinging round with it.  Returns (f_l,
+    the vehicle's state: ``state`` or s3).
     """
     f_speed = 1.0 if along_field > 0.0 else (-1.0 if along_field < 0.0 else 0.0)
     if i == 0:
@@ -258,7 +275,7 @@ def speed_trend(
         return f_speed, state
     if repelled or not along_field > 0.0:
         return f_speed, state
-    vi, v0 = speed[i], speed[0]
+    vi, v0 = speed[i], slot_speed
     gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
     ux, uy, uz = direction[0, 0], direction[0, 1], direction[0, 2]
     along = (ax - pos[i, 0]) * ux + (ay - pos[i, 1]) * uy + (az - pos[i, 2]) * uz

@@ -55,6 +55,7 @@ from gcs_ppf.planning.ppf.formation import (
     attraction,
     crossing_point,
     formation_targets,
+    slot_point_speed,
     speed_trend,
 )
 from gcs_ppf.planning.ppf.primitives import (
@@ -324,9 +325,17 @@ def fleet_step(
             fx, fy, fz, rx, ry, rz, ox, oy, oz, moving_obstacle or mate, pos[i, 2], speed[i],
             pitch[i], yaw[i], cp, sp, cy, sy, own_lim, dt,
         )  # fmt: skip
+        slot_speed = speed[0]
+        if i > 0 and active[0] and lim.leader_turn_rate < math.inf:  # a held turn
+            turn = next_motion[0, 2] - yaw[0]  # the leader's, decided first (i = 0)
+            turn = turn - 2.0 * math.pi * round(turn / (2.0 * math.pi))
+            slot_speed = slot_point_speed(
+                speed[0], ux, uy, uz, turn / dt, local_target[i, 0] - pos[0, 0],
+                local_target[i, 1] - pos[0, 1],
+            )  # fmt: skip
         f_speed, state[i] = speed_trend(
             i, along_field, repelled, wait_speed, pos, speed, ax, ay, az, direction,
-            formed, lim, dt, s,
+            formed, lim, dt, s, slot_speed,
         )  # fmt: skip
         next_motion[i, 0], next_motion[i, 1], next_motion[i, 2] = kinematics(
             speed[i], pitch[i], yaw[i], f_speed, f_pitch, f_yaw, own_lim, dt

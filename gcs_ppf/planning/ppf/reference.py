@@ -389,11 +389,13 @@ def _turn_trends(
 def _speed_trend(
     along_field: FloatArray, pos: FloatArray, aim: FloatArray, speed: FloatArray, a: Attitude,
     f: Formation, r: Repulsion, state: IntArray, lim: KernelLimits, dt: float,
+    leader_turn: float = 0.0,
 ) -> FloatArray:  # fmt: skip
     """Eq. 19's f_l with Eq. 21–24: the leader slows to its wait speed (s3); wingmen brake
     to arrive at the leader's speed, Eq. 21–23 relative to the moving local target point
     (s3 once d_i ≤ Δd'_i), or give ground back (the kernel's ``catching_up_speed`` and
-    ``falling_back_speed``).  Sets ``state``."""
+    ``falling_back_speed``); in a held turn (the leader turning at ``leader_turn`` rad/s)
+    at the speed of their slots (the kernel's ``slot_point_speed``).  Sets ``state``."""
     repelled = (r.rep != 0).any(1)
     f_speed = np.sign(along_field)
     if f.wait_speed > 0.0:
@@ -407,10 +409,15 @@ def _speed_trend(
     follow = f.wingman & ~repelled & (along_field > 0)
     along = (aim - pos) @ a.u[0]  # to the point made for, along the leader's track
     gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    rel = f.g - pos[0]
+    slot_vel = speed[0] * a.u[0] + leader_turn * np.stack(
+        [-rel[:, 1], rel[:, 0], np.zeros(len(rel))], axis=1
+    )
+    v_slot = np.sqrt((slot_vel**2).sum(1))
     behind = np.maximum(along, 0.0)
-    v_ahead = speed[0] + np.minimum(np.sqrt(2 * lim.decel * behind), gain * behind)  # Eq. 21–23
+    v_ahead = v_slot + np.minimum(np.sqrt(2 * lim.decel * behind), gain * behind)  # Eq. 21–23
     ahead = np.maximum(-along, 0.0)
-    v_behind = np.maximum(speed[0] - np.minimum(np.sqrt(2 * lim.accel * ahead), gain * ahead), 0)
+    v_behind = np.maximum(v_slot - np.minimum(np.sqrt(2 * lim.accel * ahead), gain * ahead), 0)
     slant = np.maximum(a.u @ a.u[0], 0.5)  # the angle flown to the leader's track
     v_cmd = np.where(along >= 0, v_ahead, v_behind) / slant
     brake = follow & (along >= 0) & ~f.formed & (speed >= v_cmd)
@@ -469,6 +476,8 @@ def reference_step(
                              float(target[1]))  # fmt: skip
         yaw_rate[0] = leader_limits(lim, inside).max_yaw_rate
     f_pitch, f_yaw = _turn_trends(fv, d, lowest, pitch, yaw, a, r, lim, dt, yaw_rate)
-    f_speed = _speed_trend(along_field, pos, aim, speed, a, f, r, state, lim, dt)
+    held_turn = bool(active[0]) and lim.leader_turn_rate < math.inf
+    leader_turn = float(f_yaw[0] * yaw_rate[0]) if held_turn else 0.0
+    f_speed = _speed_trend(along_field, pos, aim, speed, a, f, r, state, lim, dt, leader_turn)
     new = _kinematics(pos, pitch, yaw, speed, active, f_speed, f_pitch, f_yaw, lim, dt, yaw_rate)
     return (*new, state)
