@@ -87,10 +87,11 @@ base() {
 }
 
 build() {
+    # Both services run the one image, gcs-ppf:local: building it for one builds it for both.
     if [ "${FRESH:-}" = 1 ]; then
-        compose build --no-cache
+        compose build --no-cache sitl
     else
-        compose build
+        compose build sitl
     fi
 }
 
