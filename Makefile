@@ -13,7 +13,7 @@ LOCK   := requirements-lock.txt
 UV_VERSION   := 0.13.9
 LOCK_UPGRADE ?= --upgrade
 
-.PHONY: install run plan sitl test lint bench sitl-bench clean lock chromium web-bench
+.PHONY: install run plan sitl test lint bench sitl-bench clean lock chromium web-bench compose-check
 
 # Exactly the locked set (pip refuses anything unpinned or with another hash), then gcs-ppf
 # itself on top, editable, without dependencies, built by the locked setuptools; pip check
@@ -76,6 +76,13 @@ bench: install
 # (WEB_BENCH="--minutes 1" for a short run).
 web-bench: install
 	$(PY) -m tests.web.bench $(WEB_BENCH)
+
+# docker-compose.yml built without a registry (a wheelhouse from the lock, a Debian base made by
+# debootstrap), brought up, a mission flown through it over REST, brought down
+# (scripts/compose-check.sh, docs/docker.md). FRESH=1: from an empty image store. Not part of
+# `make test`: it needs a Docker engine (installed and started here when root with apt-get).
+compose-check: install
+	FRESH=$(FRESH) scripts/compose-check.sh
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .mypy_cache .ruff_cache

@@ -3,7 +3,7 @@
 Every module of ``gcs_ppf``, ``sitl`` and ``api`` is parsed (not imported) and each of its
 imports, at any depth (inside functions and ``TYPE_CHECKING`` blocks too), is checked against
 the rules below. A new module outside every layer fails too: decide where it belongs, then add
-it to ``LAYERS`` (and to README's "Layout").
+it to ``LAYERS`` (and to docs/layout.md).
 """
 
 from __future__ import annotations
@@ -146,7 +146,7 @@ def violations(module: str, source: str, is_package: bool = False) -> list[str]:
     """What ``module`` (its source) imports against its layer's rules."""
     layer = layer_of(module)
     if layer is None:
-        return [f"{module}: in no layer (add it to tests/test_layers.py LAYERS and the README)"]
+        return [f"{module}: in no layer (add it to tests/test_layers.py LAYERS and docs/layout.md)"]
     found = []
     for name in sorted(imports(source, module, is_package)):
         top = name.split(".")[0]

@@ -2,7 +2,7 @@
 ``gcs-ppf serve`` flies the formation on their serial0 ports, and an independent pymavlink
 observer (``gcs_ppf.tools.observer``) on each instance's serial1 port judges the flight.
 
-Needs an ArduPlane SITL binary (README, "Flying real ArduPlane SITL"):
+Needs an ArduPlane SITL binary (docs/arduplane.md):
 ``ARDUPLANE_SITL=…/build/sitl/bin/arduplane .venv/bin/pytest -m arduplane -s``; skipped
 otherwise.  ``ARDUPLANE_SITL_SPEEDUP`` (default 5) sets the simulation speed-up.
 """

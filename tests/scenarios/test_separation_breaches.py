@@ -1,5 +1,5 @@
 """The separation breaches the property tests and the sweeps drew keep the safe distance now
-(README, "Feasible scenes and where the method fails"; ``repulsion.yielding_back``)."""
+(docs/sweeps.md; ``repulsion.yielding_back``)."""
 
 from __future__ import annotations
 
