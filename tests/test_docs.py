@@ -21,6 +21,7 @@ from gcs_ppf.mission import (
     Origin,
     PlannerSettings,
     Vehicle,
+    Waypoint,
     load_mission_file,
 )
 from tests.conftest import EXAMPLES, ROOT
@@ -39,6 +40,7 @@ MISSION_SECTIONS: dict[str, type[BaseModel]] = {
     "## `origin`": Origin,
     "## `limits`": Limits,
     "## `planner`": PlannerSettings,
+    "## `route[]`": Waypoint,
     "## `vehicles[]`": Vehicle,
     "## `obstacles[]`": Obstacle,
 }
