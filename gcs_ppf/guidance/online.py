@@ -16,7 +16,6 @@ import numpy as np
 from gcs_ppf.frames import local_target_point
 from gcs_ppf.geodesy import velocity_ned_to_enu
 from gcs_ppf.guidance.airframe import OnlineLimits
-from gcs_ppf.guidance.separation_guard import formation_tolerance_m
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.planner import STATE_NAMES, Trajectory, advance
 from gcs_ppf.planning.ppf.kernel import KernelLimits
@@ -143,11 +142,6 @@ def scene_now(
         base = replace(base, limits=_within_envelope(base.limits, envelope))
         if mission.holds_turns:  # the turns the formation follows, in the airframes' range
             base = replace(base, limits=formation_turn_limits(base.limits, base.fleet.slot[1:]))
-    # Wingmen hover 10–20 m off their slots closed loop: within the formation tolerance
-    # (two of them still the safe distance apart) they count as in their slots for the
-    # teammate conflict test (``KernelLimits.slot_tolerance``).
-    tolerance = formation_tolerance_m(base.fleet.slot[1:], base.limits.safe_distance_uav)
-    base = replace(base, limits=base.limits._replace(slot_tolerance=tolerance))
     fleet = base.fleet.copy()
     lim = base.limits
     for i, vid in enumerate(fleet.ids.tolist()):

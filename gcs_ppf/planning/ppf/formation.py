@@ -16,7 +16,6 @@ from numba import njit
 
 from gcs_ppf.planning.ppf.primitives import (
     AVOIDANCE_TURN_ANGLE,
-    IN_SLOT,
     S3_FORMATION,
     KernelLimits,
     catching_up_speed,
@@ -43,9 +42,8 @@ def formation_targets(
 ) -> float:
     """The wingmen's local target points G_i = P_0 + A_vf(ψ₀) B_vf(θ₀) s_i (Eq. 6–8) into
     ``local_target[N,3]``, whether each wingman is formed (within the target accuracy of
-    G_i) into ``formed[N]`` and whether it is within ``slot_tolerance`` of it into
-    ``trig[:, IN_SLOT]`` (1.0 for the leader), and the speed the leader waits at (s3,
-    Eq. 24; 0: it does not wait).
+    G_i) into ``formed[N]``, and the speed the leader waits at (s3, Eq. 24; 0: it does not
+    wait).
 
     The leader waits while a wingman is out of formation and has to catch up: its local
     target point is not behind it, or it does not yet fly the leader's way.  A wingman
@@ -60,10 +58,8 @@ def formation_targets(
     gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
     leader_waits = False
     give_back = 0.0
-    near2 = max(lim.target_accuracy, lim.slot_tolerance) ** 2
     for i in range(pos.shape[0]):
         formed[i] = False
-        trig[i, IN_SLOT] = 1.0 if i == 0 else 0.0
         gx, gy, gz = slot_to_ics(slot[i, 0], slot[i, 1], slot[i, 2], lcp, lsp, lcy, lsy)
         local_target[i, 0] = pos[0, 0] + gx
         local_target[i, 1] = pos[0, 1] + gy
@@ -74,7 +70,6 @@ def formation_targets(
         gy = local_target[i, 1] - pos[i, 1]
         gz = local_target[i, 2] - pos[i, 2]
         formed[i] = gx * gx + gy * gy + gz * gz <= lim.target_accuracy**2
-        trig[i, IN_SLOT] = 1.0 if gx * gx + gy * gy + gz * gz <= near2 else 0.0
         along = gx * direction[0, 0] + gy * direction[0, 1] + gz * direction[0, 2]
         same_way = (
             direction[i, 0] * direction[0, 0]

@@ -274,15 +274,15 @@ def fleet_step(
     Vehicle i considers only the obstacles ``near_obstacles[near_start[i]:near_start[i+1]]``
     (see ``nearby_obstacles``), and only the teammates ``mates[mate_start[i]:mate_start[i+1]]``
     (see ``nearby_teammates``; every active teammate of higher priority for all pairs).
-    ``trig[N,12]`` holds cos θ, sin θ, cos ψ, sin ψ of every vehicle on entry
+    ``trig[N,11]`` holds cos θ, sin θ, cos ψ, sin ψ of every vehicle on entry
     (``attitude_trig``) and of its new attitude on return; its last columns are scratch
-    (the velocities, who gives way back: ``yielding_back``, who is in its slot: ``IN_SLOT``).
+    (the velocities, and who gives way back: ``yielding_back``).
     Every vehicle decides from the fleet's state at the start of the step (``rank`` through
     the teammate lists).  Obstacles are moved at the end of the step.
     """
     unit_velocities(speed, trig, direction)  # Eq. 5
     wait_speed = formation_targets(pos, slot, active, trig, direction, lim, local_target, formed)
-    yielding_back(pos, speed, trig, active, mate_start, mates, lim, dt)  # Eq. 12–13
+    yielding_back(pos, speed, trig, active, mate_start, mates, formed, lim, dt)  # Eq. 12–13
     ux, uy, uz = direction[0, 0], direction[0, 1], direction[0, 2]  # the leader's direction
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     leader_lim = leader_limits(lim, inside_turn(
@@ -308,7 +308,8 @@ def fleet_step(
             lim, dt,
         )  # fmt: skip
         rx, ry, rz, mate, hold_course = teammate_conflicts(
-            i, ox, oy, oz, fx, fy, fz, pos, speed, trig, mate_start, mates, own_reach, lim, dt,
+            i, ox, oy, oz, fx, fy, fz, pos, speed, trig, mate_start, mates, formed, own_reach,
+            lim, dt,
         )  # fmt: skip
         rx, ry, rz = obstacles_first(rx, ry, rz, ox, oy, oz)
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0

@@ -38,10 +38,9 @@ CONFLICT_HORIZON_TURNS = 1.0  # teammate conflicts are looked for this many quar
 # A conflict this many quarter turns from its closest approach is one the vehicle giving way
 # has not solved alone: the one it gives way to gives way too (``teammate_conflicts``).
 YIELD_BACK_TURNS = 0.25
-IN_SLOT = 11
-"""The column of the kernel's ``trig[N,12]`` that holds 1.0 for a vehicle in its slot for
-the teammate conflict test (``slot_tolerance``; the leader always), else 0.0."""
-TRIG_COLUMNS = 12
+TRIG_COLUMNS = 11
+"""The kernel's ``trig[N,11]``: cos θ, sin θ, cos ψ, sin ψ, the velocity, and who gives
+way back (``repulsion.yielding_back``)."""
 
 
 class KernelLimits(NamedTuple):
@@ -69,12 +68,6 @@ class KernelLimits(NamedTuple):
     speeds up to v_max once formed); ``gcs_ppf.planning.turns`` for a formation that turns."""
     leader_turn_rate: float = math.inf
     """The fastest the leader turns while it follows its target (∞: ``max_yaw_rate``)."""
-    slot_tolerance: float = 0.0
-    """A wingman this near its local target point counts as in its slot for the teammate
-    conflict test (``teammate_conflict``'s ``in_formation``), if more than the target
-    accuracy: flown closed loop the wingmen hover 10–20 m off their slots, and neighbours
-    whose slots are 141 m apart were conflicts whenever they closed at all (0: the target
-    accuracy, the paper's)."""
 
 
 @njit(cache=True)
@@ -138,7 +131,7 @@ def leader_limits(lim: KernelLimits, target_inside_turn: bool = False) -> Kernel
         lim.max_yaw_rate if target_inside_turn else min(lim.max_yaw_rate, lim.leader_turn_rate),
         lim.target_accuracy,
         lim.safe_distance_uav, lim.safe_distance_obstacle, lim.ground, climb, dive,
-        lim.leader_cruise_speed, lim.leader_turn_rate, lim.slot_tolerance,
+        lim.leader_cruise_speed, lim.leader_turn_rate,
     )  # fmt: skip
 
 

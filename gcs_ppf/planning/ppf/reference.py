@@ -60,8 +60,6 @@ class Formation(NamedTuple):
     formed: BoolArray
     along: FloatArray
     wait_speed: float
-    in_slot: BoolArray
-    """Wingmen within ``slot_tolerance`` (at least the target accuracy) of their slot."""
 
 
 class Repulsion(NamedTuple):
@@ -109,9 +107,7 @@ def _formation(
     gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
     give_back = np.minimum(np.sqrt(2.0 * lim.accel * ahead), gain * ahead)
     wait_speed = min(lim.v_min + float(give_back.max(initial=0.0)), lim.v_max)
-    near = max(lim.target_accuracy, lim.slot_tolerance)
-    in_slot = wingman & ((to_g**2).sum(1) <= near**2)
-    return Formation(g, to_g, wingman, formed, along, wait_speed if waits.any() else 0.0, in_slot)
+    return Formation(g, to_g, wingman, formed, along, wait_speed if waits.any() else 0.0)
 
 
 def _obstacle_repulsion(
@@ -138,7 +134,7 @@ def _obstacle_repulsion(
 
 def _conflicts(
     pos: FloatArray, vel: FloatArray, mate_vel: FloatArray, speed: FloatArray, rank: IntArray,
-    active: BoolArray, in_slot: BoolArray, lim: KernelLimits, dt: float,
+    active: BoolArray, formed: BoolArray, lim: KernelLimits, dt: float,
     horizon_turns: float = CONFLICT_HORIZON_TURNS,
 ) -> tuple[BoolArray, BoolArray, FloatArray]:  # fmt: skip
     """Teammates of higher priority as moving obstacles, by closest point of approach
@@ -155,7 +151,7 @@ def _conflicts(
     miss2 = (d_m**2).sum(-1) - 2 * approach * t_cpa + w2 * t_cpa**2
     leader = np.zeros(pos.shape[0], dtype=bool)
     leader[0] = True
-    together = in_slot[:, None] & (in_slot | leader)[None]  # a pair in formation: no turning
+    together = formed[:, None] & (formed | leader)[None]  # a pair in formation: no turning
     turning = np.where(together, 0.0, 0.5 * (speed[:, None] + speed[None]) * omega * t_cpa**2)
     margin = 2 * speed[:, None] * dt + np.minimum(turning, lim.safe_distance_uav)
     d2 = (d_m**2).sum(-1)
@@ -176,7 +172,7 @@ def _conflicts(
 
 def _repulsion(
     pos: FloatArray, speed: FloatArray, a: Attitude, follow: FloatArray, rank: IntArray,
-    active: BoolArray, in_slot: BoolArray, obstacles: tuple[FloatArray, BoolArray],
+    active: BoolArray, formed: BoolArray, obstacles: tuple[FloatArray, BoolArray],
     lim: KernelLimits, dt: float,
 ) -> Repulsion:  # fmt: skip
     """Eq. 12–13 with the teammates of higher priority as moving obstacles (``_conflicts``),
@@ -187,10 +183,10 @@ def _repulsion(
     (the kernel's ``yielding_back``)."""
     n = pos.shape[0]
     rep, moving = obstacles
-    near, threat, push = _conflicts(pos, a.vel, a.vel, speed, rank, active, in_slot, lim, dt)
+    near, threat, push = _conflicts(pos, a.vel, a.vel, speed, rank, active, formed, lim, dt)
     _, threat_after, _ = _conflicts(pos, speed[:, None] * follow, a.vel, speed, rank, active,
-                                    in_slot, lim, dt)  # fmt: skip
-    _, late, push_late = _conflicts(pos, a.vel, a.vel, speed, rank, active, in_slot, lim, dt,
+                                    formed, lim, dt)  # fmt: skip
+    _, late, push_late = _conflicts(pos, a.vel, a.vel, speed, rank, active, formed, lim, dt,
                                     YIELD_BACK_TURNS)  # fmt: skip
     late = late & active[:, None]
     hold: BoolArray = np.any(near & ~threat & threat_after, axis=1)
@@ -465,7 +461,7 @@ def reference_step(
     obstacles = _obstacle_repulsion(pos, speed, obs_center, obs_radius, obs_velocity, lim, dt)
     aim = _aims(pos, target, speed, a, f, rank, active, lim, dt)
     follow = _follow(pos, aim, speed, a, lim)
-    r = _repulsion(pos, speed, a, follow, rank, active, f.in_slot, obstacles, lim, dt)
+    r = _repulsion(pos, speed, a, follow, rank, active, f.formed, obstacles, lim, dt)
     field = _field(follow, a, r)
     fv, d, lowest, s2, along_field = _wanted_direction(field, pos, speed, a, r, lim, dt)
     state = np.where(s2, S2_LOCAL_MINIMUM, S1_FOLLOW).astype(np.int64)

@@ -18,7 +18,6 @@ from gcs_ppf.planning.ppf.primitives import (
     AVOIDANCE_TURN_ANGLE,
     CONFLICT_HORIZON_TURNS,
     EPSILON_1,
-    IN_SLOT,
     INFLUENCE_STEPS,
     YIELD_BACK_TURNS,
     KernelLimits,
@@ -200,6 +199,7 @@ def teammate_conflicts(
     trig: np.ndarray,
     mate_start: np.ndarray,
     mates: np.ndarray,
+    formed: np.ndarray,
     own_reach: float,
     lim: KernelLimits,
     dt: float,
@@ -209,8 +209,8 @@ def teammate_conflicts(
     of the teammates of lower priority it gives way back to (``trig[i, 7:11]``, from
     ``yielding_back``).  Only ``mates[mate_start[i]:mate_start[i+1]]`` are looked at (see
     ``nearby_teammates``);
-    ``trig[:, 4:7]`` are the velocities (``unit_velocities``); ``trig[:, IN_SLOT]`` whether
-    each wingman is in its slot (a pair in formation: ``teammate_conflict``); ``own_reach``
+    ``trig[:, 4:7]`` are the velocities (``unit_velocities``); ``formed`` whether each
+    wingman is in its slot (a pair in formation: ``teammate_conflict``); ``own_reach``
     vehicle i's R(v_i) + v_i·Δt (``teammate_conflict``).
 
     Just clear of a conflict the vehicle holds its course rather than turn back into it
@@ -229,7 +229,7 @@ def teammate_conflicts(
         k = mates[c]
         dx, dy, dz = px - pos[k, 0], py - pos[k, 1], pz - pos[k, 2]
         wx, wy, wz = trig[k, 4], trig[k, 5], trig[k, 6]
-        together = i != 0 and trig[i, IN_SLOT] > 0.0 and trig[k, IN_SLOT] > 0.0
+        together = formed[i] and (k == 0 or formed[k])
         kind, mx, my, mz = teammate_conflict(
             dx, dy, dz, wx - trig[i, 4], wy - trig[i, 5], wz - trig[i, 6], vi, speed[k],
             own_reach, lim, dt, together,
@@ -263,6 +263,7 @@ def yielding_back(
     active: np.ndarray,
     mate_start: np.ndarray,
     mates: np.ndarray,
+    formed: np.ndarray,
     lim: KernelLimits,
     dt: float,
 ) -> None:
@@ -296,7 +297,7 @@ def yielding_back(
             kind, mx, my, mz = teammate_conflict(
                 dx, dy, dz, trig[k, 4] - trig[i, 4], trig[k, 5] - trig[i, 5],
                 trig[k, 6] - trig[i, 6], vi, speed[k], own_reach, lim, dt,
-                i != 0 and trig[i, IN_SLOT] > 0.0 and trig[k, IN_SLOT] > 0.0, YIELD_BACK_TURNS,
+                formed[i] and (k == 0 or formed[k]), YIELD_BACK_TURNS,
             )  # fmt: skip
             if kind == CONFLICT:
                 trig[k, 7], trig[k, 8], trig[k, 9] = (

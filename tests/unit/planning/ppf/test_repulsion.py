@@ -28,7 +28,8 @@ def _overtaking(gap: float, lateral: float) -> np.ndarray:
     mate_start = np.array([0, 0, 1])  # vehicle 1 gives way to vehicle 0
     mates = np.array([0])
     active = np.ones(2, dtype=bool)
-    yielding_back(pos, speed, trig, active, mate_start, mates, scene.limits, 0.01)
+    formed = np.zeros(2, dtype=bool)
+    yielding_back(pos, speed, trig, active, mate_start, mates, formed, scene.limits, 0.01)
     return trig
 
 
@@ -49,31 +50,3 @@ def test_no_giving_way_back_early_or_on_a_clear_miss(lateral: float) -> None:
     assert late < 2.0
     assert _overtaking(400.0, lateral)[:, 10].sum() == 0.0
     assert _overtaking(100.0, 300.0)[:, 10].sum() == 0.0
-
-
-def test_wingmen_within_the_slot_tolerance_fly_alongside_without_the_turning_allowance() -> None:
-    """A wingman 15 m off its slot: in its slot for the conflict test with a tolerance of
-    45 m, not with the paper's target accuracy (10 m).  Two such wingmen 141 m apart at
-    their slots, drifting together at 10 m/s: the turning allowance makes them a conflict
-    (they are pushed apart) unless they are in their slots."""
-    from gcs_ppf.planning.ppf.formation import formation_targets
-    from gcs_ppf.planning.ppf.primitives import IN_SLOT, KernelLimits
-    from gcs_ppf.planning.ppf.repulsion import CONFLICT, teammate_conflict
-
-    paper = KernelLimits(100.0, 300.0, 10.0, 40.0, OMEGA, OMEGA, 10.0, 50.0, 25.0, -math.inf)
-    pos = np.array([[0.0, 0.0, 0.0], [-100.0, 115.0, 0.0]])  # slot (-100, 100, 0), 15 m off
-    slot = np.array([[0.0, 0.0, 0.0], [-100.0, 100.0, 0.0]])
-    direction = np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
-    for tolerance, in_slot in ((0.0, 0.0), (45.0, 1.0)):
-        trig = np.zeros((2, TRIG_COLUMNS))
-        trig[:, 0], trig[:, 2] = 1.0, 1.0
-        formation_targets(pos, slot, np.ones(2, dtype=bool), trig, direction,
-                          paper._replace(slot_tolerance=tolerance), np.zeros((2, 3)),
-                          np.zeros(2, dtype=bool))  # fmt: skip
-        assert trig[:, IN_SLOT].tolist() == [1.0, in_slot]
-
-    d, w = (0.0, 111.0, 0.0), (0.0, 10.0, 0.0)  # 141 m less two 15 m offsets, closing
-    apart = teammate_conflict(*d, *w, 100.0, 100.0, 400.0, paper, 0.01, False)[0]
-    alongside = teammate_conflict(*d, *w, 100.0, 100.0, 400.0, paper, 0.01, True)[0]
-    assert apart == CONFLICT
-    assert alongside != CONFLICT
