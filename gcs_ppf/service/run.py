@@ -18,6 +18,7 @@ from gcs_ppf.guidance.speed_reference import SpeedPlan
 from gcs_ppf.mission import Mission
 from gcs_ppf.service import commanding
 from gcs_ppf.service.store import StoredRun
+from gcs_ppf.service.tick_phases import TickPhases
 
 NOT_RESPONDING_S = 3.0
 """Vehicle seconds out of GUIDED or refusing the course: not responding."""
@@ -94,6 +95,10 @@ class Run:
     fleet_lag: lag.Lag = field(default_factory=lambda: lag.Lag(0.0, 0.0))
     """The fleet's lag at the last tick (``gcs_ppf.guidance.lag``), vehicle seconds."""
     lag_budget: lag.Budget = field(default_factory=lambda: lag.Budget(LAG_BUDGET_S))
+    phases: TickPhases = field(default_factory=TickPhases)
+    """Where the latest ticks' time went (``service.tick_phases``)."""
+    decoded_s: float = 0.0
+    """``Fleet.decoding_s`` at the last tick (the decoding since is the next tick's)."""
 
     def __post_init__(self) -> None:
         self.formation = FormationWatch(self.mission.limits.target_accuracy)
@@ -168,6 +173,7 @@ def status(run: Run) -> dict[str, Any]:
         "min_obstacle_clearance_m": run.min_clearance_m,
         "safety_violations": run.safety.count,
         "tick_latency_ms": latency_ms(run),
+        "tick_phases_ms": run.phases.summary_ms(),
         "lag_s": {
             **run.fleet_lag.as_dict(),
             "budget_s": run.lag_budget.budget_s,
