@@ -49,9 +49,9 @@ def serve(out: Path, count: int, every: int, skip: int, argv: list[str]) -> int:
         pending["plan"] = {"args": inputs, "result": ticks.encode(result, args[0])}
         return result
 
-    async def recorded_command_fleet(fleet: Any, *args: Any) -> Any:
+    async def recorded_command_fleet(fleet: Any, *args: Any, **kwargs: Any) -> Any:
         if "plan" not in pending or len(recorded) >= count:
-            return await command_fleet(fleet, *args)
+            return await command_fleet(fleet, *args, **kwargs)
         m = args[4].mission  # orders
         sender = _Recording(fleet, m)
         given = list(args)
@@ -65,7 +65,7 @@ def serve(out: Path, count: int, every: int, skip: int, argv: list[str]) -> int:
 
         call = list(args)
         call[8] = event
-        result = await command_fleet(sender, *call)
+        result = await command_fleet(sender, *call, **kwargs)  # ``phases``: not recorded
         after = ticks.encode({"commanded_speed": args[7], "escaping": args[9],
                               "trims": args[11]}, m)  # fmt: skip
         judged = any(v.reason is not None for v in result.values())
