@@ -82,7 +82,7 @@ def serve(out: Path, count: int, every: int, skip: int, argv: list[str]) -> int:
         return result
 
     tick_plan.plan = recorded_plan  # type: ignore[assignment]
-    commanding.command_fleet = recorded_command_fleet  # type: ignore[assignment]
+    commanding.command_fleet = recorded_command_fleet
     return cli.main(["serve", *argv])
 
 

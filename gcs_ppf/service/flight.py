@@ -31,6 +31,7 @@ from gcs_ppf.service.ending import end, hold_during_launch
 from gcs_ppf.service.fleet import planning_states
 from gcs_ppf.service.run import NOT_RESPONDING_S, Run, RunState, changes, min_of
 from gcs_ppf.service.station import Station
+from gcs_ppf.service.tick_rate import TickRate
 from gcs_ppf.service.watch import Located, reported_together, watch_safety
 
 log = logging.getLogger("gcs_ppf.service.runs")  # the runs' log, under its name of old
@@ -127,6 +128,7 @@ async def tick_loop(station: Station, run: Run) -> None:
     sample_period = 1.0 / station.settings.telemetry_sample_hz
     last_tick: float | None = None
     last_sample = -math.inf
+    run.tick_rate = TickRate(station.settings.tick_hz)
     while not run.abort.is_set():
         fleet.telemetry_event.clear()
         try:
@@ -161,9 +163,19 @@ async def tick_loop(station: Station, run: Run) -> None:
                 sample(station, run)
         with phases.phase("events"):
             station.publish()
-        phases.end_tick()
+        keep_rate(station, run, now_v, sum(phases.end_tick().values()))
         if done:
             return
+
+
+def keep_rate(station: Station, run: Run, now_v: float, work_s: float) -> None:
+    """The tick's work (``work_s``, ours: its phases, decoding since the last included)
+    against its period in the vehicles' seconds (``service.tick_rate``): a ``tick_overrun``
+    event when the ticks start overrunning it, ``tick_rate_kept`` when they keep it again."""
+    assert run.tick_rate is not None
+    change = run.tick_rate.update(now_v, work_s * station.fleet.clock_rate())
+    if change is not None:
+        station.event(run, change, None, **run.tick_rate.event_detail())
 
 
 async def losses(station: Station, run: Run) -> bool:

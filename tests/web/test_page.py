@@ -131,6 +131,8 @@ def test_upload_preview_fly_and_replay_table3(tmp_path: Path) -> None:
         assert len(trails) == 5
         assert min(trails) > 10, trails
         assert "Every vehicle in GUIDED" in text(driver, "events")
+        # the rate the service ticks at, measured, beside its own (service.tick_rate)
+        wait_for(lambda: " / 10 Hz" in text(driver, "tick-rate"), 10, "the tick rate shown")
         screenshot(driver, "mid-run")
         finished = ("completed", "completed_unsafe", "aborted", "failed")
         wait_for(lambda: js(driver, "document.getElementById('run-state').dataset.state")
