@@ -55,18 +55,32 @@ def measure(n: int, seconds: float, port: int, base_port: int) -> dict[str, Any]
                 raise RuntimeError("vehicles not discovered")
             _, created = http_json("POST", f"{api}/missions", formation_mission(n))
             http_json("POST", f"{api}/missions/{created['id']}/start")
+            cpu_before = cpu_s(procs[1].pid)
             time.sleep(seconds)
+            cpu = cpu_s(procs[1].pid) - cpu_before
             try:
                 _, status = http_json("GET", f"{api}/missions/{created['id']}/status")
                 http_json("POST", f"{api}/missions/{created['id']}/abort")
             except (TimeoutError, urllib.error.URLError):  # the service too busy to answer
                 return {"vehicles": n, "error": "no status (the service did not answer)"}
             return {"vehicles": n, **(status.get("tick_latency_ms") or {}),
-                    "phases": status.get("tick_phases_ms") or {}}  # fmt: skip
+                    "phases": status.get("tick_phases_ms") or {},
+                    "cpu_s_per_s": cpu / seconds,
+                    "rate": status.get("tick_rate") or {}}  # fmt: skip
         finally:
             for p in procs:
                 p.terminate()
                 p.wait(timeout=10)
+
+
+def cpu_s(pid: int) -> float:
+    """The CPU seconds (user + system) process ``pid`` has used (Linux's /proc; NaN
+    elsewhere): what the service costs, whatever else the machine runs meanwhile."""
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return float("nan")
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -84,11 +98,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         if "error" in r:
             print(f"{n:>8} {r['error']}")
             continue
-        p50 = r.get("p50", float("nan"))
-        print(f"{'vehicles':>8} {'ticks':>6} {'p50 ms':>8} {'p99 ms':>8} {'µs/vehicle':>10}"
-              f"  target p99")  # fmt: skip
-        print(f"{n:>8} {r.get('ticks', 0):>6} {p50:>8.2f} {r.get('p99', float('nan')):>8.2f} "
-              f"{1e3 * p50 / n:>10.0f}  {target(n)}")  # fmt: skip
+        print(HEADER + "  target p99")
+        print(row(r) + f"  {target(n)}")
         print_phases(r["phases"])
     print(summary(rows))
 
@@ -112,16 +123,26 @@ def print_phases(phases: dict[str, dict[str, float]]) -> None:
               f"({100 * p['mean'] / total:4.1f} %)  p99 {p['p99']:>8.2f}")  # fmt: skip
 
 
+HEADER = (f"{'vehicles':>8} {'ticks':>6} {'Hz':>5} {'p50 ms':>8} {'p99 ms':>8} "
+          f"{'µs/vehicle':>10} {'CPU %':>6}")  # fmt: skip
+"""A row's columns: ticks in the window, the rate measured (vehicle seconds), the latency's
+p50 and p99, the p50 per vehicle, and the service's CPU over the window (% of one core)."""
+
+
+def row(r: dict[str, Any]) -> str:
+    n, nan = r["vehicles"], float("nan")
+    p50 = r.get("p50", nan)
+    hz = r.get("rate", {}).get("measured_hz")
+    return (f"{n:>8} {r.get('ticks', 0):>6} {nan if hz is None else hz:>5.1f} {p50:>8.2f} "
+            f"{r.get('p99', nan):>8.2f} {1e3 * p50 / n:>10.0f} "
+            f"{100 * r.get('cpu_s_per_s', nan):>6.0f}")  # fmt: skip
+
+
 def summary(rows: list[dict[str, Any]]) -> str:
     """The rows again, one line each, for a table."""
-    lines = [f"{'vehicles':>8} {'ticks':>6} {'p50 ms':>8} {'p99 ms':>8} {'µs/vehicle':>10}"]
+    lines = [HEADER]
     for r in rows:
-        if "error" in r:
-            lines.append(f"{r['vehicles']:>8} {r['error']}")
-            continue
-        p50, p99 = r.get("p50", float("nan")), r.get("p99", float("nan"))
-        lines.append(f"{r['vehicles']:>8} {r.get('ticks', 0):>6} {p50:>8.2f} {p99:>8.2f} "
-                     f"{1e3 * p50 / r['vehicles']:>10.0f}")  # fmt: skip
+        lines.append(f"{r['vehicles']:>8} {r['error']}" if "error" in r else row(r))
     return "\n".join(lines)
 
 
