@@ -6,7 +6,9 @@ service finds every uploaded mission and every run as it was left.  The two a ru
 every tick, its events and its sampled telemetry, are written behind, in order, by a thread
 of the store's own (off the tick's path: at 100 vehicles an event's commit took 1.5 ms, up
 to 35 ms, of a tick), and every other call waits for what was queued before it (what one
-caller wrote it reads back); ``close`` writes what is still queued.
+caller wrote it reads back); ``close`` writes what is still queued (a process killed
+outright loses what was queued: milliseconds of events, where a synchronous write lost at
+most the one under way).
 """
 
 from __future__ import annotations
