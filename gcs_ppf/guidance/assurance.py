@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from gcs_ppf.guidance import prediction
+from gcs_ppf.guidance import prediction, reach
 from gcs_ppf.guidance.vehicle_motion import (
     Command,
     Motion,
@@ -39,7 +39,7 @@ from gcs_ppf.guidance.vehicle_motion import (
     turn_side,
     wrap,
 )
-from gcs_ppf.planning.scene import FloatArray, Obstacles
+from gcs_ppf.planning.scene import FloatArray, IntArray, Obstacles
 
 #: Course offsets tried for an escape, nearest the command first (radians).
 ESCAPE_OFFSETS = tuple(
@@ -114,19 +114,18 @@ REASONS = {prediction.OBSTACLE: "obstacle", prediction.GROUND: "ground",
 
 @dataclass(frozen=True, slots=True)
 class _Near:
-    """The teammates one vehicle yields to, as ``prediction.score`` takes them."""
+    """The teammates one vehicle yields to, as ``prediction.score`` takes them: the rows
+    ``which`` [n] of ``pool`` [P,L,3] (flights, ``Track.path``; a tick's are all as long)."""
 
-    held: FloatArray  # [n,k+1,3]
-    after: FloatArray  # [n,j,3]
+    pool: FloatArray
+    which: IntArray
 
     @staticmethod
-    def of(tracks: Sequence[Track], hold_s: float) -> _Near:
-        k = int(prediction.hold_steps(float(hold_s)))
+    def of(tracks: Sequence[Track]) -> _Near:
         if not tracks:
-            return _Near(np.zeros((0, k + 1, 3)), np.zeros((0, 1, 3)))
-        paths = np.stack([t.path for t in tracks]).astype(np.float64)
-        return _Near(np.ascontiguousarray(paths[:, : k + 1]),
-                     np.ascontiguousarray(paths[:, k:]))  # fmt: skip
+            return _Near(np.zeros((0, 1, 3)), np.zeros(0, dtype=np.int64))
+        pool = np.ascontiguousarray(np.stack([t.path for t in tracks]), dtype=np.float64)
+        return _Near(pool, np.arange(len(tracks), dtype=np.int64))
 
 
 def _score(
@@ -137,8 +136,8 @@ def _score(
     ground = math.nan if keep.ground_z_m is None else float(keep.ground_z_m)
     s, reason = prediction.score(  # one signature: no compiling in flight
         vector, float(c.course_rad), float(c.z_m), float(hold_s), _floats(obs.center),
-        _floats(obs.radius), float(keep.safe_distance_obstacle), ground, near.held,
-        near.after, float(keep.safe_distance_uav),
+        _floats(obs.radius), float(keep.safe_distance_obstacle), ground, near.pool,
+        near.which, float(keep.safe_distance_uav),
     )  # fmt: skip
     return float(s), REASONS.get(reason)
 
@@ -154,7 +153,7 @@ def score(
 ) -> tuple[float, str | None]:
     """A command's margin: along its hold, then along the better of its two escapes (the
     teammates flying on meanwhile, ``Track``); with the keep-out it is to."""
-    return _score(motion_vector(m), c, hold_s, keep, _Near.of(others, hold_s))
+    return _score(motion_vector(m), c, hold_s, keep, _Near.of(others))
 
 
 def overtaking(a: Motion, b: Motion) -> bool:
@@ -216,7 +215,7 @@ def assure(
     50 m, came to 37.1 m of each other (the safe distance 50 m)."""
     vectors = [motion_vector(m) for m in motions]
     after = max((int(prediction.escape_steps(v)) for v in vectors), default=1)
-    yields = [_yields(motions, i, hold_s, keep) for i in range(len(motions))]
+    yields = _yields(motions, vectors, hold_s, keep)
     first = _in_order(motions, commands, hold_s, keep, escaping, vectors, after, yields, {})
     forced: dict[int, tuple[int, Command]] = {}
     for i in cornered(motions, first.verdicts):
@@ -249,21 +248,42 @@ def shortfall(motions: Sequence[Motion], verdicts: Sequence[Verdict]) -> float:
 @dataclass(frozen=True, slots=True)
 class _Pass:
     """One pass of ``assure`` in priority order: each vehicle's verdict, the flight it was
-    given, and the teammates it yielded to (by index, on the flights it took them to fly)."""
+    given, and the teammates it yielded to (by index, on the flights it took them to fly:
+    the row of ``pool`` each one's is in)."""
 
     verdicts: list[Verdict]
     paths: list[Track]
-    yielded: list[dict[int, Track]]
+    yielded: list[dict[int, int]]
+    pool: FloatArray
+    """[2N+1,L,3]: row j vehicle j's flight as assured, row N + j the one the vehicles
+    before it took it to fly (its command held straight, or what ``_make_way`` found for
+    it), row 2N free (``_make_way``'s candidates)."""
 
 
-def _yields(motions: list[Motion], i: int, hold_s: float, keep: KeepOut) -> list[int]:
-    """Whom vehicle ``i`` yields to: those before it within reach, and those after it it
-    is ``overtaking``."""
-    m = motions[i]
-    return [
-        j for j, o in enumerate(motions)
-        if j != i and (j < i or overtaking(m, o)) and within_reach(m, o, hold_s, keep)
-    ]  # fmt: skip
+def _yields(
+    motions: list[Motion], vectors: list[FloatArray], hold_s: float, keep: KeepOut
+) -> list[list[int]]:
+    """Whom each vehicle yields to: those before it within reach, and those after it it is
+    ``overtaking`` (``within_reach`` either way), in ascending order; found for the fleet at
+    once (``reach.yields``), a pair too near a threshold to tell there asked here."""
+    n = len(motions)
+    if n == 0:
+        return []
+    pos = np.array([m.pos_m for m in motions], dtype=np.float64).reshape(n, 3)
+    vel = np.array([m.velocity() for m in motions], dtype=np.float64).reshape(n, 3)
+    speed = np.array([m.speed_m_s for m in motions], dtype=np.float64)
+    escape = np.array([prediction.escape_s(v) for v in vectors], dtype=np.float64)
+    start, items, status = reach.yields(pos, vel, speed, escape, float(hold_s),
+                                        float(keep.safe_distance_uav))  # fmt: skip
+    out: list[list[int]] = []
+    for i, m in enumerate(motions):
+        lo, hi = int(start[i]), int(start[i + 1])
+        out.append([
+            j for j, st in zip(items[lo:hi].tolist(), status[lo:hi].tolist(), strict=True)
+            if st == reach.YIELDS or ((j < i or overtaking(m, motions[j]))
+                                      and within_reach(m, motions[j], hold_s, keep))
+        ])  # fmt: skip
+    return out
 
 
 def _in_order(
@@ -273,18 +293,21 @@ def _in_order(
 ) -> _Pass:  # fmt: skip
     """``assure``'s pass in priority order; ``yields``: whom each vehicle yields to
     (``_yields``); ``forced``: the vehicles sent what ``_make_way`` found for them (for
-    whom, and what), whatever their own search would choose."""
+    whom, and what), whatever their own search would choose.  Each teammate's flight is
+    predicted once (``_Pass.pool``), not once for every vehicle that yields to it."""
+    n = len(motions)
     verdicts: list[Verdict] = []
     paths: list[Track] = []
-    yielded: list[dict[int, Track]] = []
+    yielded: list[dict[int, int]] = []
+    length = int(prediction.hold_steps(float(hold_s))) + 1 + after
+    pool = np.empty((2 * n + 1, length, 3))
+    for j in sorted({j for i, js in enumerate(yields) for j in js if j > i}):
+        taken = (track(vectors[j], forced[j][1], hold_s, after) if j in forced
+                 else straight_track(motions[j], hold_s, after))  # fmt: skip
+        pool[n + j] = taken.path
     for i, (m, c) in enumerate(zip(motions, commands, strict=True)):
-        to = {
-            j: paths[j] if j < i
-            else track(vectors[j], forced[j][1], hold_s, after) if j in forced
-            else straight_track(motions[j], hold_s, after)
-            for j in yields[i]
-        }  # fmt: skip
-        vector, prepared = vectors[i], _Near.of(list(to.values()), hold_s)
+        to = {j: j if j < i else n + j for j in yields[i]}
+        vector, prepared = vectors[i], _Near(pool, np.array(list(to.values()), dtype=np.int64))
         planned, reason = _score(vector, c, hold_s, keep, prepared)
         chosen, chosen_margin = c, planned
         slack = SLACK_S * m.speed_m_s
@@ -306,9 +329,11 @@ def _in_order(
         verdicts.append(Verdict(chosen, replaced, reason if replaced or planned < slack else None,
                                 planned, chosen_margin, side,
                                 forced[i][0] if i in forced else None))  # fmt: skip
-        paths.append(track(vector, chosen, hold_s, after))
+        flown = track(vector, chosen, hold_s, after)
+        paths.append(flown)
+        pool[i] = flown.path
         yielded.append(to)
-    return _Pass(verdicts, paths, yielded)
+    return _Pass(verdicts, paths, yielded, pool)
 
 
 def _make_way(
@@ -323,8 +348,9 @@ def _make_way(
     else the one whose worse shortfall of the two is the smallest, if smaller than now.
     None: no one teammate corners it, or no candidate does better."""
     m, v = motions[i], first.verdicts[i]
-    alone = {j: _score(vectors[i], v.command, hold_s, keep, _Near.of([t], hold_s))[0]
-             for j, t in first.yielded[i].items()}  # fmt: skip
+    pool = first.pool
+    alone = {j: _score(vectors[i], v.command, hold_s, keep, _Near(pool, np.array([row])))[0]
+             for j, row in first.yielded[i].items()}  # fmt: skip
     if not alone:
         return None
     j = min(alone, key=alone.__getitem__)
@@ -332,9 +358,12 @@ def _make_way(
     if alone[j] >= slack_i:
         return None
     mj, cj = motions[j], commands[j]
-    theirs = _Near.of([t for k, t in first.yielded[j].items() if k != i] + [first.paths[i]],
-                      hold_s)  # fmt: skip
-    others = [t for k, t in first.yielded[i].items() if k != j]
+    # j's teammates but i, and i on the flight it was given (row i)
+    theirs = _Near(pool, np.array([row for k, row in first.yielded[j].items() if k != i] + [i],
+                                  dtype=np.int64))  # fmt: skip
+    scratch = pool.shape[0] - 1
+    with_candidate = np.array([row for k, row in first.yielded[i].items() if k != j] + [scratch],
+                              dtype=np.int64)  # fmt: skip
     now = max(slack_i - v.chosen_margin_m, slack_j - first.verdicts[j].chosen_margin_m)
     best: tuple[float, Command] | None = None
     candidates = (
@@ -346,7 +375,8 @@ def _make_way(
         own, _ = _score(vectors[j], candidate, hold_s, keep, theirs)
         if own < slack_j and best is not None and slack_j - own >= best[0]:
             continue  # cannot beat the best so far: skip the escape search
-        near = _Near.of([*others, track(vectors[j], candidate, hold_s, after)], hold_s)
+        pool[scratch] = track(vectors[j], candidate, hold_s, after).path
+        near = _Near(pool, with_candidate)
         escape, _ = _escape(m, vectors[i], commands[i], v.reason, hold_s, keep, near, None)
         worse = max(slack_i - escape, slack_j - own)
         if worse <= 0.0:

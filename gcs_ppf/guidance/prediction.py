@@ -22,7 +22,7 @@ from numba import njit
 
 from gcs_ppf.guidance.airframe import G_M_S2
 from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
-from gcs_ppf.planning.scene import FloatArray
+from gcs_ppf.planning.scene import FloatArray, IntArray
 
 X, Y, Z, YAW, SPEED, TURN, CLIMB, SINK, TAU, YAW_RATE, ROLL_LAG, ROLL_RATE = range(12)
 VZ, CLIMB_LAG, HEIGHT_GAIN = 12, 13, 14
@@ -206,13 +206,18 @@ def escape_arc(m: FloatArray, end: FloatArray, side: float) -> FloatArray:
 @njit(cache=True)
 def margin(
     path: FloatArray, centers: FloatArray, radii: FloatArray, safe_obstacle: float,
-    ground_z: float, mates_at: FloatArray, safe_uav: float,
+    ground_z: float, pool: FloatArray, which: IntArray, start: int, last: int, safe_uav: float,
 ) -> tuple[float, int]:  # fmt: skip
     """How far ``path`` [k,3] (``STEP_S`` apart) stays outside every keep-out (m; negative:
     inside), and which one is nearest (``OBSTACLE``, ``GROUND``, ``TEAMMATE``).  A sphere's
     keep-out is its surface plus ``safe_obstacle``; the ground's (``ground_z``, NaN: none)
-    the same above it; a teammate's ``safe_uav`` around where it is at each instant:
-    ``mates_at`` [n,k,3] (its last instant held on beyond its k)."""
+    the same above it; a teammate's ``safe_uav`` around where it is at each instant: of the
+    flights ``pool`` [P,L,3], those in rows ``which`` [n], ``path``'s instant i at their
+    ``start + min(i, last)`` (the last instant held on).
+
+    The teammates' distance is the square root of the least square distance (the square
+    root is monotonic and correctly rounded: the least of the square roots, exactly, one
+    root instead of one per instant)."""
     best, reason = math.inf, NO_KEEP_OUT
     if radii.shape[0]:
         gap = math.inf
@@ -227,16 +232,16 @@ def margin(
         low = path[:, 2].min()
         if low - ground_z - safe_obstacle < best:
             best, reason = low - ground_z - safe_obstacle, GROUND
-    if mates_at.shape[0]:
-        gap = math.inf
-        for j in range(mates_at.shape[0]):
+    if which.shape[0]:
+        gap2 = math.inf
+        for jj in range(which.shape[0]):
+            j = which[jj]
             for i in range(path.shape[0]):
-                k = min(i, mates_at.shape[1] - 1)
-                d = math.sqrt(
-                    (path[i, 0] - mates_at[j, k, 0]) ** 2 + (path[i, 1] - mates_at[j, k, 1]) ** 2
-                    + (path[i, 2] - mates_at[j, k, 2]) ** 2
-                )  # fmt: skip
-                gap = min(gap, d)
+                k = start + min(i, last)
+                d2 = ((path[i, 0] - pool[j, k, 0]) ** 2 + (path[i, 1] - pool[j, k, 1]) ** 2
+                      + (path[i, 2] - pool[j, k, 2]) ** 2)  # fmt: skip
+                gap2 = min(gap2, d2)
+        gap = math.sqrt(gap2)
         if gap - safe_uav < best:
             best, reason = gap - safe_uav, TEAMMATE
     return best, reason
@@ -252,19 +257,24 @@ def escape_steps(m: FloatArray) -> int:
 @njit(cache=True)
 def score(
     m: FloatArray, course: float, z: float, hold_s: float, centers: FloatArray,
-    radii: FloatArray, safe_obstacle: float, ground_z: float, mates_held: FloatArray,
-    mates_after: FloatArray, safe_uav: float,
+    radii: FloatArray, safe_obstacle: float, ground_z: float, pool: FloatArray,
+    which: IntArray, safe_uav: float,
 ) -> tuple[float, int]:  # fmt: skip
-    """A command's margin: along its hold (the teammates along theirs, ``mates_held``
-    [n,k+1,3] at the same instants), then along the better of its two escapes (the
-    teammates flying on meanwhile, ``mates_after`` [n,j,3] from their hold's end,
-    ``STEP_S`` apart, the last held on); with the keep-out it is to."""
+    """A command's margin: along its hold (the teammates along theirs: rows ``which`` of
+    ``pool`` [P,L,3], their flights, ``vehicle_motion.Track``, the first ``hold_steps`` + 1
+    instants at the same instants), then along the better of its two escapes (the teammates
+    flying on meanwhile, from their hold's end, ``STEP_S`` apart, the last held on); with
+    the keep-out it is to."""
     path, end = fly_hold(m, course, z, hold_s)
-    held, reason = margin(path, centers, radii, safe_obstacle, ground_z, mates_held, safe_uav)
+    k = hold_steps(hold_s)
+    held, reason = margin(path, centers, radii, safe_obstacle, ground_z, pool, which, 0, k,
+                          safe_uav)  # fmt: skip
     escape, escape_reason = -math.inf, NO_KEEP_OUT
+    after = pool.shape[1] - k - 1
     for side in (1.0, -1.0):
         arc = escape_arc(m, end, side)
-        e, r = margin(arc, centers, radii, safe_obstacle, ground_z, mates_after, safe_uav)
+        e, r = margin(arc, centers, radii, safe_obstacle, ground_z, pool, which, k, after,
+                      safe_uav)  # fmt: skip
         if e > escape:
             escape, escape_reason = e, r
     if escape < held:

@@ -10,7 +10,7 @@ the service); nothing here reads a clock.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields
 from typing import Any
 
 from gcs_ppf.mavlink.ardupilot import PlaneMode, is_armed, mode_name, plane_mode
@@ -153,6 +153,10 @@ class VehicleTelemetry:
         return None
 
 
+_FIELDS = tuple(f.name for f in fields(VehicleTelemetry))
+_FIELD_NAMES = frozenset(_FIELDS)
+
+
 def apply(tel: VehicleTelemetry | None, msg: MAVLinkMessage, now_s: float) -> VehicleTelemetry:
     """``tel`` updated with ``msg`` (received at caller time ``now_s``), as a new object.
 
@@ -175,7 +179,18 @@ def apply(tel: VehicleTelemetry | None, msg: MAVLinkMessage, now_s: float) -> Ve
     if not changes:
         return tel
     changes["last_update_s"] = now_s
-    return replace(tel, **changes)
+    return _replaced(tel, changes)
+
+
+def _replaced(tel: VehicleTelemetry, changes: dict[str, Any]) -> VehicleTelemetry:
+    """``dataclasses.replace(tel, **changes)`` at a fraction of its cost: every message of
+    every vehicle comes through here (``replace`` took 11 µs of ``apply``'s 14; at 100
+    vehicles, 4,500 messages a second)."""
+    assert changes.keys() <= _FIELD_NAMES, sorted(changes.keys() - _FIELD_NAMES)
+    new = object.__new__(VehicleTelemetry)
+    for name in _FIELDS:
+        object.__setattr__(new, name, changes[name] if name in changes else getattr(tel, name))
+    return new
 
 
 def _heartbeat(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:

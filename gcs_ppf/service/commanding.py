@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass, replace
 from functools import partial
 from typing import Any, Protocol
@@ -32,6 +33,7 @@ from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.scene import Obstacles, obstacles_from_mission
 from gcs_ppf.service import confirmation
+from gcs_ppf.service.tick_phases import TickPhases
 
 LOITER_AHEAD_M = 800.0
 """After the mission each vehicle circles a point this far ahead (or further, to clear)…"""
@@ -149,12 +151,15 @@ async def command_fleet(
     escaping: dict[int, assurance.Escape],
     now_s: float,
     trims: dict[int, slew.ClimbTrim] | None = None,
+    *,
+    phases: TickPhases | None = None,
 ) -> dict[int, assurance.Verdict]:
     """Send every active vehicle its commands for this tick, each assured first; returns
     each one's verdict (the command it was sent).  ``escaping`` holds each vehicle's escape
     in force, or the way its last one turned for ``SIDE_MEMORY_S`` after it ended (mission
     time ``now_s``), updated here; ``trims`` each vehicle's climb trim
-    (``slew.climb_trim``), updated here too."""
+    (``slew.climb_trim``), updated here too.  ``phases``: the assurance's time is timed
+    apart (``service.tick_phases``)."""
     mission = orders.mission
     turn_accel = mission.limits.v_max * mission.limits.max_yaw_rate  # the plan limits turns
     follows = speed_reference.follows_speed_plan(mission.limits.accel, mission.limits.decel)
@@ -169,7 +174,8 @@ async def command_fleet(
     motions = [motion(states[g.ids[i]], airframes[i], mission, float(ahead[i])) for i in idx]
     wanted = [vehicle_motion.Command(planned[i].course_rad, planned[i].z_m) for i in idx]
     previous = [escaping.get(g.ids[i]) for i in idx]
-    verdicts = assurance.assure(motions, wanted, hold_s, keep, previous)
+    with nullcontext() if phases is None else phases.phase("assurance"):
+        verdicts = assurance.assure(motions, wanted, hold_s, keep, previous)
     points = [_course_point(planned[i], v, m, orders, g.guided_point_m[i])
               for i, m, v in zip(idx, motions, verdicts, strict=True)]  # fmt: skip
     lats, lons, alts = enu_to_geodetic_many(np.array(points).reshape(-1, 3), mission.origin)

@@ -125,6 +125,7 @@ class Fleet:
         self._spawn = spawn
         self._links: dict[int, LinkEntry] = {}
         self._next_link_id = 1
+        self._decoded_gone_s = 0.0  # ``decoding_s`` of the links removed
         self.by_id: dict[int, Vehicle] = {}
         self.telemetry_event = asyncio.Event()
         self.telemetry_received_s = 0.0  # perf_counter of the latest position message
@@ -166,6 +167,11 @@ class Fleet:
         log.info("link %d: %s", link_id, url)
         return self._link_info(entry)
 
+    def decoding_s(self) -> float:
+        """Our seconds the links have spent decoding and handing on what they received
+        (``MavlinkLink.receiving_s``), since the service started."""
+        return sum(e.link.receiving_s for e in self._links.values()) + self._decoded_gone_s
+
     def links(self) -> list[dict[str, Any]]:
         return [self._link_info(e) for e in self._links.values()]
 
@@ -173,6 +179,7 @@ class Fleet:
         entry = self._links.pop(link_id, None)
         if entry is None:
             raise NotFound(f"link {link_id} does not exist")
+        self._decoded_gone_s += entry.link.receiving_s
         entry.link.close()
         if entry.task is not None:
             entry.task.cancel()

@@ -33,6 +33,7 @@ from gcs_ppf.service.ending import end, hold_during_launch
 from gcs_ppf.service.fleet import planning_states
 from gcs_ppf.service.run import NOT_RESPONDING_S, Run, RunState, changes, min_of
 from gcs_ppf.service.station import Station
+from gcs_ppf.service.tick_rate import TickRate
 from gcs_ppf.service.watch import Located, reported_together, watch_safety
 
 log = logging.getLogger("gcs_ppf.service.runs")  # the runs' log, under its name of old
@@ -129,6 +130,7 @@ async def tick_loop(station: Station, run: Run) -> None:
     sample_period = 1.0 / station.settings.telemetry_sample_hz
     last_tick: float | None = None
     last_sample = -math.inf
+    run.tick_rate = TickRate(station.settings.tick_hz)
     while not run.abort.is_set():
         fleet.telemetry_event.clear()
         try:
@@ -150,14 +152,32 @@ async def tick_loop(station: Station, run: Run) -> None:
             run.tick_gaps_s.append(now_v - last_tick)
         last_tick = now_v
         run.mission_time_s = now_v - run.start_vehicle_time_s
+        phases = run.phases
+        phases.begin_tick()
+        decoded = fleet.decoding_s()
+        phases.add("decoding", decoded - run.decoded_s)
+        run.decoded_s = decoded
         done = await tick(station, run)
         run.tick_latency_s.append(time.perf_counter() - received)
         if run.mission_time_s - last_sample >= sample_period:
             last_sample = run.mission_time_s
-            sample(station, run)
-        station.publish()
+            with phases.phase("storage"):
+                sample(station, run)
+        with phases.phase("events"):
+            station.publish()
+        keep_rate(station, run, now_v, sum(phases.end_tick().values()))
         if done:
             return
+
+
+def keep_rate(station: Station, run: Run, now_v: float, work_s: float) -> None:
+    """The tick's work (``work_s``, ours: its phases, decoding since the last included)
+    against its period in the vehicles' seconds (``service.tick_rate``): a ``tick_overrun``
+    event when the ticks start overrunning it, ``tick_rate_kept`` when they keep it again."""
+    assert run.tick_rate is not None
+    change = run.tick_rate.update(now_v, work_s * station.fleet.clock_rate())
+    if change is not None:
+        station.event(run, change, None, **run.tick_rate.event_detail())
 
 
 async def losses(station: Station, run: Run) -> bool:
@@ -232,40 +252,46 @@ async def tick(station: Station, run: Run) -> bool:
     mission = run.mission
     leader_id = mission.leader.id
 
-    located = list(station.located(run))  # one geodetic → ICS conversion per vehicle
-    ground = home_ground(
-        [(pos[2], v.telemetry.relative_alt_m) for v, pos in located
-         if v.telemetry.relative_alt_m is not None]
-    )  # fmt: skip
-    # what the vehicles report, on one instant (the safety monitor's and the status's
-    # distances), of those not lost (``losses`` has just matched them to the fleet's)
-    reporting = [(v, p) for v, p in located if v.system_id not in run.lost_ids]
-    ids = [v.system_id for v, _ in reporting]
-    together = reported_together(reporting)
-    watch_safety(station, run, ids, together,
-                 mission.ground if mission.ground is not None else ground)  # fmt: skip
-    watch_formation(station, run, reporting, together)
-    recent = list(itertools.islice(reversed(run.tick_latency_s), RECENT_TICKS))
-    work = statistics.median(recent) if recent else 0.0
-    states, active, lags = planning_states(located, work)
-    account_lag(station, run, [lags[i] for i in active if i in lags])
+    phases = run.phases
+    with phases.phase("prediction"):
+        located = list(station.located(run))  # one geodetic → ICS conversion per vehicle
+        ground = home_ground(
+            [(pos[2], v.telemetry.relative_alt_m) for v, pos in located
+             if v.telemetry.relative_alt_m is not None]
+        )  # fmt: skip
+        # what the vehicles report, on one instant (the safety monitor's and the status's
+        # distances), of those not lost (``losses`` has just matched them to the fleet's)
+        reporting = [(v, p) for v, p in located if v.system_id not in run.lost_ids]
+        ids = [v.system_id for v, _ in reporting]
+        together = reported_together(reporting)
+    with phases.phase("monitoring"):
+        watch_safety(station, run, ids, together,
+                     mission.ground if mission.ground is not None else ground)  # fmt: skip
+        watch_formation(station, run, reporting, together)
+    with phases.phase("prediction"):
+        recent = list(itertools.islice(reversed(run.tick_latency_s), RECENT_TICKS))
+        work = statistics.median(recent) if recent else 0.0
+        states, active, lags = planning_states(located, work)
+        account_lag(station, run, [lags[i] for i in active if i in lags])
     if leader_id not in states:
         return False
-    # what the vehicles report, not where they are predicted to be when commands act:
-    # the target is reached, and distances kept, by the reported positions
-    reported = {v.system_id: pos for v, pos in located}
-    at = {vid: k for k, vid in enumerate(ids)}
-    positions = together[[at[i] for i in sorted(active)]].reshape(-1, 3)
-    obstacles = obstacles_from_mission(mission).at(run.mission_time_s)
-    run.min_separation_m = min_of(run.min_separation_m, separations(positions))
-    run.min_clearance_m = min_of(run.min_clearance_m, clearance(positions, obstacles))
+    with phases.phase("monitoring"):
+        # what the vehicles report, not where they are predicted to be when commands act:
+        # the target is reached, and distances kept, by the reported positions
+        reported = {v.system_id: pos for v, pos in located}
+        at = {vid: k for k, vid in enumerate(ids)}
+        positions = together[[at[i] for i in sorted(active)]].reshape(-1, 3)
+        obstacles = obstacles_from_mission(mission).at(run.mission_time_s)
+        run.min_separation_m = min_of(run.min_separation_m, separations(positions))
+        run.min_clearance_m = min_of(run.min_clearance_m, clearance(positions, obstacles))
 
-    leader_pos = np.array(reported[leader_id])
-    previous, run.leader_pos = run.leader_pos, leader_pos
-    follow_route(station, run, previous, leader_pos)
-    if run.legs[run.leg].final and passes_within(
-        previous, leader_pos, np.array(mission.target), mission.limits.target_accuracy
-    ):
+        leader_pos = np.array(reported[leader_id])
+        previous, run.leader_pos = run.leader_pos, leader_pos
+        follow_route(station, run, previous, leader_pos)
+        reached = run.legs[run.leg].final and passes_within(
+            previous, leader_pos, np.array(mission.target), mission.limits.target_accuracy
+        )
+    if reached:
         end(station, run, RunState.COMPLETED, "leader reached the target", states)
         return True
 
@@ -273,8 +299,11 @@ async def tick(station: Station, run: Run) -> bool:
         end(station, run, RunState.FAILED, "planner.max_time passed before the target")
         return True
 
-    airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
-    if check_obedience(station, run, located, states, airframes):
+    with phases.phase("prediction"):
+        airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
+    with phases.phase("confirmation"):
+        leader_not_responding = check_obedience(station, run, located, states, airframes)
+    if leader_not_responding:
         end(station, run, RunState.FAILED, "leader not responding")
         return True
     uncontrolled = run.obedience.not_responding & set(states)
@@ -337,39 +366,46 @@ async def plan_and_command(
     mission = run.mission
     settings = station.settings
     lim = mission.limits
+    phases = run.phases
     telemetry_interval_s = 1.0 / settings.stream_rate_hz
     lagging_s = telemetry_interval_s + run.fleet_lag.total_s  # what the margins must cover
-    # planned from the speeds the last plan had reached by now, not the measured ones
-    follows = speed_reference.follows_speed_plan(lim.accel, lim.decel)
-    reference = run.speed_plan if follows else None
-    planning = speed_reference.reference_states(states, reference, run.mission_time_s)
-    g, ordered = tick_plan.plan(
-        mission, planning, active, obstacles, ground, airframes,
-        tick_plan.Tuning.of(settings), lagging_s, run.last, run.legs[run.leg],
-    )  # fmt: skip
-    held = follows and speed_reference.formation_holds(g, lim.target_accuracy, run.formation_held)
-    run.formation_held = held
-    if held:  # the leader keeps its speed (``speed_reference.leader_held``)
-        g = speed_reference.leader_held(g, lim.v_max, lim.v_min, lim.decel)
-    run.speed_plan = speed_reference.SpeedPlan.of(g, run.mission_time_s)
-    for kind, vehicle_id in changes(run, g):  # what changed since the last tick
-        station.event(run, kind, vehicle_id)
-    run.last = g
-    keep = assurance.KeepOut(
-        obstacles, mission.ground if mission.ground is not None else ground,
-        lim.safe_distance_obstacle, lim.safe_distance_uav,
-    )  # fmt: skip
-    starvation_s = settings.starvation_allowance_s * station.fleet.clock_rate()
-    hold_s = lag.hold_s(run.tick_gaps_s, 1.0 / settings.tick_hz, telemetry_interval_s,
-                        run.fleet_lag, starvation_s)  # fmt: skip
-    verdicts = await commanding.command_fleet(
-        station.fleet, g, active, states, ordered, run.orders, keep, hold_s,
-        run.commanded_speed, station.events_of(run), run.escaping, run.mission_time_s,
-        run.climb_trims,
-    )  # fmt: skip
-    for vid, v in verdicts.items():
-        sent = run.sent_courses.setdefault(vid, deque(maxlen=SENT_COURSES_KEPT))
-        sent.append((run.mission_time_s, v.command.course_rad))
+    with phases.phase("planning"):
+        # planned from the speeds the last plan had reached by now, not the measured ones
+        follows = speed_reference.follows_speed_plan(lim.accel, lim.decel)
+        reference = run.speed_plan if follows else None
+        planning = speed_reference.reference_states(states, reference, run.mission_time_s)
+        g, ordered = tick_plan.plan(
+            mission, planning, active, obstacles, ground, airframes,
+            tick_plan.Tuning.of(settings), lagging_s, run.last, run.legs[run.leg],
+        )  # fmt: skip
+        held = follows and speed_reference.formation_holds(
+            g, lim.target_accuracy, run.formation_held
+        )
+        run.formation_held = held
+        if held:  # the leader keeps its speed (``speed_reference.leader_held``)
+            g = speed_reference.leader_held(g, lim.v_max, lim.v_min, lim.decel)
+        run.speed_plan = speed_reference.SpeedPlan.of(g, run.mission_time_s)
+        for kind, vehicle_id in changes(run, g):  # what changed since the last tick
+            station.event(run, kind, vehicle_id)
+        run.last = g
+    with phases.phase("assurance"):
+        keep = assurance.KeepOut(
+            obstacles, mission.ground if mission.ground is not None else ground,
+            lim.safe_distance_obstacle, lim.safe_distance_uav,
+        )  # fmt: skip
+        starvation_s = settings.starvation_allowance_s * station.fleet.clock_rate()
+        hold_s = lag.hold_s(run.tick_gaps_s, 1.0 / settings.tick_hz, telemetry_interval_s,
+                            run.fleet_lag, starvation_s)  # fmt: skip
+    with phases.phase("commanding"):
+        verdicts = await commanding.command_fleet(
+            station.fleet, g, active, states, ordered, run.orders, keep, hold_s,
+            run.commanded_speed, station.events_of(run), run.escaping, run.mission_time_s,
+            run.climb_trims, phases=phases,
+        )  # fmt: skip
+    with phases.phase("confirmation"):
+        for vid, v in verdicts.items():
+            sent = run.sent_courses.setdefault(vid, deque(maxlen=SENT_COURSES_KEPT))
+            sent.append((run.mission_time_s, v.command.course_rad))
 
 
 def sample(station: Station, run: Run) -> None:

@@ -207,6 +207,8 @@ class MavlinkLink:
         self._udp: asyncio.DatagramTransport | None = None
         self._peer: tuple[str, int] | None = None
         self._running = False
+        self.receiving_s = 0.0
+        """Our seconds spent decoding what was received and handing it on (perf_counter)."""
 
     # -- state -----------------------------------------------------------------------------
     @property
@@ -299,7 +301,9 @@ class MavlinkLink:
                 if not data:
                     log.info("link %s: connection closed by the peer", self.url)
                     return heard
+                start = time.perf_counter()
                 heard = self._received(self._codec.parse(data), len(data)) or heard
+                self.receiving_s += time.perf_counter() - start
             return heard
         finally:
             self._drop_connection()
@@ -324,7 +328,9 @@ class MavlinkLink:
                 data, addr = item
                 if self.url.kind is LinkKind.UDP_IN:
                     self._peer = addr  # answer whoever spoke last
+                start = time.perf_counter()
                 heard = self._received(self._codec.parse_datagram(data), len(data)) or heard
+                self.receiving_s += time.perf_counter() - start
             return heard
         finally:
             self._drop_connection()

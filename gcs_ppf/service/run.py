@@ -19,6 +19,8 @@ from gcs_ppf.mission import Mission
 from gcs_ppf.planning.route import Leg, legs
 from gcs_ppf.service import commanding
 from gcs_ppf.service.store import StoredRun
+from gcs_ppf.service.tick_phases import TickPhases
+from gcs_ppf.service.tick_rate import TickRate
 
 NOT_RESPONDING_S = 3.0
 """Vehicle seconds out of GUIDED or refusing the course: not responding."""
@@ -101,6 +103,12 @@ class Run:
     fleet_lag: lag.Lag = field(default_factory=lambda: lag.Lag(0.0, 0.0))
     """The fleet's lag at the last tick (``gcs_ppf.guidance.lag``), vehicle seconds."""
     lag_budget: lag.Budget = field(default_factory=lambda: lag.Budget(LAG_BUDGET_S))
+    phases: TickPhases = field(default_factory=TickPhases)
+    """Where the latest ticks' time went (``service.tick_phases``)."""
+    decoded_s: float = 0.0
+    """``Fleet.decoding_s`` at the last tick (the decoding since is the next tick's)."""
+    tick_rate: TickRate | None = None
+    """Whether the ticks keep their period (``service.tick_rate``), from the first tick."""
 
     def __post_init__(self) -> None:
         self.formation = FormationWatch(self.mission.limits.target_accuracy)
@@ -178,6 +186,8 @@ def status(run: Run) -> dict[str, Any]:
         "min_obstacle_clearance_m": run.min_clearance_m,
         "safety_violations": run.safety.count,
         "tick_latency_ms": latency_ms(run),
+        "tick_phases_ms": run.phases.summary_ms(),
+        "tick_rate": None if run.tick_rate is None else run.tick_rate.as_dict(),
         "lag_s": {
             **run.fleet_lag.as_dict(),
             "budget_s": run.lag_budget.budget_s,

@@ -45,21 +45,23 @@ class Station:
 
     def event(self, run: Run, kind: str, vehicle_id: int | None = None, **detail: Any) -> None:
         """One of the run's events, stored and logged."""
-        self.store.add_event(
-            run.record.id,
-            kind,
-            mission_time_s=round(run.mission_time_s, 3),
-            vehicle_id=vehicle_id,
-            detail=detail or None,
-        )
-        log.info(
-            "mission %d t=%.1f s: %s%s %s",
-            run.mission_id,
-            run.mission_time_s,
-            kind,
-            f" (vehicle {vehicle_id})" if vehicle_id else "",
-            detail or "",
-        )
+        with run.phases.phase("events"):
+            with run.phases.phase("storage"):
+                self.store.add_event(
+                    run.record.id,
+                    kind,
+                    mission_time_s=round(run.mission_time_s, 3),
+                    vehicle_id=vehicle_id,
+                    detail=detail or None,
+                )
+            log.info(
+                "mission %d t=%.1f s: %s%s %s",
+                run.mission_id,
+                run.mission_time_s,
+                kind,
+                f" (vehicle {vehicle_id})" if vehicle_id else "",
+                detail or "",
+            )
 
     def events_of(self, run: Run) -> EventSink:
         """``event`` for this run, as the launch and commanding take it."""

@@ -1,22 +1,34 @@
 """Persistence: missions, runs, events and sampled telemetry in one SQLite file.
 
 The schema is created and migrated by the service itself (``PRAGMA user_version`` counts
-the migrations applied).  Writes are small and synchronous; every change commits at once,
-so a restarted service finds every uploaded mission and every run as it was left.
+the migrations applied).  Writes are small; every change commits at once, so a restarted
+service finds every uploaded mission and every run as it was left.  The two a run makes
+every tick, its events and its sampled telemetry, are written behind, in order, by a thread
+of the store's own (off the tick's path: at 100 vehicles an event's commit took 1.5 ms, up
+to 35 ms, of a tick), and every other call waits for what was queued before it (what one
+caller wrote it reads back); ``close`` writes what is still queued (a process killed
+outright loses what was queued: milliseconds of events, where a synchronous write lost at
+most the one under way).
 """
 
 from __future__ import annotations
 
+import functools
 import json
+import logging
+import queue
 import sqlite3
+import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Concatenate, ParamSpec, TypeVar
 
 from gcs_ppf.mission import Mission
+
+log = logging.getLogger(__name__)
 
 MIGRATIONS: tuple[str, ...] = (
     """
@@ -90,6 +102,32 @@ class StoredEvent:
     detail: dict[str, Any] | None
 
 
+WRITER_IDLE_S = 5.0
+"""The writer thread ends after this long without a write (a new one starts with the next)."""
+
+P = ParamSpec("P")
+R = TypeVar("R")
+Write = Callable[[sqlite3.Connection], None]
+
+
+def _after_queued(f: Callable[Concatenate[Store, P], R]) -> Callable[Concatenate[Store, P], R]:
+    """A call that waits for the writes queued before it, then has the database alone."""
+
+    @functools.wraps(f)
+    def wrapped(self: Store, /, *args: P.args, **kwargs: P.kwargs) -> R:
+        inside = getattr(self._held, "depth", 0)
+        if not inside:  # (inside a call that has the lock, waiting would wait for ever)
+            self._queue.join()
+        with self._lock:
+            self._held.depth = inside + 1
+            try:
+                return f(self, *args, **kwargs)
+            finally:
+                self._held.depth = inside
+
+    return wrapped
+
+
 class Store:
     """The service's SQLite database (``:memory:`` for tests)."""
 
@@ -100,10 +138,76 @@ class Store:
         self._db.execute("PRAGMA foreign_keys = ON")
         self._db.execute("PRAGMA journal_mode = WAL")
         self._db.execute("PRAGMA synchronous = NORMAL")  # WAL: no fsync per commit
+        self._lock = threading.RLock()
+        self._held = threading.local()  # how deep this thread is in calls that have the lock
+        self._queue: queue.Queue[Write | None] = queue.Queue()
+        self._writer: threading.Thread | None = None
+        self._writer_lock = threading.Lock()  # the writer's start and end, never the database
+        self.write_errors = 0
+        """Writes behind that failed (logged)."""
         self.migrate()
 
     def close(self) -> None:
+        """Write what is queued, then close."""
+        with self._writer_lock:
+            writer = self._writer
+            if writer is not None:
+                self._queue.put(None)
+        if writer is not None:
+            writer.join()
+        self._queue.join()
         self._db.close()
+
+    def _write_behind(self, write: Write) -> None:
+        """``write`` queued for the store's writer thread (started when none is running)."""
+        with self._writer_lock:
+            if self._writer is None:
+                self._writer = threading.Thread(target=self._write_queued, name="store-writer",
+                                                daemon=True)  # fmt: skip
+                self._writer.start()
+            self._queue.put(write)
+
+    def _write_queued(self) -> None:
+        """The writer thread: the queued writes in order, as many as are queued in one
+        transaction (one by one when that fails: a failed write is logged, never the
+        service's end, and the others are kept), until ``close`` or ``WRITER_IDLE_S``
+        without any."""
+        while True:
+            try:
+                first = self._queue.get(timeout=WRITER_IDLE_S)
+            except queue.Empty:
+                with self._writer_lock:
+                    if self._queue.empty():
+                        self._writer = None
+                        return
+                continue
+            batch = [first]
+            while batch[-1] is not None and len(batch) < 1000 and not self._queue.empty():
+                batch.append(self._queue.get_nowait())
+            writes = [w for w in batch if w is not None]
+            try:
+                self._commit(writes)
+            finally:
+                for _ in batch:
+                    self._queue.task_done()
+            if batch[-1] is None:
+                return
+
+    def _commit(self, writes: list[Write]) -> None:
+        if not writes:
+            return
+        try:
+            with self._lock, self._transaction() as db:
+                for w in writes:
+                    w(db)
+            return
+        except Exception:
+            if len(writes) == 1:
+                self.write_errors += 1
+                log.exception("store: a queued write failed")
+                return
+        for w in writes:
+            self._commit([w])
 
     @contextmanager
     def _transaction(self) -> Iterator[sqlite3.Connection]:
@@ -116,9 +220,11 @@ class Store:
         self._db.execute("COMMIT")
 
     @property
+    @_after_queued
     def schema_version(self) -> int:
         return int(self._db.execute("PRAGMA user_version").fetchone()[0])
 
+    @_after_queued
     def migrate(self) -> None:
         """Apply the migrations this database has not seen yet."""
         for version in range(self.schema_version, len(MIGRATIONS)):
@@ -129,6 +235,7 @@ class Store:
                 db.execute(f"PRAGMA user_version = {version + 1}")
 
     # Missions ---------------------------------------------------------------------------
+    @_after_queued
     def add_mission(self, mission: Mission) -> StoredMission:
         now = time.time()
         with self._transaction() as db:
@@ -138,6 +245,7 @@ class Store:
             )
         return StoredMission(int(cur.lastrowid or 0), mission.name, mission, now)
 
+    @_after_queued
     def replace_mission(self, mission_id: int, mission: Mission) -> StoredMission:
         with self._transaction() as db:
             cur = db.execute(
@@ -148,6 +256,7 @@ class Store:
                 raise KeyError(mission_id)
         return self.mission(mission_id)
 
+    @_after_queued
     def mission(self, mission_id: int) -> StoredMission:
         row = self._db.execute(
             "SELECT id, name, document, created_s FROM missions WHERE id = ?", (mission_id,)
@@ -156,11 +265,13 @@ class Store:
             raise KeyError(mission_id)
         return StoredMission(row[0], row[1], Mission.model_validate_json(row[2]), row[3])
 
+    @_after_queued
     def missions(self) -> list[StoredMission]:
         rows = self._db.execute("SELECT id FROM missions ORDER BY id").fetchall()
         return [self.mission(r[0]) for r in rows]
 
     # Runs -------------------------------------------------------------------------------
+    @_after_queued
     def add_run(self, mission_id: int, state: str) -> StoredRun:
         now = time.time()
         with self._transaction() as db:
@@ -170,6 +281,7 @@ class Store:
             )
         return self.run(int(cur.lastrowid or 0))
 
+    @_after_queued
     def update_run(
         self,
         run_id: int,
@@ -193,6 +305,7 @@ class Store:
             )
         return self.run(run_id)
 
+    @_after_queued
     def run(self, run_id: int) -> StoredRun:
         row = self._db.execute(
             "SELECT id, mission_id, state, started_s, ended_s, outcome, summary FROM runs "
@@ -204,6 +317,7 @@ class Store:
         summary = json.loads(row[6]) if row[6] else None
         return StoredRun(row[0], row[1], row[2], row[3], row[4], row[5], summary)
 
+    @_after_queued
     def runs(self, mission_id: int | None = None) -> list[StoredRun]:
         if mission_id is None:
             rows = self._db.execute("SELECT id FROM runs ORDER BY id").fetchall()
@@ -213,6 +327,7 @@ class Store:
             ).fetchall()
         return [self.run(r[0]) for r in rows]
 
+    @_after_queued
     def interrupted_runs(self) -> list[StoredRun]:
         """Runs a previous process left unfinished (it stopped while they flew)."""
         return [r for r in self.runs() if r.ended_s is None]
@@ -228,21 +343,20 @@ class Store:
         detail: dict[str, Any] | None = None,
     ) -> StoredEvent:
         now = time.time()
-        with self._transaction() as db:
+        row = (run_id, mission_time_s, now, kind, vehicle_id,
+               json.dumps(detail) if detail is not None else None)  # fmt: skip
+
+        def write(db: sqlite3.Connection) -> None:
             db.execute(
                 "INSERT INTO events (run_id, mission_time_s, wall_s, kind, vehicle_id, detail) "
                 "VALUES (?, ?, ?, ?, ?, ?)",
-                (
-                    run_id,
-                    mission_time_s,
-                    now,
-                    kind,
-                    vehicle_id,
-                    json.dumps(detail) if detail is not None else None,
-                ),
+                row,
             )
+
+        self._write_behind(write)
         return StoredEvent(run_id, mission_time_s, now, kind, vehicle_id, detail)
 
+    @_after_queued
     def events(self, run_id: int) -> list[StoredEvent]:
         rows = self._db.execute(
             "SELECT run_id, mission_time_s, wall_s, kind, vehicle_id, detail FROM events "
@@ -256,12 +370,14 @@ class Store:
 
     def add_telemetry(self, run_id: int, rows: list[TelemetryRow]) -> None:
         """Rows of (mission_time_s, vehicle_id, lat, lon, alt_amsl, x, y, z, speed)."""
-        with self._transaction() as db:
-            db.executemany(
-                "INSERT INTO telemetry VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                [(run_id, *r) for r in rows],
-            )
+        values = [(run_id, *r) for r in rows]
 
+        def write(db: sqlite3.Connection) -> None:
+            db.executemany("INSERT INTO telemetry VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)", values)
+
+        self._write_behind(write)
+
+    @_after_queued
     def telemetry(self, run_id: int) -> list[TelemetryRow]:
         """A run's rows (as ``add_telemetry`` took them), by mission time."""
         rows = self._db.execute(
@@ -271,6 +387,7 @@ class Store:
         ).fetchall()
         return [tuple(r) for r in rows]
 
+    @_after_queued
     def telemetry_count(self, run_id: int) -> int:
         row = self._db.execute("SELECT COUNT(*) FROM telemetry WHERE run_id = ?", (run_id,))
         return int(row.fetchone()[0])

@@ -75,6 +75,7 @@ CONDITIONS: dict[str, Condition] = {
     "e": Condition("e", "x10, the leader's link dies", 10.0, event="kill", expect="failed"),
     "f": Condition("f", "x5, idle", 5.0),
     "g": Condition("g", "x5, a CPU burner per core", 5.0, burn_cpus=True),
+    "h": Condition("h", "x1, idle", 1.0),  # fleets too large for the tick at 5x (issue 29)
 }
 
 

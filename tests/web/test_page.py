@@ -141,6 +141,8 @@ def test_upload_preview_fly_and_replay_table3(tmp_path: Path) -> None:
         for vid in wingmen:
             row = driver.find_element(By.CSS_SELECTOR, f"#vehicles-table tr[data-vehicle='{vid}']")
             assert re.fullmatch(r"\d+\.\d m( ✓)?", cell_text(row, 9))
+        # the rate the service ticks at, measured, beside its own (service.tick_rate)
+        wait_for(lambda: " / 10 Hz" in text(driver, "tick-rate"), 10, "the tick rate shown")
         screenshot(driver, "mid-run")
         finished = ("completed", "completed_unsafe", "aborted", "failed")
         wait_for(lambda: js(driver, "document.getElementById('run-state').dataset.state")

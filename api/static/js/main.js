@@ -284,6 +284,9 @@ function updateHeader(scene) {
   $("fig-clr").classList.toggle("alarm", below(clrNow, safeClr) || below(clrMin, safeClr));
   $("violations").textContent = run && run.safety_violations !== undefined ? String(run.safety_violations) : "–";
   $("violations").parentElement.classList.toggle("alarm", Boolean(run && run.safety_violations));
+  const rate = active && run.tick_rate ? run.tick_rate : null;
+  $("tick-rate").textContent = rate ? `${rate.measured_hz === null ? "–" : rate.measured_hz.toFixed(1)} / ${rate.target_hz} Hz${rate.overrunning ? " (over its period)" : ""}` : "–";
+  $("fig-rate").classList.toggle("alarm", Boolean(rate && rate.overrunning));
   showFormation(run && run.formation);
 }
 

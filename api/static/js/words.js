@@ -30,6 +30,8 @@ const WORDS = {
   parameter_unanswered: (e) => `${v(e)}: parameter ${d(e).name} not answered`,
   lag_over_budget: (e) => `Lag over budget: telemetry ${d(e).telemetry_age_s} s + commands ${d(e).command_delay_s} s = ${d(e).total_s} s (budget ${d(e).budget_s} s)`,
   lag_within_budget: (e) => `Lag within budget again (${d(e).total_s} s of ${d(e).budget_s} s)`,
+  tick_overrun: (e) => `Ticks over their period: ${d(e).work_s} s of work in a ${d(e).period_s} s period, ${d(e).measured_hz ?? "?"} Hz of ${d(e).target_hz} (margins widened by the lag)`,
+  tick_rate_kept: (e) => `Ticks within their period again: ${d(e).measured_hz ?? "?"} Hz of ${d(e).target_hz} (${d(e).overruns} overran)`,
 };
 
 const LEVEL = {
@@ -38,7 +40,7 @@ const LEVEL = {
   vehicle_not_responding: "bad", safety_violation: "bad", takeoff_failed: "bad",
   formation_broken: "warn", avoidance_entered: "warn", conflict_resolution_began: "warn",
   local_minimum_escape: "warn", hold_not_clear: "warn", parameter_not_set: "warn",
-  parameter_unanswered: "warn", lag_over_budget: "warn",
+  parameter_unanswered: "warn", lag_over_budget: "warn", tick_overrun: "warn", tick_rate_kept: "ok",
 };
 
 export function eventWords(e) {

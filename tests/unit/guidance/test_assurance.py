@@ -282,13 +282,14 @@ def test_an_escape_keeps_turning_the_way_the_last_one_turned() -> None:
 def test_after_warm_up_nothing_is_compiled_in_flight() -> None:
     """The service warms the compiled prediction up before any run; a tick's calls, with
     integer or float inputs, then compile nothing more (seconds of a tick otherwise)."""
-    from gcs_ppf.guidance import prediction
+    from gcs_ppf.guidance import prediction, reach
 
     assurance.warm_up()
     compiled = {
         f: len(getattr(prediction, f).signatures)
         for f in ("score", "fly_hold", "fly_on", "escape_s", "escape_steps", "height_demand_now")
     }  # fmt: skip
+    yields_compiled = len(reach.yields.signatures)
     m = Motion((0, 0, 100), 0, 25, 0.3, 5, 5)
     walls = Obstacles(np.array([[500, 0, 100]]), np.array([100]), np.zeros((1, 3)))
     assure([m, m], [Command(0, 100)] * 2, 1, KeepOut(walls, 0, 25, 50))
@@ -305,3 +306,4 @@ def test_after_warm_up_nothing_is_compiled_in_flight() -> None:
     state = VehicleState((0, 0, 100), 0, 0, 25, climb_rate_m_s=-3)
     levelling_height(state, Airframe(tecs_time_constant_s=5), mission)
     assert {f: len(getattr(prediction, f).signatures) for f in compiled} == compiled
+    assert len(reach.yields.signatures) == yields_compiled == 1

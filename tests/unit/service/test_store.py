@@ -64,3 +64,29 @@ def test_failed_write_changes_nothing(table3: Mission) -> None:
     with pytest.raises(Exception, match="FOREIGN KEY"):
         store.add_run(99, "starting")
     assert store.runs() == []
+
+
+def test_events_and_telemetry_are_written_behind_and_read_back_in_order(
+    tmp_path: Path, table3: Mission
+) -> None:
+    store = Store(tmp_path / "gcs.db")
+    run = store.add_run(store.add_mission(table3).id, "running")
+    for k in range(300):
+        store.add_event(run.id, "tick", mission_time_s=0.1 * k, detail={"k": k})
+        store.add_telemetry(run.id, [(0.1 * k, 1, 47.0, 8.0, 800.0, 1.0, 2.0, 3.0, 100.0)])
+    # what one caller wrote it reads back at once, in the order written
+    assert [e.detail for e in store.events(run.id)] == [{"k": k} for k in range(300)]
+    assert store.telemetry_count(run.id) == 300
+    store.add_event(run.id, "last")
+    store.close()  # writes what is still queued
+    assert [e.kind for e in Store(tmp_path / "gcs.db").events(run.id)][-2:] == ["tick", "last"]
+
+
+def test_a_failed_write_behind_is_counted_and_the_others_kept(table3: Mission) -> None:
+    store = Store(":memory:")
+    run = store.add_run(store.add_mission(table3).id, "running")
+    store.add_event(run.id, "before")
+    store.add_event(99, "of no run")  # FOREIGN KEY: refused, logged
+    store.add_event(run.id, "after")
+    assert [e.kind for e in store.events(run.id)] == ["before", "after"]
+    assert store.write_errors == 1
