@@ -111,13 +111,18 @@ def with_formation(
         p = per_vehicle.get(v["id"], {})
         ltp = None
         if (
-            spec is not None and spec.slot is not None and leader is not None
-            and leader["pos_m"] is not None and leader["yaw_rad"] is not None
-        ):  # fmt: skip
+            spec is not None
+            and spec.slot is not None
+            and leader is not None
+            and leader["pos_m"] is not None
+            and leader["yaw_rad"] is not None
+        ):
             point = local_target_point(
-                np.asarray(leader["pos_m"], dtype=float), leader["pitch_rad"] or 0.0,
-                leader["yaw_rad"], np.asarray(spec.slot, dtype=float),
-            )  # fmt: skip
+                np.asarray(leader["pos_m"], dtype=float),
+                leader["pitch_rad"] or 0.0,
+                leader["yaw_rad"],
+                np.asarray(spec.slot, dtype=float),
+            )
             ltp = [round(float(c), 2) for c in point]
         out.append(
             {

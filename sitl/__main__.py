@@ -44,23 +44,32 @@ def build_parser() -> argparse.ArgumentParser:
         "--signing-key", default=None, help="MAVLink 2 signing key (64 hex) or passphrase"
     )
     p.add_argument(
-        "--param", action="append", default=[], metavar="[ID:]NAME=VALUE",
+        "--param",
+        action="append",
+        default=[],
+        metavar="[ID:]NAME=VALUE",
         help="set a parameter at start, for vehicle ID or all (repeatable)",
-    )  # fmt: skip
+    )
     p.add_argument(
-        "--fault", action="append", default=[], metavar="[ID:]KEY=VAL,...",
+        "--fault",
+        action="append",
+        default=[],
+        metavar="[ID:]KEY=VAL,...",
         help="loss=%%, latency=ms, noise=m, cut=START+DUR, die=T, ignore=T (sim s; repeatable)",
-    )  # fmt: skip
+    )
     p.add_argument(
-        "--airframe", choices=AIRFRAMES, default="auto",
+        "--airframe",
+        choices=AIRFRAMES,
+        default="auto",
         help="parameter defaults: ArduPlane's plane.parm (arduplane), scaled to the mission's "
         "limits (mission), or arduplane when the mission's v_max is within it (auto)",
-    )  # fmt: skip
+    )
     p.add_argument(
-        "--ground-start", action="store_true",
+        "--ground-start",
+        action="store_true",
         help="vehicles start on the ground at their start positions, disarmed (take off in "
         "TAKEOFF mode), instead of in the air at their start state",
-    )  # fmt: skip
+    )
     p.add_argument("--duration", type=float, default=None, help="stop after this many sim seconds")
     return p
 
@@ -75,10 +84,14 @@ def main(argv: list[str] | None = None) -> int:
         if not 1 <= args.base_port <= 65535 - 10 * (len(mission.vehicles) - 1):
             raise ValueError("--base-port: ports out of range for this many vehicles")
         sim = Simulation(
-            mission, seed=args.seed, params=params, faults=faults,
-            boot_unix_us=int(time.time() * 1e6), airframe=args.airframe,
+            mission,
+            seed=args.seed,
+            params=params,
+            faults=faults,
+            boot_unix_us=int(time.time() * 1e6),
+            airframe=args.airframe,
             ground_start=args.ground_start,
-        )  # fmt: skip
+        )
     except (MissionError, ValueError) as exc:
         print(f"sitl: {exc}", file=sys.stderr)
         return 2

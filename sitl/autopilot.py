@@ -228,8 +228,10 @@ class Autopilot:
             return
         dist = self.params["TKOFF_DIST"]
         ahead = (
-            here[0] + dist * math.cos(kin.yaw_rad), here[1] + dist * math.sin(kin.yaw_rad), alt
-        )  # fmt: skip
+            here[0] + dist * math.cos(kin.yaw_rad),
+            here[1] + dist * math.sin(kin.yaw_rad),
+            alt,
+        )
         self.takeoff = TakeoffStage(here, kin.yaw_rad, ahead)
         compass = (90.0 - math.degrees(kin.yaw_rad)) % 360.0
         out.text(
@@ -360,8 +362,10 @@ class Autopilot:
         """The loiter radius actually flown (see physics.effective_radius_m)."""
         v = max(kin.speed_m_s, 1.0)
         bank = min(math.radians(self.params["ROLL_LIMIT_DEG"]), 1.5)
-        tightest = max(v * v / (TURN_EFFICIENCY * GRAVITY_M_S2 * math.tan(bank)),
-                       v / math.radians(self.params["SIM_YAW_RATE"]))  # fmt: skip
+        tightest = max(
+            v * v / (TURN_EFFICIENCY * GRAVITY_M_S2 * math.tan(bank)),
+            v / math.radians(self.params["SIM_YAW_RATE"]),
+        )
         return max(abs(self.nav.radius_m), ORBIT_MARGIN * tightest)
 
     def update(self, kin: Kinematics, clock: Clock) -> Outbox | None:
@@ -375,9 +379,14 @@ class Autopilot:
             self._takeoff_update(kin)
         if self.mode == PlaneMode.AUTO and self.runner.active:
             events = self.runner.update(
-                self.rtl_point(kin), kin.pos_enu_m, kin.yaw_rad, self.loiter_radius_eff_m(kin),
-                self.params["WP_RADIUS"], clock.sim_s, kin.landed,
-            )  # fmt: skip
+                self.rtl_point(kin),
+                kin.pos_enu_m,
+                kin.yaw_rad,
+                self.loiter_radius_eff_m(kin),
+                self.params["WP_RADIUS"],
+                clock.sim_s,
+                kin.landed,
+            )
             if events.reached or events.complete or events.speed_changes or events.landed:
                 out = Outbox()
                 self._auto_events(events, kin, clock, out)

@@ -198,8 +198,10 @@ def main() -> int:
         for c in compare(name):
             tol = c.tolerance
             text = f"±{tol.absolute:g}" + (f"/{tol.relative:.0%}" if tol.relative else "")
-            print(f"{c.experiment:<26} {c.metric:<22} {c.recorded:>10.2f} {c.simulated:>10.2f} "
-                  f"{text:>8}  {'yes' if c.agrees else 'NO'}")  # fmt: skip
+            print(
+                f"{c.experiment:<26} {c.metric:<22} {c.recorded:>10.2f} {c.simulated:>10.2f} "
+                f"{text:>8}  {'yes' if c.agrees else 'NO'}"
+            )
             failed += not c.agrees
     print(f"{failed} metric(s) outside tolerance")
     return 1 if failed else 0

@@ -101,9 +101,15 @@ class Simulation:
         z = self.state.pos_enu_m[:, 2]
         ground = z.copy() if ground_start else np.minimum(0.0, z)
         self.env = default_envelope(
-            n, v_min=lim.v_min, v_max=lim.v_max, accel=lim.accel, decel=lim.decel,
-            max_pitch_rate=lim.max_pitch_rate, max_yaw_rate=lim.max_yaw_rate, ground_z_m=ground,
-        )  # fmt: skip
+            n,
+            v_min=lim.v_min,
+            v_max=lim.v_max,
+            accel=lim.accel,
+            decel=lim.decel,
+            max_pitch_rate=lim.max_pitch_rate,
+            max_yaw_rate=lim.max_yaw_rate,
+            ground_z_m=ground,
+        )
         self.guid: Guidance = hold_guidance(self.state)
         self.rngs = [np.random.default_rng([seed, v.id]) for v in vehicles]
         self.autopilots: list[Autopilot] = []

@@ -85,9 +85,13 @@ def _wrap_pi(angle: float) -> float:
 
 def heartbeat(mode: PlaneMode, armed: bool, system_status: int) -> Message:
     return mavlink.MAVLink_heartbeat_message(
-        MAV_TYPE_FIXED_WING, MAV_AUTOPILOT_ARDUPILOTMEGA, base_mode(mode, armed), int(mode),
-        system_status, 3,
-    )  # fmt: skip
+        MAV_TYPE_FIXED_WING,
+        MAV_AUTOPILOT_ARDUPILOTMEGA,
+        base_mode(mode, armed),
+        int(mode),
+        system_status,
+        3,
+    )
 
 
 def sys_status(drop_rate_comm_cpct: int = 0) -> Message:
@@ -101,26 +105,45 @@ def gps_raw_int(t: Telemetry, time_usec: int) -> Message:
     ground_speed = math.hypot(vn, ve)
     cog = (math.degrees(math.atan2(ve, vn)) % 360.0) * 100.0
     return mavlink.MAVLink_gps_raw_int_message(
-        time_usec, GPS_FIX_TYPE_3D_FIX, _i32(t.lat_deg * 1e7), _i32(t.lon_deg * 1e7),
-        _i32(t.alt_amsl_m * 1000), 80, 120, _u16(ground_speed * 100), _u16(cog) % 36000, 16,
-    )  # fmt: skip
+        time_usec,
+        GPS_FIX_TYPE_3D_FIX,
+        _i32(t.lat_deg * 1e7),
+        _i32(t.lon_deg * 1e7),
+        _i32(t.alt_amsl_m * 1000),
+        80,
+        120,
+        _u16(ground_speed * 100),
+        _u16(cog) % 36000,
+        16,
+    )
 
 
 def global_position_int(t: Telemetry) -> Message:
     vn, ve, vd = t.vel_ned_m_s
     hdg = (math.degrees(t.heading_rad) % 360.0) * 100.0
     return mavlink.MAVLink_global_position_int_message(
-        t.time_boot_ms, _i32(t.lat_deg * 1e7), _i32(t.lon_deg * 1e7), _i32(t.alt_amsl_m * 1000),
-        _i32(t.alt_rel_home_m * 1000), _i16(vn * 100), _i16(ve * 100), _i16(vd * 100),
+        t.time_boot_ms,
+        _i32(t.lat_deg * 1e7),
+        _i32(t.lon_deg * 1e7),
+        _i32(t.alt_amsl_m * 1000),
+        _i32(t.alt_rel_home_m * 1000),
+        _i16(vn * 100),
+        _i16(ve * 100),
+        _i16(vd * 100),
         _u16(hdg) % 36000,
-    )  # fmt: skip
+    )
 
 
 def attitude(t: Telemetry) -> Message:
     return mavlink.MAVLink_attitude_message(
-        t.time_boot_ms, t.roll_rad, t.pitch_rad, _wrap_pi(t.heading_rad), t.roll_rate_rad_s,
-        t.pitch_rate_rad_s, t.yaw_rate_ned_rad_s,
-    )  # fmt: skip
+        t.time_boot_ms,
+        t.roll_rad,
+        t.pitch_rad,
+        _wrap_pi(t.heading_rad),
+        t.roll_rate_rad_s,
+        t.pitch_rate_rad_s,
+        t.yaw_rate_ned_rad_s,
+    )
 
 
 def vfr_hud(t: Telemetry) -> Message:
@@ -143,9 +166,18 @@ def extended_sys_state(landed: bool) -> Message:
 def home_position(lat_deg: float, lon_deg: float, alt_amsl_m: float, time_usec: int) -> Message:
     """HOME_POSITION; the local x/y/z of home is 0 (this SITL's EKF origin is home)."""
     return mavlink.MAVLink_home_position_message(
-        _i32(lat_deg * 1e7), _i32(lon_deg * 1e7), _i32(alt_amsl_m * 1000), 0.0, 0.0, 0.0,
-        [1.0, 0.0, 0.0, 0.0], 0.0, 0.0, 0.0, time_usec,
-    )  # fmt: skip
+        _i32(lat_deg * 1e7),
+        _i32(lon_deg * 1e7),
+        _i32(alt_amsl_m * 1000),
+        0.0,
+        0.0,
+        0.0,
+        [1.0, 0.0, 0.0, 0.0],
+        0.0,
+        0.0,
+        0.0,
+        time_usec,
+    )
 
 
 def autopilot_version(sysid: int) -> Message:
@@ -191,9 +223,21 @@ def position_target_global_int(
     """The active navigation target, as ArduPlane reports it (position only, MAV_FRAME_GLOBAL)."""
     type_mask = 0xFDF8  # ignore velocity, acceleration, yaw, yaw rate (+ ArduPlane's 0xF000)
     return mavlink.MAVLink_position_target_global_int_message(
-        time_boot_ms, 0, type_mask, _i32(lat_deg * 1e7), _i32(lon_deg * 1e7), alt_amsl_m,
-        0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-    )  # fmt: skip
+        time_boot_ms,
+        0,
+        type_mask,
+        _i32(lat_deg * 1e7),
+        _i32(lon_deg * 1e7),
+        alt_amsl_m,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+    )
 
 
 # MAVLink FTP (https://mavlink.io/en/services/ftp.html): payload header fields.

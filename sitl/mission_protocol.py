@@ -101,10 +101,18 @@ def item_from_message(msg: Message) -> MissionItem:
             x = round(x) if math.isfinite(x) else 0
             y = round(y) if math.isfinite(y) else 0
     return MissionItem(
-        int(msg.frame), int(msg.command), int(msg.current), int(msg.autocontinue),
-        float(msg.param1), float(msg.param2), float(msg.param3), float(msg.param4),
-        int(x), int(y), float(msg.z),
-    )  # fmt: skip
+        int(msg.frame),
+        int(msg.command),
+        int(msg.current),
+        int(msg.autocontinue),
+        float(msg.param1),
+        float(msg.param2),
+        float(msg.param3),
+        float(msg.param4),
+        int(x),
+        int(y),
+        float(msg.z),
+    )
 
 
 def validate_item(item: MissionItem) -> int:
@@ -241,16 +249,41 @@ class MissionServer:
         it = home if seq == 0 else self.items[seq]
         if as_int:
             msg = mavlink.MAVLink_mission_item_int_message(
-                src[0], src[1], seq, it.frame, it.command, 0, it.autocontinue,
-                it.param1, it.param2, it.param3, it.param4, it.x, it.y, it.z, MISSION_TYPE_MISSION,
-            )  # fmt: skip
+                src[0],
+                src[1],
+                seq,
+                it.frame,
+                it.command,
+                0,
+                it.autocontinue,
+                it.param1,
+                it.param2,
+                it.param3,
+                it.param4,
+                it.x,
+                it.y,
+                it.z,
+                MISSION_TYPE_MISSION,
+            )
         else:
             scale = 1e-7 if it.frame in GLOBAL_FRAMES else 1.0
             msg = mavlink.MAVLink_mission_item_message(
-                src[0], src[1], seq, it.frame, it.command, 0, it.autocontinue,
-                it.param1, it.param2, it.param3, it.param4, it.x * scale, it.y * scale, it.z,
+                src[0],
+                src[1],
+                seq,
+                it.frame,
+                it.command,
+                0,
+                it.autocontinue,
+                it.param1,
+                it.param2,
+                it.param3,
+                it.param4,
+                it.x * scale,
+                it.y * scale,
+                it.z,
                 MISSION_TYPE_MISSION,
-            )  # fmt: skip
+            )
         return Result([msg])
 
     def on_clear_all(self, src: tuple[int, int], mission_type: int) -> Result:

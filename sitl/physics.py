@@ -369,8 +369,9 @@ def bank_demand_rad(state: FleetState, env: Envelope, guid: Guidance) -> FloatAr
     orbit = loiter_accel_left(state, env, guid, v)
     accel_left = np.where(kind == GuidanceKind.ORBIT, orbit, accel_left)
     bank_nav = -np.arctan(accel_left / GRAVITY_M_S2)
-    circle = np.sign(guid.direction) * np.arctan(v * v / (GRAVITY_M_S2 * np.maximum(
-        np.abs(guid.radius_m), 1.0)))  # fmt: skip
+    circle = np.sign(guid.direction) * np.arctan(
+        v * v / (GRAVITY_M_S2 * np.maximum(np.abs(guid.radius_m), 1.0))
+    )
     bank = np.where(
         kind == GuidanceKind.COURSE,
         bank_course,
@@ -408,12 +409,16 @@ def step(state: FleetState, env: Envelope, guid: Guidance, dt: float) -> FleetSt
     airborne = ~state.landed
 
     # Lateral: bank follows the demand, the turn is what the bank gives.
-    bank_rate = np.clip((bank_demand_rad(state, env, guid) - state.roll_rad) / env.roll_lag_s,
-                        -ROLL_RATE_MAX_RAD_S, ROLL_RATE_MAX_RAD_S)  # fmt: skip
+    bank_rate = np.clip(
+        (bank_demand_rad(state, env, guid) - state.roll_rad) / env.roll_lag_s,
+        -ROLL_RATE_MAX_RAD_S,
+        ROLL_RATE_MAX_RAD_S,
+    )
     roll = np.where(airborne, state.roll_rad + bank_rate * dt, 0.0)
     yaw_rate = -TURN_EFFICIENCY * GRAVITY_M_S2 * np.tan(roll) / np.maximum(v, MIN_TURN_SPEED_M_S)
-    yaw_rate = np.where(airborne, np.clip(yaw_rate, -env.max_yaw_rate_rad_s,
-                                          env.max_yaw_rate_rad_s), 0.0)  # fmt: skip
+    yaw_rate = np.where(
+        airborne, np.clip(yaw_rate, -env.max_yaw_rate_rad_s, env.max_yaw_rate_rad_s), 0.0
+    )
 
     # Speed: its demand within the airframe's limits; the takeoff roll at full throttle.
     v_cmd = np.where(guid.thrust, guid.speed_cmd_m_s, env.v_min_m_s)
@@ -437,8 +442,7 @@ def step(state: FleetState, env: Envelope, guid: Guidance, dt: float) -> FleetSt
     climb_cmd = np.clip(climb_cmd, vs * np.sin(env.pitch_min_rad), vs * np.sin(env.pitch_max_rad))
     climb_rate_limit = vs * env.max_pitch_rate_rad_s  # the flight path turns no faster
     tau = np.where(guid.takeoff, TAU_TAKEOFF_CLIMB_S, env.climb_lag_s)
-    climb_accel = np.clip((climb_cmd - state.climb_m_s) / tau, -climb_rate_limit,
-                          climb_rate_limit)  # fmt: skip
+    climb_accel = np.clip((climb_cmd - state.climb_m_s) / tau, -climb_rate_limit, climb_rate_limit)
     climb = np.where(flying, state.climb_m_s + climb_accel * dt, 0.0)
     climb = np.clip(climb, -0.99 * vs, 0.99 * vs)
     pitch = np.where(flying, np.arcsin(climb / vs), 0.0)

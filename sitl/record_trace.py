@@ -31,10 +31,26 @@ from pymavlink import mavutil
 from gcs_ppf.mavlink.ardupilot import GCS_COMPONENT_ID, GCS_SYSTEM_ID
 
 COLUMNS = [
-    "t_s", "msg", "lat_deg", "lon_deg", "alt_amsl_m", "rel_alt_m", "vn_m_s", "ve_m_s",
-    "vd_m_s", "hdg_deg", "roll_deg", "pitch_deg", "yaw_deg", "airspeed_m_s",
-    "groundspeed_m_s", "climb_m_s", "throttle_pct", "mode", "cmd_course_deg",
-]  # fmt: skip
+    "t_s",
+    "msg",
+    "lat_deg",
+    "lon_deg",
+    "alt_amsl_m",
+    "rel_alt_m",
+    "vn_m_s",
+    "ve_m_s",
+    "vd_m_s",
+    "hdg_deg",
+    "roll_deg",
+    "pitch_deg",
+    "yaw_deg",
+    "airspeed_m_s",
+    "groundspeed_m_s",
+    "climb_m_s",
+    "throttle_pct",
+    "mode",
+    "cmd_course_deg",
+]
 TAKEOFF, GUIDED = 13, 15
 STREAMS = (33, 30, 74)  # GLOBAL_POSITION_INT, ATTITUDE, VFR_HUD
 
@@ -93,15 +109,29 @@ class Recorder:
         if kind == "GLOBAL_POSITION_INT":
             self.rel_alt = msg.relative_alt / 1000.0
             self.course = math.degrees(math.atan2(msg.vy, msg.vx)) % 360.0
-            row.update(lat_deg=msg.lat / 1e7, lon_deg=msg.lon / 1e7, alt_amsl_m=msg.alt / 1000.0,
-                       rel_alt_m=self.rel_alt, vn_m_s=msg.vx / 100.0, ve_m_s=msg.vy / 100.0,
-                       vd_m_s=msg.vz / 100.0, hdg_deg=msg.hdg / 100.0)  # fmt: skip
+            row.update(
+                lat_deg=msg.lat / 1e7,
+                lon_deg=msg.lon / 1e7,
+                alt_amsl_m=msg.alt / 1000.0,
+                rel_alt_m=self.rel_alt,
+                vn_m_s=msg.vx / 100.0,
+                ve_m_s=msg.vy / 100.0,
+                vd_m_s=msg.vz / 100.0,
+                hdg_deg=msg.hdg / 100.0,
+            )
         elif kind == "ATTITUDE":
-            row.update(roll_deg=math.degrees(msg.roll), pitch_deg=math.degrees(msg.pitch),
-                       yaw_deg=math.degrees(msg.yaw))  # fmt: skip
+            row.update(
+                roll_deg=math.degrees(msg.roll),
+                pitch_deg=math.degrees(msg.pitch),
+                yaw_deg=math.degrees(msg.yaw),
+            )
         elif kind == "VFR_HUD":
-            row.update(airspeed_m_s=msg.airspeed, groundspeed_m_s=msg.groundspeed,
-                       climb_m_s=msg.climb, throttle_pct=msg.throttle)  # fmt: skip
+            row.update(
+                airspeed_m_s=msg.airspeed,
+                groundspeed_m_s=msg.groundspeed,
+                climb_m_s=msg.climb,
+                throttle_pct=msg.throttle,
+            )
         elif kind != "HEARTBEAT":
             return
         row["boot_ms"] = self.boot_ms

@@ -39,14 +39,23 @@ def _command(sim: Simulation, spec: dict[str, Any]) -> int | None:
         return _deliver(sim, mavlink.MAVLink_command_long_message(1, 1, spec["command"], 0, *p))
     p += [0.0] * (4 - len(p))
     msg = mavlink.MAVLink_command_int_message(
-        1, 1, spec["frame"], spec["command"], 0, 0, *p, int(spec["x"]), int(spec["y"]),
+        1,
+        1,
+        spec["frame"],
+        spec["command"],
+        0,
+        0,
+        *p,
+        int(spec["x"]),
+        int(spec["y"]),
         float(spec["z"]),
-    )  # fmt: skip
+    )
     return _deliver(sim, msg)
 
 
-def _vehicle_mission(home: dict[str, float], enu: tuple[float, float, float], yaw: float,
-                     speed: float) -> Mission:  # fmt: skip
+def _vehicle_mission(
+    home: dict[str, float], enu: tuple[float, float, float], yaw: float, speed: float
+) -> Mission:
     """One vehicle at ``enu`` about the recording's home, the target far ahead."""
     lim = Limits(v_init=speed, v_min=10.0, v_max=30.0, collision_radius=10.0)
     return Mission(
@@ -62,12 +71,18 @@ def _sample(sim: Simulation, t0: float, out: list[tuple[float, ...]]) -> None:
     s = sim.state
     e, n, u = (float(c) for c in s.pos_enu_m[0])
     yaw = float(s.yaw_rad[0])
-    out.append((
-        round(sim.sim_s - t0, 2), math.degrees(math.atan2(math.cos(yaw), math.sin(yaw))),
-        math.degrees(float(s.roll_rad[0])), u - sim.autopilots[0].home_enu_m[2],
-        float(s.speed_m_s[0]) / sim.autopilots[0].params["SIM_EAS2TAS"],
-        float(s.climb_m_s[0]), e, n,
-    ))  # fmt: skip
+    out.append(
+        (
+            round(sim.sim_s - t0, 2),
+            math.degrees(math.atan2(math.cos(yaw), math.sin(yaw))),
+            math.degrees(float(s.roll_rad[0])),
+            u - sim.autopilots[0].home_enu_m[2],
+            float(s.speed_m_s[0]) / sim.autopilots[0].params["SIM_EAS2TAS"],
+            float(s.climb_m_s[0]),
+            e,
+            n,
+        )
+    )
 
 
 def _run(sim: Simulation, seconds: float, t0: float, rows: list[tuple[float, ...]]) -> None:
@@ -82,10 +97,15 @@ def _response(rows: list[tuple[float, ...]]) -> Response:
     a = np.array(rows, dtype=np.float64)
     a = a[a[:, 0] >= -1e-6]
     return Response(
-        t=a[:, 0], course_deg=np.degrees(np.unwrap(np.radians(a[:, 1]))), roll_deg=a[:, 2],
-        rel_alt_m=a[:, 3], airspeed_m_s=a[:, 4], climb_m_s=a[:, 5],
-        east_m=a[:, 6] - a[0, 6], north_m=a[:, 7] - a[0, 7],
-    )  # fmt: skip
+        t=a[:, 0],
+        course_deg=np.degrees(np.unwrap(np.radians(a[:, 1]))),
+        roll_deg=a[:, 2],
+        rel_alt_m=a[:, 3],
+        airspeed_m_s=a[:, 4],
+        climb_m_s=a[:, 5],
+        east_m=a[:, 6] - a[0, 6],
+        north_m=a[:, 7] - a[0, 7],
+    )
 
 
 def _guided_at(e: dict[str, Any], meta: dict[str, Any]) -> Simulation:
@@ -132,8 +152,15 @@ def fly_heading_ramp(meta: dict[str, Any], duration_s: float) -> Response:
     for k in range(round(duration_s / 0.1)):
         if k * 0.1 <= e["ramp_s"] + 1e-9:
             course = (c0 + e["rate_dps"] * k * 0.1) % 360.0
-            heading = {"type": "COMMAND_INT", "command": 43002, "frame": 0,
-                       "params": [0, round(course, 2), 10.0], "x": 0, "y": 0, "z": 0}  # fmt: skip
+            heading = {
+                "type": "COMMAND_INT",
+                "command": 43002,
+                "frame": 0,
+                "params": [0, round(course, 2), 10.0],
+                "x": 0,
+                "y": 0,
+                "z": 0,
+            }
             _command(sim, heading)
         _run(sim, 0.1, SETTLE_S, rows)
     return _response(rows)

@@ -108,8 +108,11 @@ class Verdict:
     when that teammate had no escape of its own with the slack (``assure``)."""
 
 
-REASONS = {prediction.OBSTACLE: "obstacle", prediction.GROUND: "ground",
-           prediction.TEAMMATE: "teammate"}  # fmt: skip
+REASONS = {
+    prediction.OBSTACLE: "obstacle",
+    prediction.GROUND: "ground",
+    prediction.TEAMMATE: "teammate",
+}
 
 
 @dataclass(frozen=True, slots=True)
@@ -135,10 +138,18 @@ def _score(
     obs = keep.obstacles
     ground = math.nan if keep.ground_z_m is None else float(keep.ground_z_m)
     s, reason = prediction.score(  # one signature: no compiling in flight
-        vector, float(c.course_rad), float(c.z_m), float(hold_s), _floats(obs.center),
-        _floats(obs.radius), float(keep.safe_distance_obstacle), ground, near.pool,
-        near.which, float(keep.safe_distance_uav),
-    )  # fmt: skip
+        vector,
+        float(c.course_rad),
+        float(c.z_m),
+        float(hold_s),
+        _floats(obs.center),
+        _floats(obs.radius),
+        float(keep.safe_distance_obstacle),
+        ground,
+        near.pool,
+        near.which,
+        float(keep.safe_distance_uav),
+    )
     return float(s), REASONS.get(reason)
 
 
@@ -195,9 +206,12 @@ def escape_altitudes(
 
 
 def assure(
-    motions: list[Motion], commands: list[Command], hold_s: float, keep: KeepOut,
+    motions: list[Motion],
+    commands: list[Command],
+    hold_s: float,
+    keep: KeepOut,
     escaping: Sequence[Escape | None] | None = None,
-) -> list[Verdict]:  # fmt: skip
+) -> list[Verdict]:
     """Each vehicle's command, in priority order (the leader first): kept if recoverable
     with ``SLACK_S`` to spare, else the nearest course that is (``ESCAPE_OFFSETS`` off the
     command, at one of ``escape_altitudes``), else the best there is if it beats the
@@ -233,15 +247,17 @@ def assure(
 def cornered(motions: Sequence[Motion], verdicts: Sequence[Verdict]) -> list[int]:
     """The vehicles a teammate leaves without the slack, whatever they are sent."""
     return [
-        i for i, (m, v) in enumerate(zip(motions, verdicts, strict=True))
+        i
+        for i, (m, v) in enumerate(zip(motions, verdicts, strict=True))
         if v.reason == "teammate" and v.chosen_margin_m < SLACK_S * m.speed_m_s
-    ]  # fmt: skip
+    ]
 
 
 def shortfall(motions: Sequence[Motion], verdicts: Sequence[Verdict]) -> float:
     """How far (m) the worst-off vehicle's command falls short of the slack; 0: none."""
-    short = (SLACK_S * m.speed_m_s - v.chosen_margin_m
-             for m, v in zip(motions, verdicts, strict=True))  # fmt: skip
+    short = (
+        SLACK_S * m.speed_m_s - v.chosen_margin_m for m, v in zip(motions, verdicts, strict=True)
+    )
     return max(0.0, *short)
 
 
@@ -273,24 +289,37 @@ def _yields(
     vel = np.array([m.velocity() for m in motions], dtype=np.float64).reshape(n, 3)
     speed = np.array([m.speed_m_s for m in motions], dtype=np.float64)
     escape = np.array([prediction.escape_s(v) for v in vectors], dtype=np.float64)
-    start, items, status = reach.yields(pos, vel, speed, escape, float(hold_s),
-                                        float(keep.safe_distance_uav))  # fmt: skip
+    start, items, status = reach.yields(
+        pos, vel, speed, escape, float(hold_s), float(keep.safe_distance_uav)
+    )
     out: list[list[int]] = []
     for i, m in enumerate(motions):
         lo, hi = int(start[i]), int(start[i + 1])
-        out.append([
-            j for j, st in zip(items[lo:hi].tolist(), status[lo:hi].tolist(), strict=True)
-            if st == reach.YIELDS or ((j < i or overtaking(m, motions[j]))
-                                      and within_reach(m, motions[j], hold_s, keep))
-        ])  # fmt: skip
+        out.append(
+            [
+                j
+                for j, st in zip(items[lo:hi].tolist(), status[lo:hi].tolist(), strict=True)
+                if st == reach.YIELDS
+                or (
+                    (j < i or overtaking(m, motions[j]))
+                    and within_reach(m, motions[j], hold_s, keep)
+                )
+            ]
+        )
     return out
 
 
 def _in_order(
-    motions: list[Motion], commands: list[Command], hold_s: float, keep: KeepOut,
-    escaping: Sequence[Escape | None] | None, vectors: list[FloatArray], after: int,
-    yields: list[list[int]], forced: dict[int, tuple[int, Command]],
-) -> _Pass:  # fmt: skip
+    motions: list[Motion],
+    commands: list[Command],
+    hold_s: float,
+    keep: KeepOut,
+    escaping: Sequence[Escape | None] | None,
+    vectors: list[FloatArray],
+    after: int,
+    yields: list[list[int]],
+    forced: dict[int, tuple[int, Command]],
+) -> _Pass:
     """``assure``'s pass in priority order; ``yields``: whom each vehicle yields to
     (``_yields``); ``forced``: the vehicles sent what ``_make_way`` found for them (for
     whom, and what), whatever their own search would choose.  Each teammate's flight is
@@ -302,8 +331,11 @@ def _in_order(
     length = int(prediction.hold_steps(float(hold_s))) + 1 + after
     pool = np.empty((2 * n + 1, length, 3))
     for j in sorted({j for i, js in enumerate(yields) for j in js if j > i}):
-        taken = (track(vectors[j], forced[j][1], hold_s, after) if j in forced
-                 else straight_track(motions[j], hold_s, after))  # fmt: skip
+        taken = (
+            track(vectors[j], forced[j][1], hold_s, after)
+            if j in forced
+            else straight_track(motions[j], hold_s, after)
+        )
         pool[n + j] = taken.path
     for i, (m, c) in enumerate(zip(motions, commands, strict=True)):
         to = {j: j if j < i else n + j for j in yields[i]}
@@ -326,9 +358,17 @@ def _in_order(
             side = turn_side(m, chosen.course_rad)
             if side == 0 and previous is not None:
                 side = previous.side
-        verdicts.append(Verdict(chosen, replaced, reason if replaced or planned < slack else None,
-                                planned, chosen_margin, side,
-                                forced[i][0] if i in forced else None))  # fmt: skip
+        verdicts.append(
+            Verdict(
+                chosen,
+                replaced,
+                reason if replaced or planned < slack else None,
+                planned,
+                chosen_margin,
+                side,
+                forced[i][0] if i in forced else None,
+            )
+        )
         flown = track(vector, chosen, hold_s, after)
         paths.append(flown)
         pool[i] = flown.path
@@ -337,9 +377,15 @@ def _in_order(
 
 
 def _make_way(
-    motions: list[Motion], commands: list[Command], hold_s: float, keep: KeepOut,
-    vectors: list[FloatArray], after: int, first: _Pass, i: int,
-) -> tuple[int, Command] | None:  # fmt: skip
+    motions: list[Motion],
+    commands: list[Command],
+    hold_s: float,
+    keep: KeepOut,
+    vectors: list[FloatArray],
+    after: int,
+    first: _Pass,
+    i: int,
+) -> tuple[int, Command] | None:
     """What the teammate that corners vehicle ``i`` (of those it yields to, the one whose
     flight leaves it the least margin) is sent instead, so that both keep the slack: the
     first of its candidates (its command, then ``ESCAPE_OFFSETS`` off it at its
@@ -349,8 +395,10 @@ def _make_way(
     None: no one teammate corners it, or no candidate does better."""
     m, v = motions[i], first.verdicts[i]
     pool = first.pool
-    alone = {j: _score(vectors[i], v.command, hold_s, keep, _Near(pool, np.array([row])))[0]
-             for j, row in first.yielded[i].items()}  # fmt: skip
+    alone = {
+        j: _score(vectors[i], v.command, hold_s, keep, _Near(pool, np.array([row])))[0]
+        for j, row in first.yielded[i].items()
+    }
     if not alone:
         return None
     j = min(alone, key=alone.__getitem__)
@@ -359,11 +407,13 @@ def _make_way(
         return None
     mj, cj = motions[j], commands[j]
     # j's teammates but i, and i on the flight it was given (row i)
-    theirs = _Near(pool, np.array([row for k, row in first.yielded[j].items() if k != i] + [i],
-                                  dtype=np.int64))  # fmt: skip
+    theirs = _Near(
+        pool, np.array([row for k, row in first.yielded[j].items() if k != i] + [i], dtype=np.int64)
+    )
     scratch = pool.shape[0] - 1
-    with_candidate = np.array([row for k, row in first.yielded[i].items() if k != j] + [scratch],
-                              dtype=np.int64)  # fmt: skip
+    with_candidate = np.array(
+        [row for k, row in first.yielded[i].items() if k != j] + [scratch], dtype=np.int64
+    )
     now = max(slack_i - v.chosen_margin_m, slack_j - first.verdicts[j].chosen_margin_m)
     best: tuple[float, Command] | None = None
     candidates = (
@@ -389,9 +439,15 @@ def _make_way(
 
 
 def _escape(
-    m: Motion, vector: FloatArray, c: Command, reason: str | None, hold_s: float,
-    keep: KeepOut, near: _Near, previous: Escape | None,
-) -> tuple[float, Command]:  # fmt: skip
+    m: Motion,
+    vector: FloatArray,
+    c: Command,
+    reason: str | None,
+    hold_s: float,
+    keep: KeepOut,
+    near: _Near,
+    previous: Escape | None,
+) -> tuple[float, Command]:
     """The escape for a command that is not recoverable with the slack: the first candidate
     that is, turning the way ``previous`` turned (any way if none); else the best, the
     escape in force kept within ``ESCAPE_COMMIT_M``; one turning the other way only if it
@@ -422,9 +478,10 @@ def _escape(
         if best is None or s > best[0] + kept:
             best = (s, candidate)
     if other is not None and (
-        best is None or other[0] > best[0] + SIDE_SWITCH_S * m.speed_m_s
+        best is None
+        or other[0] > best[0] + SIDE_SWITCH_S * m.speed_m_s
         or best[0] < 0.0 <= other[0]
-    ):  # fmt: skip
+    ):
         return other
     assert best is not None
     return best

@@ -87,9 +87,14 @@ def flown_radius_m(radius_m: float) -> float:
 
 
 def loiter_course(
-    pos_m: Sequence[float] | FloatArray, x: float, y: float, ring_radius_m: float,
-    speed_m_s: float, turn_rate_rad_s: float, heading_tau_s: float,
-) -> float:  # fmt: skip
+    pos_m: Sequence[float] | FloatArray,
+    x: float,
+    y: float,
+    ring_radius_m: float,
+    speed_m_s: float,
+    turn_rate_rad_s: float,
+    heading_tau_s: float,
+) -> float:
     """The course (ICS yaw) that flies a vehicle onto the ring of radius ``ring_radius_m``
     round (x, y) and clockwise round it: a vector field (Nelson et al., "Vector field path
     following for miniature air vehicles", 2007) straight at the centre from afar, the
@@ -107,9 +112,13 @@ def loiter_course(
 
 
 def on_ring(
-    pos_m: Sequence[float] | FloatArray, yaw_rad: float, climb_rate_m_s: float, hold: Hold,
-    speed_m_s: float, turn_rate_rad_s: float,
-) -> bool:  # fmt: skip
+    pos_m: Sequence[float] | FloatArray,
+    yaw_rad: float,
+    climb_rate_m_s: float,
+    hold: Hold,
+    speed_m_s: float,
+    turn_rate_rad_s: float,
+) -> bool:
     """Whether a vehicle flies its hold: at its height (``SETTLED_HEIGHT_M``, level within
     ``SETTLED_CLIMB_M_S``), within half a turn's radius of the ring as flown
     (``flown_radius_m``) and along it, clockwise (``SETTLED_COURSE_RAD``)."""
@@ -143,8 +152,9 @@ def approach_path(m: Motion, x: float, y: float, z: float, radius_m: float) -> F
             on_ring_s = t
         if on_ring_s is not None and t - on_ring_s >= half_turn_s:
             break
-        aim = loiter_course((px, py), x, y, radius_m, m.speed_m_s, m.turn_rate_rad_s,
-                            m.heading_tau_s)  # fmt: skip
+        aim = loiter_course(
+            (px, py), x, y, radius_m, m.speed_m_s, m.turn_rate_rad_s, m.heading_tau_s
+        )
         err = math.remainder(aim - yaw, math.tau)
         rate = max(-m.turn_rate_rad_s, min(m.turn_rate_rad_s, err / max(m.heading_tau_s, dt)))
         yaw += rate * dt
@@ -181,9 +191,15 @@ def flown_width_m(radius_m: float, motion: Motion | None) -> float:
 
 
 def hold_at(
-    pos_m: FloatArray, z_m: float, radius_m: float, x: float, y: float, heading: float,
-    obstacles: Obstacles, motion: Motion | None,
-) -> Hold:  # fmt: skip
+    pos_m: FloatArray,
+    z_m: float,
+    radius_m: float,
+    x: float,
+    y: float,
+    heading: float,
+    obstacles: Obstacles,
+    motion: Motion | None,
+) -> Hold:
     """The circle centred at (x, y), ``heading`` the way from the vehicle to it, with its
     clearance along the ring (as asked and as flown) and the approach."""
     if motion is None:
@@ -215,9 +231,12 @@ class HoldRequest:
 
 
 def formation_holds(
-    requests: Sequence[HoldRequest], yaw_rad: float, ahead_m: float, obstacles: Obstacles,
+    requests: Sequence[HoldRequest],
+    yaw_rad: float,
+    ahead_m: float,
+    obstacles: Obstacles,
     keep_out_m: float,
-) -> list[Hold] | None:  # fmt: skip
+) -> list[Hold] | None:
     """Every vehicle's circle at its own position moved by one same vector (``ahead_m``
     or further, nearest the bearing ``yaw_rad`` first): the formation as it flies now,
     translated, so the approaches are parallel and the circles — all flown clockwise, each
@@ -234,10 +253,18 @@ def formation_holds(
             heading = yaw_rad + bearing
             dx, dy = d * math.cos(heading), d * math.sin(heading)
             holds = [
-                hold_at(r.pos_m, r.z_m, r.radius_m, float(r.pos_m[0]) + dx,
-                        float(r.pos_m[1]) + dy, heading, obstacles, r.motion)
+                hold_at(
+                    r.pos_m,
+                    r.z_m,
+                    r.radius_m,
+                    float(r.pos_m[0]) + dx,
+                    float(r.pos_m[1]) + dy,
+                    heading,
+                    obstacles,
+                    r.motion,
+                )
                 for r in requests
-            ]  # fmt: skip
+            ]
             if all(h.clearance_m >= keep_out_m for h in holds):
                 return holds
     return None

@@ -135,10 +135,16 @@ def as_obstacles(
     m = len(rows)
     center = np.array([s.pos_m for s, _ in rows], dtype=float).reshape(m, 3)
     velocity = np.array(
-        [(s.speed_m_s * math.cos(s.pitch_rad) * math.cos(s.yaw_rad),
-          s.speed_m_s * math.cos(s.pitch_rad) * math.sin(s.yaw_rad),
-          s.speed_m_s * math.sin(s.pitch_rad)) for s, _ in rows], dtype=float,
-    ).reshape(m, 3)  # fmt: skip
+        [
+            (
+                s.speed_m_s * math.cos(s.pitch_rad) * math.cos(s.yaw_rad),
+                s.speed_m_s * math.cos(s.pitch_rad) * math.sin(s.yaw_rad),
+                s.speed_m_s * math.sin(s.pitch_rad),
+            )
+            for s, _ in rows
+        ],
+        dtype=float,
+    ).reshape(m, 3)
     return Obstacles(center, np.full(m, radius_m), velocity)
 
 

@@ -253,8 +253,9 @@ def guidance(
     """
     # A route's waypoint (``final_leg`` False) is flown through: the look-ahead does not
     # stop at it, and the leader has no final approach to it.
-    run = advance(scene, dt, max(1, round(lookahead_s / dt)),
-                  goal_radius_m=None if final_leg else 0.0)  # fmt: skip
+    run = advance(
+        scene, dt, max(1, round(lookahead_s / dt)), goal_radius_m=None if final_leg else 0.0
+    )
     tr = run.trajectory
     k_lead = _record_at(len(tr), lead_s, dt)
     aim = _planned_aim(scene, tr, k_lead, climb_rate_floor_m_s, turn_window_s)
@@ -358,23 +359,33 @@ def _slot_distances_m(scene: Scene) -> list[float]:
     """Each wingman's distance from its slot behind the leader now (its local target)."""
     fleet = scene.fleet
     return [
-        float(np.linalg.norm(
-            local_target_point(fleet.pos[0], float(fleet.pitch[0]), float(fleet.yaw[0]),
-                               fleet.slot[i]) - fleet.pos[i]
-        ))
+        float(
+            np.linalg.norm(
+                local_target_point(
+                    fleet.pos[0], float(fleet.pitch[0]), float(fleet.yaw[0]), fleet.slot[i]
+                )
+                - fleet.pos[i]
+            )
+        )
         for i in range(1, len(fleet.ids))
-    ]  # fmt: skip
+    ]
 
 
 _WARM_UP_MISSION = {
     "target": [3000.0, 0.0, 300.0],
     "vehicles": [
         {"id": 1, "role": "leader", "position": [0.0, 0.0, 300.0], "pitch": 0.0, "yaw": 0.0},
-        {"id": 2, "role": "wingman", "position": [0.0, -300.0, 300.0], "pitch": 0.0,
-         "yaw": 0.0, "slot": [-300.0, -300.0, 0.0]},
+        {
+            "id": 2,
+            "role": "wingman",
+            "position": [0.0, -300.0, 300.0],
+            "pitch": 0.0,
+            "yaw": 0.0,
+            "slot": [-300.0, -300.0, 0.0],
+        },
     ],
     "obstacles": [{"center": [1500.0, 800.0, 300.0], "radius": 200.0}],
-}  # fmt: skip
+}
 
 
 def warm_up(dt: float) -> None:

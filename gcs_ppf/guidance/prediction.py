@@ -205,9 +205,17 @@ def escape_arc(m: FloatArray, end: FloatArray, side: float) -> FloatArray:
 
 @njit(cache=True)
 def margin(
-    path: FloatArray, centers: FloatArray, radii: FloatArray, safe_obstacle: float,
-    ground_z: float, pool: FloatArray, which: IntArray, start: int, last: int, safe_uav: float,
-) -> tuple[float, int]:  # fmt: skip
+    path: FloatArray,
+    centers: FloatArray,
+    radii: FloatArray,
+    safe_obstacle: float,
+    ground_z: float,
+    pool: FloatArray,
+    which: IntArray,
+    start: int,
+    last: int,
+    safe_uav: float,
+) -> tuple[float, int]:
     """How far ``path`` [k,3] (``STEP_S`` apart) stays outside every keep-out (m; negative:
     inside), and which one is nearest (``OBSTACLE``, ``GROUND``, ``TEAMMATE``).  A sphere's
     keep-out is its surface plus ``safe_obstacle``; the ground's (``ground_z``, NaN: none)
@@ -223,8 +231,14 @@ def margin(
         gap = math.inf
         for i in range(path.shape[0]):
             for j in range(radii.shape[0]):
-                d = math.sqrt((path[i, 0] - centers[j, 0]) ** 2 + (path[i, 1] - centers[j, 1]) ** 2
-                              + (path[i, 2] - centers[j, 2]) ** 2) - radii[j]  # fmt: skip
+                d = (
+                    math.sqrt(
+                        (path[i, 0] - centers[j, 0]) ** 2
+                        + (path[i, 1] - centers[j, 1]) ** 2
+                        + (path[i, 2] - centers[j, 2]) ** 2
+                    )
+                    - radii[j]
+                )
                 gap = min(gap, d)
         if gap - safe_obstacle < best:
             best, reason = gap - safe_obstacle, OBSTACLE
@@ -238,8 +252,11 @@ def margin(
             j = which[jj]
             for i in range(path.shape[0]):
                 k = start + min(i, last)
-                d2 = ((path[i, 0] - pool[j, k, 0]) ** 2 + (path[i, 1] - pool[j, k, 1]) ** 2
-                      + (path[i, 2] - pool[j, k, 2]) ** 2)  # fmt: skip
+                d2 = (
+                    (path[i, 0] - pool[j, k, 0]) ** 2
+                    + (path[i, 1] - pool[j, k, 1]) ** 2
+                    + (path[i, 2] - pool[j, k, 2]) ** 2
+                )
                 gap2 = min(gap2, d2)
         gap = math.sqrt(gap2)
         if gap - safe_uav < best:
@@ -256,10 +273,18 @@ def escape_steps(m: FloatArray) -> int:
 
 @njit(cache=True)
 def score(
-    m: FloatArray, course: float, z: float, hold_s: float, centers: FloatArray,
-    radii: FloatArray, safe_obstacle: float, ground_z: float, pool: FloatArray,
-    which: IntArray, safe_uav: float,
-) -> tuple[float, int]:  # fmt: skip
+    m: FloatArray,
+    course: float,
+    z: float,
+    hold_s: float,
+    centers: FloatArray,
+    radii: FloatArray,
+    safe_obstacle: float,
+    ground_z: float,
+    pool: FloatArray,
+    which: IntArray,
+    safe_uav: float,
+) -> tuple[float, int]:
     """A command's margin: along its hold (the teammates along theirs: rows ``which`` of
     ``pool`` [P,L,3], their flights, ``vehicle_motion.Track``, the first ``hold_steps`` + 1
     instants at the same instants), then along the better of its two escapes (the teammates
@@ -267,14 +292,14 @@ def score(
     the keep-out it is to."""
     path, end = fly_hold(m, course, z, hold_s)
     k = hold_steps(hold_s)
-    held, reason = margin(path, centers, radii, safe_obstacle, ground_z, pool, which, 0, k,
-                          safe_uav)  # fmt: skip
+    held, reason = margin(
+        path, centers, radii, safe_obstacle, ground_z, pool, which, 0, k, safe_uav
+    )
     escape, escape_reason = -math.inf, NO_KEEP_OUT
     after = pool.shape[1] - k - 1
     for side in (1.0, -1.0):
         arc = escape_arc(m, end, side)
-        e, r = margin(arc, centers, radii, safe_obstacle, ground_z, pool, which, k, after,
-                      safe_uav)  # fmt: skip
+        e, r = margin(arc, centers, radii, safe_obstacle, ground_z, pool, which, k, after, safe_uav)
         if e > escape:
             escape, escape_reason = e, r
     if escape < held:

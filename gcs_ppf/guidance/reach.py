@@ -39,9 +39,15 @@ def _sign(a: float, b: float, c: float) -> int:
 
 @njit(cache=True)
 def _pair(
-    i: int, j: int, pos: FloatArray, vel: FloatArray, speed: FloatArray, escape: FloatArray,
-    hold_s: float, safe_uav: float,
-) -> int:  # fmt: skip
+    i: int,
+    j: int,
+    pos: FloatArray,
+    vel: FloatArray,
+    speed: FloatArray,
+    escape: FloatArray,
+    hold_s: float,
+    safe_uav: float,
+) -> int:
     """Whether vehicle ``i`` yields to ``j`` (``YIELDS``), does not (0), or cannot be told
     here (``UNDECIDED``): ``j`` before it or overtaken by it (``assurance.overtaking``), and
     within reach (``assurance.within_reach``)."""
@@ -51,9 +57,12 @@ def _pair(
         for s in (
             _sign(gx * vel[i, 0], gy * vel[i, 1], gz * vel[i, 2]),
             _sign(vel[i, 0] * vel[j, 0], vel[i, 1] * vel[j, 1], vel[i, 2] * vel[j, 2]),
-            _sign(gx * (vel[i, 0] - vel[j, 0]), gy * (vel[i, 1] - vel[j, 1]),
-                  gz * (vel[i, 2] - vel[j, 2])),
-        ):  # fmt: skip
+            _sign(
+                gx * (vel[i, 0] - vel[j, 0]),
+                gy * (vel[i, 1] - vel[j, 1]),
+                gz * (vel[i, 2] - vel[j, 2]),
+            ),
+        ):
             if s < 0:
                 return 0
             if s == 0:
@@ -70,9 +79,13 @@ def _pair(
 
 @njit(cache=True)
 def yields(
-    pos: FloatArray, vel: FloatArray, speed: FloatArray, escape: FloatArray, hold_s: float,
+    pos: FloatArray,
+    vel: FloatArray,
+    speed: FloatArray,
+    escape: FloatArray,
+    hold_s: float,
     safe_uav: float,
-) -> tuple[IntArray, IntArray, IntArray]:  # fmt: skip
+) -> tuple[IntArray, IntArray, IntArray]:
     """Whom each of N vehicles (in priority order: ``pos`` [N,3] m, ``vel`` [N,3] m/s,
     ``speed`` [N] m/s, ``escape`` [N] s, ``vehicle_motion.escape_s``) yields to, holding its
     command ``hold_s`` then escaping, with ``safe_uav`` (m) between them: vehicle i's are

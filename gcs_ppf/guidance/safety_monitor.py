@@ -114,9 +114,14 @@ class Monitor:
             clear = positions[:, 2] - ground_z_m >= safe_distance_obstacle
             self.airborne.update(i for i, c in zip(ids, clear, strict=True) if c)
         now = violations(
-            ids, positions, obstacles, ground_z_m, safe_distance_uav, safe_distance_obstacle,
+            ids,
+            positions,
+            obstacles,
+            ground_z_m,
+            safe_distance_uav,
+            safe_distance_obstacle,
             [i in self.airborne for i in ids],
-        )  # fmt: skip
+        )
         return self.update(now)
 
     def update(self, now: list[Violation]) -> list[Violation]:

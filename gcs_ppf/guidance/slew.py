@@ -200,8 +200,15 @@ def climb_trim(
     14 m/s, and flown, the leader climbed at 33° where its plans asked 39°, which left the
     wingmen 40–70 m below their slots in the plan's climbing frame."""
     tecs, climb, sink = airframe.tecs_time_constant_s, airframe.climb_max_m_s, airframe.sink_max_m_s
-    if (trim.asked_m_s is None or trim.at_s is None or flown_m_s is None or tecs is None
-            or climb is None or sink is None or now_s <= trim.at_s):  # fmt: skip
+    if (
+        trim.asked_m_s is None
+        or trim.at_s is None
+        or flown_m_s is None
+        or tecs is None
+        or climb is None
+        or sink is None
+        or now_s <= trim.at_s
+    ):
         return trim
     response_s = (CLIMB_LAG_PER_TECS_TCONST + 1.0 / HEIGHT_GAIN_TIMES_TECS_TCONST) * tecs
     gain = min((now_s - trim.at_s) / (CLIMB_TRIM_RESPONSES * response_s), 1.0)

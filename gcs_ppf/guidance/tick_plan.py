@@ -29,8 +29,10 @@ def formation_tolerance(mission: Mission) -> float:
 
 def in_formation(g: Guidance, tolerance_m: float) -> list[bool]:
     """The leader, and each wingman within ``tolerance_m`` of its local target point."""
-    return [i == 0 or (d is not None and d <= tolerance_m)
-            for i, d in enumerate(g.local_target_distance_m)]  # fmt: skip
+    return [
+        i == 0 or (d is not None and d <= tolerance_m)
+        for i, d in enumerate(g.local_target_distance_m)
+    ]
 
 
 def traffic_radius_m(mission: Mission) -> float:
@@ -111,28 +113,47 @@ def plan(
     planning margin and the guard's margins must cover (``gcs_ppf.guidance.airframe``)."""
     lim = mission.limits
     envelope = tick_envelope(
-        list(airframes.values()), [states[i].speed_m_s for i in active], lim.v_min,
-        lim.v_max, lim.accel, tuning.lookahead_s, lagging_s, tuning.planning_margin_m,
-    )  # fmt: skip
+        list(airframes.values()),
+        [states[i].speed_m_s for i in active],
+        lim.v_min,
+        lim.v_max,
+        lim.accel,
+        tuning.lookahead_s,
+        lagging_s,
+        tuning.planning_margin_m,
+    )
     margin = envelope.planning_margin_m
     scene = scene_now(
-        mission, states, active, obstacles, margin, ground_z_m, envelope=envelope.limits,
+        mission,
+        states,
+        active,
+        obstacles,
+        margin,
+        ground_z_m,
+        envelope=envelope.limits,
         teammate_margin_m=teammate_margin_m(mission, margin),
-    )  # fmt: skip
+    )
     if leg is not None:
         scene = replace(scene, target=leg.end_m)
     g = guidance(
-        scene, lookahead_s=tuning.lookahead_s, dt=tuning.planner_dt_s, carrot_m=tuning.carrot_m,
+        scene,
+        lookahead_s=tuning.lookahead_s,
+        dt=tuning.planner_dt_s,
+        carrot_m=tuning.carrot_m,
         final_leg=leg is None or leg.final,
-    )  # fmt: skip
+    )
     ordered = [airframes.get(vid, Airframe()) for vid in g.ids]
     if tuning.guard_horizon_s == 0.0:
         return g, ordered
     guard = guard_tuning(
-        ordered, scene.fleet.speed.tolist(), lim.safe_distance_uav, lagging_s,
-        horizon_s=tuning.guard_horizon_s, margin_m=tuning.guard_margin_m,
+        ordered,
+        scene.fleet.speed.tolist(),
+        lim.safe_distance_uav,
+        lagging_s,
+        horizon_s=tuning.guard_horizon_s,
+        margin_m=tuning.guard_margin_m,
         resolution_m=tuning.guard_resolution_m,
-    )  # fmt: skip
+    )
     points, resolving = separation_guard.resolve(
         scene,
         g.guided_point_m,

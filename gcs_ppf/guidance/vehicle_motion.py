@@ -95,10 +95,24 @@ def turn_side(m: Motion, course_rad: float) -> int:
 
 def motion_vector(m: Motion) -> FloatArray:
     """``m`` as ``prediction``'s vector."""
-    return np.array([*m.pos_m, m.yaw_rad, m.speed_m_s, m.turn_rate_rad_s, m.climb_m_s,
-                     m.sink_m_s, m.heading_tau_s, m.yaw_rate_rad_s, m.roll_lag_s,
-                     m.roll_rate_rad_s, m.climb_rate_m_s, m.climb_lag_s,
-                     m.height_gain_1_s], dtype=np.float64)  # fmt: skip
+    return np.array(
+        [
+            *m.pos_m,
+            m.yaw_rad,
+            m.speed_m_s,
+            m.turn_rate_rad_s,
+            m.climb_m_s,
+            m.sink_m_s,
+            m.heading_tau_s,
+            m.yaw_rate_rad_s,
+            m.roll_lag_s,
+            m.roll_rate_rad_s,
+            m.climb_rate_m_s,
+            m.climb_lag_s,
+            m.height_gain_1_s,
+        ],
+        dtype=np.float64,
+    )
 
 
 def hold_path(m: Motion, c: Command, hold_s: float) -> tuple[FloatArray, float]:
@@ -116,9 +130,13 @@ def advance(m: Motion, c: Command, dt_s: float) -> Motion:
     path, end = prediction.fly_hold(vector, float(c.course_rad), float(c.z_m), float(dt_s))
     x, y, z = (float(v) for v in path[-1])
     turning = prediction.yaw_rate_for(vector, end[prediction.BANK])
-    return replace(m, pos_m=(x, y, z), yaw_rad=wrap(float(end[prediction.YAW])),
-                   yaw_rate_rad_s=float(turning),
-                   climb_rate_m_s=float(end[prediction.FLIGHT_VZ]))  # fmt: skip
+    return replace(
+        m,
+        pos_m=(x, y, z),
+        yaw_rad=wrap(float(end[prediction.YAW])),
+        yaw_rate_rad_s=float(turning),
+        climb_rate_m_s=float(end[prediction.FLIGHT_VZ]),
+    )
 
 
 def escape_s(m: Motion) -> float:

@@ -247,10 +247,20 @@ def guided_change_heading(
         raise ValueError(f"lateral_accel_m_s2 must be > 0, got {accel}")
     _target(target_system, target_component)
     return mavlink2.MAVLink_command_int_message(
-        target_system, target_component, MAV_FRAME_GLOBAL, MAV_CMD_GUIDED_CHANGE_HEADING, 0, 0,
-        float(HEADING_TYPE_COURSE_OVER_GROUND), course, accel, 0.0,
-        0, 0, 0.0,
-    )  # fmt: skip
+        target_system,
+        target_component,
+        MAV_FRAME_GLOBAL,
+        MAV_CMD_GUIDED_CHANGE_HEADING,
+        0,
+        0,
+        float(HEADING_TYPE_COURSE_OVER_GROUND),
+        course,
+        accel,
+        0.0,
+        0,
+        0,
+        0.0,
+    )
 
 
 def guided_change_altitude(
@@ -279,9 +289,20 @@ def guided_change_altitude(
         raise ValueError(f"rate_m_s must be >= 0, got {rate}")
     _target(target_system, target_component)
     return mavlink2.MAVLink_command_int_message(
-        target_system, target_component, MAV_FRAME_GLOBAL, MAV_CMD_GUIDED_CHANGE_ALTITUDE, 0, 0,
-        0.0, 0.0, rate, 0.0, 0, 0, alt,
-    )  # fmt: skip
+        target_system,
+        target_component,
+        MAV_FRAME_GLOBAL,
+        MAV_CMD_GUIDED_CHANGE_ALTITUDE,
+        0,
+        0,
+        0.0,
+        0.0,
+        rate,
+        0.0,
+        0,
+        0,
+        alt,
+    )
 
 
 def set_message_interval(

@@ -42,11 +42,14 @@ def synthetic_scene(n_vehicles: int, n_obstacles: int, seed: int = 7) -> Scene:
     slot[0] = 0.0
     pos = slot + rng.uniform(-30.0, 30.0, size=(n_vehicles, 3))
     pos[0] = 0.0
-    centre = np.stack([
-        rng.uniform(3000.0, 38000.0, n_obstacles),
-        rng.uniform(-6000.0, 6000.0, n_obstacles),
-        rng.uniform(-300.0, 300.0, n_obstacles),
-    ], axis=1)  # fmt: skip
+    centre = np.stack(
+        [
+            rng.uniform(3000.0, 38000.0, n_obstacles),
+            rng.uniform(-6000.0, 6000.0, n_obstacles),
+            rng.uniform(-300.0, 300.0, n_obstacles),
+        ],
+        axis=1,
+    )
     fleet = Fleet(
         ids=k.astype(np.int64) + 1,
         pos=pos,

@@ -83,8 +83,16 @@ def plan_mission(
     while steps < total_steps and not arrived:
         n = min(PROGRESS_CHUNKS * chunk, total_steps - steps)
         start = time.perf_counter()
-        result = advance(state, dt, n, method=method, t0=t, chunk_steps=chunk,
-                         goal_radius_m=leg.radius_m, finish_normal=leg.finish_normal)  # fmt: skip
+        result = advance(
+            state,
+            dt,
+            n,
+            method=method,
+            t0=t,
+            chunk_steps=chunk,
+            goal_radius_m=leg.radius_m,
+            finish_normal=leg.finish_normal,
+        )
         wall += time.perf_counter() - start
         parts.append(result.trajectory)
         state, arrived = result.scene, result.arrived

@@ -173,11 +173,22 @@ def remember(
 
 @njit(cache=True, inline="always")
 def record(
-    k: int, pos: np.ndarray, pitch: np.ndarray, yaw: np.ndarray, speed: np.ndarray,
-    state: np.ndarray, avoiding: np.ndarray, formed: np.ndarray, rec_pos: np.ndarray,
-    rec_pitch: np.ndarray, rec_yaw: np.ndarray, rec_speed: np.ndarray, rec_state: np.ndarray,
-    rec_avoiding: np.ndarray, rec_formed: np.ndarray,
-) -> None:  # fmt: skip
+    k: int,
+    pos: np.ndarray,
+    pitch: np.ndarray,
+    yaw: np.ndarray,
+    speed: np.ndarray,
+    state: np.ndarray,
+    avoiding: np.ndarray,
+    formed: np.ndarray,
+    rec_pos: np.ndarray,
+    rec_pitch: np.ndarray,
+    rec_yaw: np.ndarray,
+    rec_speed: np.ndarray,
+    rec_state: np.ndarray,
+    rec_avoiding: np.ndarray,
+    rec_formed: np.ndarray,
+) -> None:
     """The fleet's state into record ``k`` of the ``rec_*`` arrays."""
     for i in range(pos.shape[0]):
         for c in range(3):
@@ -192,18 +203,50 @@ def record(
 
 @njit_without_refcounts
 def run_steps(
-    pos: np.ndarray, pitch: np.ndarray, yaw: np.ndarray, speed: np.ndarray, slot: np.ndarray,
-    rank: np.ndarray, active: np.ndarray, obs_center: np.ndarray, obs_radius: np.ndarray,
-    obs_velocity: np.ndarray, target: np.ndarray, lim: KernelLimits, dt: float, method: int,
-    first: int, last: int, n_steps: int, record_every: int, records: int, elapsed: float,
-    rec_dt: np.ndarray, rec_pos: np.ndarray, rec_pitch: np.ndarray, rec_yaw: np.ndarray,
-    rec_speed: np.ndarray, rec_state: np.ndarray, rec_avoiding: np.ndarray,
-    rec_formed: np.ndarray, state: np.ndarray, avoiding: np.ndarray, formed: np.ndarray,
-    direction: np.ndarray, local_target: np.ndarray, next_motion: np.ndarray,
-    near_start: np.ndarray, near_obstacles: np.ndarray, mate_start: np.ndarray,
-    mates: np.ndarray, prev_pos: np.ndarray, prev_motion: np.ndarray, trig: np.ndarray,
-    goal_radius: float, finish: np.ndarray,
-) -> tuple[int, int, float, bool]:  # fmt: skip
+    pos: np.ndarray,
+    pitch: np.ndarray,
+    yaw: np.ndarray,
+    speed: np.ndarray,
+    slot: np.ndarray,
+    rank: np.ndarray,
+    active: np.ndarray,
+    obs_center: np.ndarray,
+    obs_radius: np.ndarray,
+    obs_velocity: np.ndarray,
+    target: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+    method: int,
+    first: int,
+    last: int,
+    n_steps: int,
+    record_every: int,
+    records: int,
+    elapsed: float,
+    rec_dt: np.ndarray,
+    rec_pos: np.ndarray,
+    rec_pitch: np.ndarray,
+    rec_yaw: np.ndarray,
+    rec_speed: np.ndarray,
+    rec_state: np.ndarray,
+    rec_avoiding: np.ndarray,
+    rec_formed: np.ndarray,
+    state: np.ndarray,
+    avoiding: np.ndarray,
+    formed: np.ndarray,
+    direction: np.ndarray,
+    local_target: np.ndarray,
+    next_motion: np.ndarray,
+    near_start: np.ndarray,
+    near_obstacles: np.ndarray,
+    mate_start: np.ndarray,
+    mates: np.ndarray,
+    prev_pos: np.ndarray,
+    prev_motion: np.ndarray,
+    trig: np.ndarray,
+    goal_radius: float,
+    finish: np.ndarray,
+) -> tuple[int, int, float, bool]:
     """Steps ``first`` to ``last`` − 1 of ``run_fleet`` (of ``n_steps``) with the neighbour
     lists as they are, recording and stopping at the leader's arrival as ``run_fleet``
     describes; ``records`` written and ``elapsed`` flight time so far.  Returns (the step
@@ -217,29 +260,92 @@ def run_steps(
         remember(pos, pitch, yaw, speed, prev_pos, prev_motion)
         if method == PPF:
             fleet_step(
-                pos, pitch, yaw, speed, slot, rank, active, obs_center, obs_radius,
-                obs_velocity, target, lim, dt, state, avoiding, formed, direction,
-                local_target, next_motion, near_start, near_obstacles, mate_start, mates, trig,
-            )  # fmt: skip
+                pos,
+                pitch,
+                yaw,
+                speed,
+                slot,
+                rank,
+                active,
+                obs_center,
+                obs_radius,
+                obs_velocity,
+                target,
+                lim,
+                dt,
+                state,
+                avoiding,
+                formed,
+                direction,
+                local_target,
+                next_motion,
+                near_start,
+                near_obstacles,
+                mate_start,
+                mates,
+                trig,
+            )
         else:
             apf_fleet_step(
-                pos, pitch, yaw, speed, slot, rank, active, obs_center, obs_radius,
-                obs_velocity, target, lim, dt, state, avoiding, formed, direction,
-                local_target, next_motion,
-            )  # fmt: skip
+                pos,
+                pitch,
+                yaw,
+                speed,
+                slot,
+                rank,
+                active,
+                obs_center,
+                obs_radius,
+                obs_velocity,
+                target,
+                lim,
+                dt,
+                state,
+                avoiding,
+                formed,
+                direction,
+                local_target,
+                next_motion,
+            )
         s = leader_arrival_fraction(prev_pos[0], pos[0], target, goal_radius)
         if s < 0.0:
             s = finish_line_fraction(prev_pos[0], pos[0], target, finish)
         arrived = s >= 0.0
         if arrived:
-            cut_step_at(s, pos, pitch, yaw, speed, active, prev_pos, prev_motion,
-                        obs_center, obs_velocity, dt)  # fmt: skip
+            cut_step_at(
+                s,
+                pos,
+                pitch,
+                yaw,
+                speed,
+                active,
+                prev_pos,
+                prev_motion,
+                obs_center,
+                obs_velocity,
+                dt,
+            )
         elapsed += s * dt if arrived else dt
         due = arrived or (step + 1) % record_every == 0 or step == n_steps - 1
         if due and records < rec_dt.shape[0]:
             rec_dt[records] = elapsed
-            record(records, pos, pitch, yaw, speed, state, avoiding, formed, rec_pos,
-                   rec_pitch, rec_yaw, rec_speed, rec_state, rec_avoiding, rec_formed)  # fmt: skip
+            record(
+                records,
+                pos,
+                pitch,
+                yaw,
+                speed,
+                state,
+                avoiding,
+                formed,
+                rec_pos,
+                rec_pitch,
+                rec_yaw,
+                rec_speed,
+                rec_state,
+                rec_avoiding,
+                rec_formed,
+            )
             records += 1
         if arrived:
             return step + 1, records, elapsed, True
@@ -248,14 +354,34 @@ def run_steps(
 
 @njit(cache=True)
 def run_fleet(
-    pos: np.ndarray, pitch: np.ndarray, yaw: np.ndarray, speed: np.ndarray, slot: np.ndarray,
-    rank: np.ndarray, active: np.ndarray, obs_center: np.ndarray, obs_radius: np.ndarray,
-    obs_velocity: np.ndarray, target: np.ndarray, lim: KernelLimits, dt: float, method: int,
-    n_steps: int, record_every: int, rec_dt: np.ndarray, rec_pos: np.ndarray,
-    rec_pitch: np.ndarray, rec_yaw: np.ndarray, rec_speed: np.ndarray, rec_state: np.ndarray,
-    rec_avoiding: np.ndarray, rec_formed: np.ndarray, mate_search: int, goal_radius: float,
+    pos: np.ndarray,
+    pitch: np.ndarray,
+    yaw: np.ndarray,
+    speed: np.ndarray,
+    slot: np.ndarray,
+    rank: np.ndarray,
+    active: np.ndarray,
+    obs_center: np.ndarray,
+    obs_radius: np.ndarray,
+    obs_velocity: np.ndarray,
+    target: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+    method: int,
+    n_steps: int,
+    record_every: int,
+    rec_dt: np.ndarray,
+    rec_pos: np.ndarray,
+    rec_pitch: np.ndarray,
+    rec_yaw: np.ndarray,
+    rec_speed: np.ndarray,
+    rec_state: np.ndarray,
+    rec_avoiding: np.ndarray,
+    rec_formed: np.ndarray,
+    mate_search: int,
+    goal_radius: float,
     finish: np.ndarray,
-) -> tuple[int, int, float, bool]:  # fmt: skip
+) -> tuple[int, int, float, bool]:
     """Run up to ``n_steps`` steps in place, stopping when the leader reaches the target:
     within ``goal_radius`` of it, or across its finish line (``finish``, the normal of the
     plane through it; zeros for none: ``finish_line_fraction``).
@@ -285,40 +411,119 @@ def run_fleet(
         if method == PPF:
             last = min(step + (MATE_REFINE_STEPS if refine else NEIGHBOUR_LIST_STEPS), n_steps)
         if method == PPF and step % NEIGHBOUR_LIST_STEPS == 0:
-            nearby_obstacles(pos, obs_center, obs_radius, obs_velocity, lim, dt,
-                             NEIGHBOUR_LIST_STEPS, near_start, near_obstacles)  # fmt: skip
+            nearby_obstacles(
+                pos,
+                obs_center,
+                obs_radius,
+                obs_velocity,
+                lim,
+                dt,
+                NEIGHBOUR_LIST_STEPS,
+                near_start,
+                near_obstacles,
+            )
             if step == 0 or mate_search != MATES_ALL_PAIRS:
-                mates = nearby_teammates(pos, trig, speed, rank, active, lim, dt,
-                                         MATE_LIST_STEPS, mate_search, mate_start,
-                                         mates)  # fmt: skip
+                mates = nearby_teammates(
+                    pos,
+                    trig,
+                    speed,
+                    rank,
+                    active,
+                    lim,
+                    dt,
+                    MATE_LIST_STEPS,
+                    mate_search,
+                    mate_start,
+                    mates,
+                )
             if close.shape[0] < mates.shape[0]:
                 close = np.empty(mates.shape[0], dtype=np.int64)
         step_start, step_mates = mate_start, mates
         if refine:
-            refine_teammates(pos, trig, speed, lim, dt, MATE_REFINE_STEPS, mate_start,
-                             mates, close_start, close)  # fmt: skip
+            refine_teammates(
+                pos, trig, speed, lim, dt, MATE_REFINE_STEPS, mate_start, mates, close_start, close
+            )
             step_start, step_mates = close_start, close
         step, records, elapsed, arrived = run_steps(
-            pos, pitch, yaw, speed, slot, rank, active, obs_center, obs_radius, obs_velocity,
-            target, lim, dt, method, step, last, n_steps, record_every, records, elapsed,
-            rec_dt, rec_pos, rec_pitch, rec_yaw, rec_speed, rec_state, rec_avoiding,
-            rec_formed, state, avoiding, formed, direction, local_target, next_motion,
-            near_start, near_obstacles, step_start, step_mates, prev_pos, prev_motion, trig,
-            goal_radius, finish,
-        )  # fmt: skip
+            pos,
+            pitch,
+            yaw,
+            speed,
+            slot,
+            rank,
+            active,
+            obs_center,
+            obs_radius,
+            obs_velocity,
+            target,
+            lim,
+            dt,
+            method,
+            step,
+            last,
+            n_steps,
+            record_every,
+            records,
+            elapsed,
+            rec_dt,
+            rec_pos,
+            rec_pitch,
+            rec_yaw,
+            rec_speed,
+            rec_state,
+            rec_avoiding,
+            rec_formed,
+            state,
+            avoiding,
+            formed,
+            direction,
+            local_target,
+            next_motion,
+            near_start,
+            near_obstacles,
+            step_start,
+            step_mates,
+            prev_pos,
+            prev_motion,
+            trig,
+            goal_radius,
+            finish,
+        )
     return step, records, elapsed, arrived
 
 
 @njit(cache=True)
 def run_chunks(
-    pos: np.ndarray, pitch: np.ndarray, yaw: np.ndarray, speed: np.ndarray, slot: np.ndarray,
-    rank: np.ndarray, active: np.ndarray, obs_center: np.ndarray, obs_radius: np.ndarray,
-    obs_velocity: np.ndarray, target: np.ndarray, lim: KernelLimits, dt: float, method: int,
-    n_steps: int, record_every: int, chunk_steps: int, t0: float, rec_t: np.ndarray,
-    rec_pos: np.ndarray, rec_pitch: np.ndarray, rec_yaw: np.ndarray, rec_speed: np.ndarray,
-    rec_state: np.ndarray, rec_avoiding: np.ndarray, rec_formed: np.ndarray, mate_search: int,
-    goal_radius: float, finish: np.ndarray,
-) -> tuple[int, int, float, bool]:  # fmt: skip
+    pos: np.ndarray,
+    pitch: np.ndarray,
+    yaw: np.ndarray,
+    speed: np.ndarray,
+    slot: np.ndarray,
+    rank: np.ndarray,
+    active: np.ndarray,
+    obs_center: np.ndarray,
+    obs_radius: np.ndarray,
+    obs_velocity: np.ndarray,
+    target: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+    method: int,
+    n_steps: int,
+    record_every: int,
+    chunk_steps: int,
+    t0: float,
+    rec_t: np.ndarray,
+    rec_pos: np.ndarray,
+    rec_pitch: np.ndarray,
+    rec_yaw: np.ndarray,
+    rec_speed: np.ndarray,
+    rec_state: np.ndarray,
+    rec_avoiding: np.ndarray,
+    rec_formed: np.ndarray,
+    mate_search: int,
+    goal_radius: float,
+    finish: np.ndarray,
+) -> tuple[int, int, float, bool]:
     """``run_fleet`` ``chunk_steps`` steps at a time, exactly as that many calls of it one
     after the other: each chunk records from its own start (``record_every``), its record
     times are t at its start plus the flight time since (``rec_t`` receives them), and t
@@ -328,11 +533,34 @@ def run_chunks(
     while steps < n_steps and not arrived:
         n = min(chunk_steps, n_steps - steps)
         taken, written, elapsed, arrived = run_fleet(
-            pos, pitch, yaw, speed, slot, rank, active, obs_center, obs_radius, obs_velocity,
-            target, lim, dt, method, n, record_every, rec_t[records:], rec_pos[records:],
-            rec_pitch[records:], rec_yaw[records:], rec_speed[records:], rec_state[records:],
-            rec_avoiding[records:], rec_formed[records:], mate_search, goal_radius, finish,
-        )  # fmt: skip
+            pos,
+            pitch,
+            yaw,
+            speed,
+            slot,
+            rank,
+            active,
+            obs_center,
+            obs_radius,
+            obs_velocity,
+            target,
+            lim,
+            dt,
+            method,
+            n,
+            record_every,
+            rec_t[records:],
+            rec_pos[records:],
+            rec_pitch[records:],
+            rec_yaw[records:],
+            rec_speed[records:],
+            rec_state[records:],
+            rec_avoiding[records:],
+            rec_formed[records:],
+            mate_search,
+            goal_radius,
+            finish,
+        )
         for r in range(records, records + written):
             rec_t[r] = t + rec_t[r]
         records += written

@@ -41,8 +41,16 @@ class Fleet:
 
     def copy(self) -> Fleet:
         a = np.array
-        return Fleet(a(self.ids), a(self.pos), a(self.pitch), a(self.yaw), a(self.speed),
-                     a(self.slot), a(self.rank), a(self.active))  # fmt: skip
+        return Fleet(
+            a(self.ids),
+            a(self.pos),
+            a(self.pitch),
+            a(self.yaw),
+            a(self.speed),
+            a(self.slot),
+            a(self.rank),
+            a(self.active),
+        )
 
     def index_of(self, vehicle_id: int) -> int:
         hits = np.flatnonzero(self.ids == vehicle_id)

@@ -104,15 +104,32 @@ def motion(
     tecs = airframe.tecs_time_constant_s  # None: not ArduPlane, the vertical speed at once
     climb_lag = 0.0 if tecs is None else CLIMB_LAG_PER_TECS_TCONST * tecs
     gain = math.inf if tecs is None else HEIGHT_GAIN_TIMES_TECS_TCONST / tecs
-    return vehicle_motion.Motion(state.pos_m, state.yaw_rad, v, turn, climb, sink, tau,
-                                 state.yaw_rate_rad_s, roll_lag, roll_rate, vz, climb_lag,
-                                 gain)  # fmt: skip
+    return vehicle_motion.Motion(
+        state.pos_m,
+        state.yaw_rad,
+        v,
+        turn,
+        climb,
+        sink,
+        tau,
+        state.yaw_rate_rad_s,
+        roll_lag,
+        roll_rate,
+        vz,
+        climb_lag,
+        gain,
+    )
 
 
 def planned_commands(
-    g: Guidance, states: dict[int, VehicleState], airframes: list[Airframe], orders: Orders,
-    turn_accel_m_s2: float, cut: bool, trims: dict[int, slew.ClimbTrim] | None = None,
-) -> list[slew.SlewCommand]:  # fmt: skip
+    g: Guidance,
+    states: dict[int, VehicleState],
+    airframes: list[Airframe],
+    orders: Orders,
+    turn_accel_m_s2: float,
+    cut: bool,
+    trims: dict[int, slew.ClimbTrim] | None = None,
+) -> list[slew.SlewCommand]:
     """Each vehicle's course and altitude as the plan asks (in ``g``'s order); in point
     guidance the course is the bearing to the guided point.  The course lead is ``cut``
     against the correction (``slew.opposing_lead_rad``) in missions at ArduPlane's scale
@@ -132,8 +149,11 @@ def planned_commands(
         s = states[vid]
         trim = 0.0 if trims is None or vid not in trims else trims[vid].trim_m_s
         course = s.yaw_rad if cut else None
-        out.append(slew.slew_command(g, i, airframes[i], s.pos_m[2], turn_accel_m_s2,
-                                     orders.lookahead_s, course, trim))  # fmt: skip
+        out.append(
+            slew.slew_command(
+                g, i, airframes[i], s.pos_m[2], turn_accel_m_s2, orders.lookahead_s, course, trim
+            )
+        )
     return out
 
 
@@ -166,8 +186,9 @@ async def command_fleet(
     if trims is not None:
         for i, vid in enumerate(g.ids):
             if vid in active and vid in trims:
-                trims[vid] = slew.climb_trim(trims[vid], states[vid].climb_rate_m_s, now_s,
-                                             airframes[i])  # fmt: skip
+                trims[vid] = slew.climb_trim(
+                    trims[vid], states[vid].climb_rate_m_s, now_s, airframes[i]
+                )
     planned = planned_commands(g, states, airframes, orders, turn_accel, follows, trims)
     idx = [i for i, vid in enumerate(g.ids) if vid in active]
     ahead = g.speed_m_s if g.speed_ahead_m_s is None else g.speed_ahead_m_s
@@ -176,8 +197,10 @@ async def command_fleet(
     previous = [escaping.get(g.ids[i]) for i in idx]
     with nullcontext() if phases is None else phases.phase("assurance"):
         verdicts = assurance.assure(motions, wanted, hold_s, keep, previous)
-    points = [_course_point(planned[i], v, m, orders, g.guided_point_m[i])
-              for i, m, v in zip(idx, motions, verdicts, strict=True)]  # fmt: skip
+    points = [
+        _course_point(planned[i], v, m, orders, g.guided_point_m[i])
+        for i, m, v in zip(idx, motions, verdicts, strict=True)
+    ]
     lats, lons, alts = enu_to_geodetic_many(np.array(points).reshape(-1, 3), mission.origin)
     for k, (i, m, v) in enumerate(zip(idx, motions, verdicts, strict=True)):
         vid = g.ids[i]
@@ -204,9 +227,15 @@ def override_event(
     (``assurance.Verdict.gives_way_to``, ``ids`` the vehicles assured, in order)."""
     if v.gives_way_to is not None:
         detail["gives_way_to"] = ids[v.gives_way_to]
-    event("assurance_override", vid, keep_out=v.reason, planned_margin_m=round(v.margin_m, 1),
-          sent_margin_m=round(v.chosen_margin_m, 1),
-          turn={1: "left", -1: "right"}.get(v.side, "straight"), **detail)  # fmt: skip
+    event(
+        "assurance_override",
+        vid,
+        keep_out=v.reason,
+        planned_margin_m=round(v.margin_m, 1),
+        sent_margin_m=round(v.chosen_margin_m, 1),
+        turn={1: "left", -1: "right"}.get(v.side, "straight"),
+        **detail,
+    )
 
 
 def remember(
@@ -226,14 +255,20 @@ def remember(
 def along(m: vehicle_motion.Motion, c: vehicle_motion.Command) -> tuple[float, float, float]:
     """A guided point for course ``c`` (point guidance): ``ESCAPE_POINT_M`` along it from
     the vehicle, at its altitude."""
-    return (m.pos_m[0] + ESCAPE_POINT_M * math.cos(c.course_rad),
-            m.pos_m[1] + ESCAPE_POINT_M * math.sin(c.course_rad), c.z_m)  # fmt: skip
+    return (
+        m.pos_m[0] + ESCAPE_POINT_M * math.cos(c.course_rad),
+        m.pos_m[1] + ESCAPE_POINT_M * math.sin(c.course_rad),
+        c.z_m,
+    )
 
 
 def _course_point(
-    cmd: slew.SlewCommand, v: assurance.Verdict, m: vehicle_motion.Motion, orders: Orders,
+    cmd: slew.SlewCommand,
+    v: assurance.Verdict,
+    m: vehicle_motion.Motion,
+    orders: Orders,
     guided_point: np.ndarray,
-) -> tuple[float, float, float]:  # fmt: skip
+) -> tuple[float, float, float]:
     """Where a vehicle's command points (ICS): the guided point (an escape's point
     ``ESCAPE_POINT_M`` along its course), or in course guidance, above the vehicle at the
     altitude it is sent."""
@@ -246,9 +281,14 @@ def _course_point(
 
 
 async def _send_course(
-    fleet: Sender, vid: int, cmd: slew.SlewCommand, v: assurance.Verdict, m: vehicle_motion.Motion,
-    orders: Orders, where: tuple[float, float, float],
-) -> None:  # fmt: skip
+    fleet: Sender,
+    vid: int,
+    cmd: slew.SlewCommand,
+    v: assurance.Verdict,
+    m: vehicle_motion.Motion,
+    orders: Orders,
+    where: tuple[float, float, float],
+) -> None:
     """The vehicle's course and altitude commands (``where``: ``_course_point`` on WGS-84)."""
     lat, lon, alt = where
     if orders.guidance_mode == "point":
@@ -264,9 +304,15 @@ async def _send_course(
 
 
 async def _send_speed(
-    fleet: Sender, vid: int, g: Guidance, i: int, airframe: Airframe,
-    commanded_speed: dict[int, float], follows: bool = True, slowest_m_s: float | None = None,
-) -> None:  # fmt: skip
+    fleet: Sender,
+    vid: int,
+    g: Guidance,
+    i: int,
+    airframe: Airframe,
+    commanded_speed: dict[int, float],
+    follows: bool = True,
+    slowest_m_s: float | None = None,
+) -> None:
     """DO_CHANGE_SPEED when the airspeed to fly (``speed_reference.speed_to_command``, over
     the averaged airspeed / ground speed ratio) changes by ``SPEED_DEADBAND_M_S``; the
     legacy lead and deadband where the vehicles do not follow the plan's speed
@@ -299,9 +345,12 @@ def hold_retry(clock_rate: float) -> confirmation.Retry:
 
 
 def _holds(
-    requests: dict[int, holding.HoldRequest], states: dict[int, VehicleState], mission: Mission,
-    obstacles: Obstacles, keep_out: float,
-) -> dict[int, holding.Hold]:  # fmt: skip
+    requests: dict[int, holding.HoldRequest],
+    states: dict[int, VehicleState],
+    mission: Mission,
+    obstacles: Obstacles,
+    keep_out: float,
+) -> dict[int, holding.Hold]:
     """The formation's present layout translated (``holding.formation_holds``, towards the
     leader's heading), or, where no translation clears the obstacles, each vehicle's own
     circle clear of those chosen before it."""
@@ -317,9 +366,17 @@ def _holds(
     out = {}
     for vid, r in requests.items():
         hold = holding.holding_circle(
-            r.pos_m, r.yaw_rad, r.z_m, r.radius_m, LOITER_AHEAD_M, obstacles, keep_out,
-            r.motion, taken, mission.limits.safe_distance_uav,
-        )  # fmt: skip
+            r.pos_m,
+            r.yaw_rad,
+            r.z_m,
+            r.radius_m,
+            LOITER_AHEAD_M,
+            obstacles,
+            keep_out,
+            r.motion,
+            taken,
+            mission.limits.safe_distance_uav,
+        )
         taken.append((hold, holding.flown_width_m(r.radius_m, r.motion)))
         out[vid] = hold
     return out
@@ -362,9 +419,14 @@ def stack_spacing_m(mission: Mission) -> float:
 
 
 def hold_plan(
-    orders: Orders, states: dict[int, VehicleState], airframes: dict[int, Airframe],
-    mission_time_s: float, stacked: bool, event: Callable[..., None], heard: set[int],
-) -> HoldPlan:  # fmt: skip
+    orders: Orders,
+    states: dict[int, VehicleState],
+    airframes: dict[int, Airframe],
+    mission_time_s: float,
+    stacked: bool,
+    event: Callable[..., None],
+    heard: set[int],
+) -> HoldPlan:
     """Each vehicle to a holding circle (``gcs_ppf.guidance.holding``) that cuts no
     obstacle's keep-out (twice the safe distance), at ``HOLD_TURN_RADII`` turn radii at its
     speed: the formation's present layout translated (``_holds``), else each circle clear
@@ -391,7 +453,7 @@ def hold_plan(
     heights = {
         vid: st.pos_m[2] if vid not in airframes else levelling_height(st, airframes[vid], mission)
         for vid, st in states.items()
-    }  # fmt: skip
+    }
     spacing = stack_spacing_m(mission)
     requests: dict[int, holding.HoldRequest] = {}
     for v in mission.vehicles:
@@ -399,11 +461,15 @@ def hold_plan(
             continue
         s = states.get(v.id)
         if s is None or v.id not in airframes:
-            out.append(confirmation.Order(
-                v.id, partial(commands.set_mode, v.id, PlaneMode.LOITER),
-                commands.MAV_CMD_DO_SET_MODE, "hold: mode LOITER",
-                lambda t: t.custom_mode == PlaneMode.LOITER,
-            ))  # fmt: skip
+            out.append(
+                confirmation.Order(
+                    v.id,
+                    partial(commands.set_mode, v.id, PlaneMode.LOITER),
+                    commands.MAV_CMD_DO_SET_MODE,
+                    "hold: mode LOITER",
+                    lambda t: t.custom_mode == PlaneMode.LOITER,
+                )
+            )
             continue
         airframe_omega = airframes[v.id].max_turn_rate(s.speed_m_s)
         omega = min(airframe_omega or math.inf, mission.limits.max_yaw_rate)
@@ -429,20 +495,32 @@ def loiter_orders(
     guided altitude (it outlives the course)."""
     mission = orders.mission
     lat, lon, alt = enu_to_geodetic(hold.x_m, hold.y_m, hold.z_m, mission.origin)
-    out = [confirmation.Order(
-        vid, partial(commands.reposition, vid, lat, lon, alt, hold.radius_m),
-        commands.MAV_CMD_DO_REPOSITION, "hold: guided loiter",
-    )]  # fmt: skip
+    out = [
+        confirmation.Order(
+            vid,
+            partial(commands.reposition, vid, lat, lon, alt, hold.radius_m),
+            commands.MAV_CMD_DO_REPOSITION,
+            "hold: guided loiter",
+        )
+    ]
     slowest = slowest_airspeed(mission, airframe)
-    out.append(confirmation.Order(
-        vid, partial(commands.change_speed, vid, slowest),
-        commands.MAV_CMD_DO_CHANGE_SPEED, "hold: speed",
-    ))  # fmt: skip
+    out.append(
+        confirmation.Order(
+            vid,
+            partial(commands.change_speed, vid, slowest),
+            commands.MAV_CMD_DO_CHANGE_SPEED,
+            "hold: speed",
+        )
+    )
     if orders.guidance_mode == "course":
-        out.append(confirmation.Order(
-            vid, partial(commands.guided_change_altitude, vid, slew.sendable_altitude(alt), 0.0),
-            commands.MAV_CMD_GUIDED_CHANGE_ALTITUDE, "hold: altitude",
-        ))  # fmt: skip
+        out.append(
+            confirmation.Order(
+                vid,
+                partial(commands.guided_change_altitude, vid, slew.sendable_altitude(alt), 0.0),
+                commands.MAV_CMD_GUIDED_CHANGE_ALTITUDE,
+                "hold: altitude",
+            )
+        )
     return out
 
 
@@ -452,10 +530,17 @@ def slowest_airspeed(mission: Mission, airframe: Airframe) -> float:
 
 
 async def command_holds(
-    fleet: Sender, circles: dict[int, holding.Hold], ids: list[int],
-    motions: list[vehicle_motion.Motion], orders: Orders, keep: assurance.KeepOut, hold_s: float,
-    event: Callable[..., None], escaping: dict[int, assurance.Escape], now_s: float,
-) -> dict[int, assurance.Verdict]:  # fmt: skip
+    fleet: Sender,
+    circles: dict[int, holding.Hold],
+    ids: list[int],
+    motions: list[vehicle_motion.Motion],
+    orders: Orders,
+    keep: assurance.KeepOut,
+    hold_s: float,
+    event: Callable[..., None],
+    escaping: dict[int, assurance.Escape],
+    now_s: float,
+) -> dict[int, assurance.Verdict]:
     """One tick of the holding phase flown by the service (``service.hold_flight``): each of
     ``ids`` (in priority order, the leader first; ``motions`` theirs, ``motion``) told the
     course onto and round its circle
@@ -466,16 +551,24 @@ async def command_holds(
     wanted = []
     for vid, m in zip(ids, motions, strict=True):
         c = circles[vid]
-        course = holding.loiter_course(m.pos_m, c.x_m, c.y_m, holding.flown_radius_m(c.radius_m),
-                                       m.speed_m_s, m.turn_rate_rad_s, m.heading_tau_s)  # fmt: skip
+        course = holding.loiter_course(
+            m.pos_m,
+            c.x_m,
+            c.y_m,
+            holding.flown_radius_m(c.radius_m),
+            m.speed_m_s,
+            m.turn_rate_rad_s,
+            m.heading_tau_s,
+        )
         wanted.append(vehicle_motion.Command(course, c.z_m))
     verdicts = assurance.assure(motions, wanted, hold_s, keep, [escaping.get(i) for i in ids])
     for vid, m, v in zip(ids, motions, verdicts, strict=True):
         remember(escaping, vid, v, now_s)
         if v.replaced:
             override_event(event, vid, v, ids, phase="hold")
-        cmd = slew.SlewCommand(v.command.course_rad, m.speed_m_s * m.turn_rate_rad_s,
-                               v.command.z_m, 0.0)  # fmt: skip
+        cmd = slew.SlewCommand(
+            v.command.course_rad, m.speed_m_s * m.turn_rate_rad_s, v.command.z_m, 0.0
+        )
         point = _course_point(cmd, v, m, orders, np.array(along(m, v.command)))
         lat, lon, alt = enu_to_geodetic(*point, mission.origin)
         await _send_course(fleet, vid, cmd, v, m, orders, (lat, lon, alt))

@@ -41,9 +41,12 @@ def finish(station: Station, run: Run, state: RunState, outcome: str) -> None:
 
 
 def end(
-    station: Station, run: Run, state: RunState, outcome: str,
+    station: Station,
+    run: Run,
+    state: RunState,
+    outcome: str,
     states: dict[int, VehicleState] | None = None,
-) -> None:  # fmt: skip
+) -> None:
     """The run ends now (its state, at once: a hold that takes long to confirm, or a
     dead vehicle's that never is, does not delay it); every vehicle still heard then
     holds clear of every obstacle, in the background: after completion (``states``

@@ -300,8 +300,12 @@ class Fleet:
             ):
                 v.lost = True
                 ours = now - v.last_heard_s
-                log.warning("vehicle %d lost (silent %.1f s of its time, %.2f s of ours)",
-                            v.system_id, v.clock.vehicle_seconds(ours), ours)  # fmt: skip
+                log.warning(
+                    "vehicle %d lost (silent %.1f s of its time, %.2f s of ours)",
+                    v.system_id,
+                    v.clock.vehicle_seconds(ours),
+                    ours,
+                )
             period = max(0.01, WATCHDOG_PERIOD_S / self.clock_rate())
             expected = time.monotonic() + period
             await asyncio.sleep(period)

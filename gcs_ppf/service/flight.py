@@ -82,9 +82,14 @@ async def launch_fleet(station: Station, run: Run) -> None:
     holding = hold_while_others_take_off(station, run, ids)
     try:
         await launch.launch(
-            station.fleet, ids, station.settings.takeoff_alt_m, station.events_of(run),
-            takeoff_dist_m=station.settings.takeoff_dist_m, is_lost=is_lost, on_lost=on_lost,
-        )  # fmt: skip
+            station.fleet,
+            ids,
+            station.settings.takeoff_alt_m,
+            station.events_of(run),
+            takeoff_dist_m=station.settings.takeoff_dist_m,
+            is_lost=is_lost,
+            on_lost=on_lost,
+        )
     finally:
         if holding is not None:  # the holds flown until now, sent once, before the run
             holding.cancel()
@@ -109,8 +114,9 @@ def hold_while_others_take_off(
             flying.add(vid)
     if not flying or len(flying) == len(ids):
         return None
-    states, _, _ = planning_states([(v, p) for v, p in station.located(run)
-                                    if v.system_id in flying])  # fmt: skip
+    states, _, _ = planning_states(
+        [(v, p) for v, p in station.located(run) if v.system_id in flying]
+    )
     return station.spawn(hold_during_launch(station, run, states))
 
 
@@ -198,9 +204,12 @@ async def losses(station: Station, run: Run) -> bool:
 
 
 def check_obedience(
-    station: Station, run: Run, located: Located, states: dict[int, VehicleState],
+    station: Station,
+    run: Run,
+    located: Located,
+    states: dict[int, VehicleState],
     airframes: dict[int, Airframe],
-) -> bool:  # fmt: skip
+) -> bool:
     """Which vehicles obey (GUIDED, the course command ACCEPTED, the course sent flown
     or turned to): events when one stops for ``NOT_RESPONDING_S`` of vehicle time or
     comes back; True if it is the leader."""
@@ -231,8 +240,13 @@ def check_obedience(
     for vid in flagged:
         t = by_id[vid]
         ack = t.ack(command)
-        station.event(run, "vehicle_not_responding", vid, mode=t.mode_name,
-                      last_ack=ack.result if ack else None)  # fmt: skip
+        station.event(
+            run,
+            "vehicle_not_responding",
+            vid,
+            mode=t.mode_name,
+            last_ack=ack.result if ack else None,
+        )
     for vid in cleared:
         station.event(run, "vehicle_responding", vid)
     return run.mission.leader.id in flagged
@@ -243,8 +257,9 @@ def account_lag(station: Station, run: Run, lags: list[lag.Lag]) -> None:
     run.fleet_lag = lag.worst(lags)
     change = run.lag_budget.update(run.fleet_lag.total_s)
     if change is not None:
-        station.event(run, change, None, budget_s=run.lag_budget.budget_s,
-                      **run.fleet_lag.as_dict())  # fmt: skip
+        station.event(
+            run, change, None, budget_s=run.lag_budget.budget_s, **run.fleet_lag.as_dict()
+        )
 
 
 async def tick(station: Station, run: Run) -> bool:
@@ -256,17 +271,21 @@ async def tick(station: Station, run: Run) -> bool:
     with phases.phase("prediction"):
         located = list(station.located(run))  # one geodetic → ICS conversion per vehicle
         ground = home_ground(
-            [(pos[2], v.telemetry.relative_alt_m) for v, pos in located
-             if v.telemetry.relative_alt_m is not None]
-        )  # fmt: skip
+            [
+                (pos[2], v.telemetry.relative_alt_m)
+                for v, pos in located
+                if v.telemetry.relative_alt_m is not None
+            ]
+        )
         # what the vehicles report, on one instant (the safety monitor's and the status's
         # distances), of those not lost (``losses`` has just matched them to the fleet's)
         reporting = [(v, p) for v, p in located if v.system_id not in run.lost_ids]
         ids = [v.system_id for v, _ in reporting]
         together = reported_together(reporting)
     with phases.phase("monitoring"):
-        watch_safety(station, run, ids, together,
-                     mission.ground if mission.ground is not None else ground)  # fmt: skip
+        watch_safety(
+            station, run, ids, together, mission.ground if mission.ground is not None else ground
+        )
         watch_formation(station, run, reporting, together)
     with phases.phase("prediction"):
         recent = list(itertools.islice(reversed(run.tick_latency_s), RECENT_TICKS))
@@ -324,8 +343,14 @@ def follow_route(station: Station, run: Run, previous: Any, leader_pos: FloatArr
     run.leg += 1
     run.waypoint_times_s.append(round(run.mission_time_s, 3))
     distance_m = round(float(np.linalg.norm(leader_pos - leg.end_m)), 1)
-    station.event(run, "waypoint_reached", run.mission.leader.id, waypoint=leg.index,
-                  legs=len(run.legs), distance_m=distance_m)  # fmt: skip
+    station.event(
+        run,
+        "waypoint_reached",
+        run.mission.leader.id,
+        waypoint=leg.index,
+        legs=len(run.legs),
+        distance_m=distance_m,
+    )
 
 
 def watch_formation(station: Station, run: Run, reporting: Located, together: FloatArray) -> None:
@@ -341,25 +366,35 @@ def watch_formation(station: Station, run: Run, reporting: Located, together: Fl
     if leader_k is not None:
         t = reporting[leader_k][0].telemetry
         if t.vn_m_s is not None and t.ve_m_s is not None and t.vd_m_s is not None:
-            wingmen = {w.id: (together[at[w.id]].tolist(), w.slot) for w in mission.wingmen
-                       if w.id in at and w.slot is not None}  # fmt: skip
+            wingmen = {
+                w.id: (together[at[w.id]].tolist(), w.slot)
+                for w in mission.wingmen
+                if w.id in at and w.slot is not None
+            }
             velocity = velocity_ned_to_enu(t.vn_m_s, t.ve_m_s, t.vd_m_s)
             errors = slot_errors_m(together[leader_k].tolist(), velocity, wingmen)
     counted = [w.id for w in mission.wingmen if w.id not in run.lost_ids]
     unmeasured = sum(1 for vid in counted if vid not in at)
     for change in run.formation.update(run.mission_time_s, errors, unmeasured):
         station.event(
-            run, change.kind, None, worst_wingman_id=change.worst_wingman_id,
+            run,
+            change.kind,
+            None,
+            worst_wingman_id=change.worst_wingman_id,
             worst_error_m=None if change.worst_error_m is None else round(change.worst_error_m, 1),
             since_s=round(change.since_s, 2),
-        )  # fmt: skip
+        )
 
 
 async def plan_and_command(
-    station: Station, run: Run, airframes: dict[int, Airframe],
-    states: dict[int, VehicleState], active: set[int], obstacles: Obstacles,
+    station: Station,
+    run: Run,
+    airframes: dict[int, Airframe],
+    states: dict[int, VehicleState],
+    active: set[int],
+    obstacles: Obstacles,
     ground: float | None,
-) -> None:  # fmt: skip
+) -> None:
     """The tick's plan (``tick_plan.plan`` from the speeds the last plan reached,
     ``speed_reference``; events for what changed) sent to the vehicles it commands, every
     command through the run-time assurance; ``airframes`` of the located vehicles."""
@@ -375,9 +410,17 @@ async def plan_and_command(
         reference = run.speed_plan if follows else None
         planning = speed_reference.reference_states(states, reference, run.mission_time_s)
         g, ordered = tick_plan.plan(
-            mission, planning, active, obstacles, ground, airframes,
-            tick_plan.Tuning.of(settings), lagging_s, run.last, run.legs[run.leg],
-        )  # fmt: skip
+            mission,
+            planning,
+            active,
+            obstacles,
+            ground,
+            airframes,
+            tick_plan.Tuning.of(settings),
+            lagging_s,
+            run.last,
+            run.legs[run.leg],
+        )
         held = follows and speed_reference.formation_holds(
             g, lim.target_accuracy, run.formation_held
         )
@@ -390,18 +433,36 @@ async def plan_and_command(
         run.last = g
     with phases.phase("assurance"):
         keep = assurance.KeepOut(
-            obstacles, mission.ground if mission.ground is not None else ground,
-            lim.safe_distance_obstacle, lim.safe_distance_uav,
-        )  # fmt: skip
+            obstacles,
+            mission.ground if mission.ground is not None else ground,
+            lim.safe_distance_obstacle,
+            lim.safe_distance_uav,
+        )
         starvation_s = settings.starvation_allowance_s * station.fleet.clock_rate()
-        hold_s = lag.hold_s(run.tick_gaps_s, 1.0 / settings.tick_hz, telemetry_interval_s,
-                            run.fleet_lag, starvation_s)  # fmt: skip
+        hold_s = lag.hold_s(
+            run.tick_gaps_s,
+            1.0 / settings.tick_hz,
+            telemetry_interval_s,
+            run.fleet_lag,
+            starvation_s,
+        )
     with phases.phase("commanding"):
         verdicts = await commanding.command_fleet(
-            station.fleet, g, active, states, ordered, run.orders, keep, hold_s,
-            run.commanded_speed, station.events_of(run), run.escaping, run.mission_time_s,
-            run.climb_trims, phases=phases,
-        )  # fmt: skip
+            station.fleet,
+            g,
+            active,
+            states,
+            ordered,
+            run.orders,
+            keep,
+            hold_s,
+            run.commanded_speed,
+            station.events_of(run),
+            run.escaping,
+            run.mission_time_s,
+            run.climb_trims,
+            phases=phases,
+        )
     with phases.phase("confirmation"):
         for vid, v in verdicts.items():
             sent = run.sent_courses.setdefault(vid, deque(maxlen=SENT_COURSES_KEPT))
@@ -417,8 +478,7 @@ def sample(station: Station, run: Run) -> None:
             continue
         speed = t.groundspeed_m_s if t.groundspeed_m_s is not None else float("nan")
         rows.append(
-            (run.mission_time_s, vehicle.system_id, t.lat_deg, t.lon_deg, t.alt_amsl_m,
-             *pos, speed)
-        )  # fmt: skip
+            (run.mission_time_s, vehicle.system_id, t.lat_deg, t.lon_deg, t.alt_amsl_m, *pos, speed)
+        )
     if rows:
         station.store.add_telemetry(run.record.id, rows)

@@ -89,38 +89,53 @@ async def fly_holds(
         watch_once(station, run, located, after)
         states, active, lags = planning_states(located)
         stuck = run.obedience.not_responding & set(states)
-        ids = [v.id for v in mission.vehicles
-               if v.id in circles and v.id in active and v.id not in stuck | taken]  # fmt: skip
+        ids = [
+            v.id
+            for v in mission.vehicles
+            if v.id in circles and v.id in active and v.id not in stuck | taken
+        ]
         traffic_ids = set(states) - set(ids)
         airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
         motions = [commanding.motion(states[i], airframes[i], mission) for i in ids]
         settled = [
-            holding.on_ring(m.pos_m, m.yaw_rad, m.climb_rate_m_s, circles[i], m.speed_m_s,
-                            m.turn_rate_rad_s)
+            holding.on_ring(
+                m.pos_m, m.yaw_rad, m.climb_rate_m_s, circles[i], m.speed_m_s, m.turn_rate_rad_s
+            )
             for i, m in zip(ids, motions, strict=True)
-        ]  # fmt: skip
+        ]
         if not launching and all(settled):
             station.event(run, "holds_settled", None, after_end_s=round(after, 1))
             return
         if not launching and after > SETTLE_MAX_S:
             off = [i for i, s in zip(ids, settled, strict=True) if not s]
-            station.event(run, "hold_settle_timeout", None, after_end_s=round(after, 1),
-                          off_ring=off)  # fmt: skip
+            station.event(
+                run, "hold_settle_timeout", None, after_end_s=round(after, 1), off_ring=off
+            )
             return
         obstacles = obstacles_from_mission(mission).at(run.mission_time_s + after)
         if traffic_ids:
             traffic = obedience.as_obstacles(states, traffic_ids, traffic_radius_m(mission))
             obstacles = obedience.with_obstacles(obstacles, traffic)
         lim = mission.limits
-        keep = assurance.KeepOut(obstacles, ground(run, located), lim.safe_distance_obstacle,
-                                 lim.safe_distance_uav)  # fmt: skip
+        keep = assurance.KeepOut(
+            obstacles, ground(run, located), lim.safe_distance_obstacle, lim.safe_distance_uav
+        )
         starvation = settings.starvation_allowance_s * fleet.clock_rate()
-        hold_s = lag.hold_s(gaps, period, telemetry_interval, lag.worst(list(lags.values())),
-                            starvation)  # fmt: skip
+        hold_s = lag.hold_s(
+            gaps, period, telemetry_interval, lag.worst(list(lags.values())), starvation
+        )
         await commanding.command_holds(
-            fleet, circles, ids, motions, run.orders, keep, hold_s, event, run.escaping,
+            fleet,
+            circles,
+            ids,
+            motions,
+            run.orders,
+            keep,
+            hold_s,
+            event,
+            run.escaping,
             run.mission_time_s + after,
-        )  # fmt: skip
+        )
         for vid in ids:
             if now - speed_sent.get(vid, -SPEED_RESEND_S) >= SPEED_RESEND_S:
                 speed_sent[vid] = now

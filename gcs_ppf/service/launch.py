@@ -72,10 +72,15 @@ async def set_mode(
 ) -> int:
     """``mode``, confirmed (ACK, then HEARTBEAT.custom_mode)."""
     return await confirmed_command(
-        fleet, vehicle_id, lambda: commands.set_mode(vehicle_id, mode),
-        commands.MAV_CMD_DO_SET_MODE, lambda t: t.custom_mode == int(mode),
-        f"mode {mode.name}", event, retry,
-    )  # fmt: skip
+        fleet,
+        vehicle_id,
+        lambda: commands.set_mode(vehicle_id, mode),
+        commands.MAV_CMD_DO_SET_MODE,
+        lambda t: t.custom_mode == int(mode),
+        f"mode {mode.name}",
+        event,
+        retry,
+    )
 
 
 async def arm(
@@ -83,9 +88,15 @@ async def arm(
 ) -> int:
     """Armed, confirmed (ACK, then the HEARTBEAT's armed flag)."""
     return await confirmed_command(
-        fleet, vehicle_id, lambda: commands.arm(vehicle_id, True),
-        commands.MAV_CMD_COMPONENT_ARM_DISARM, lambda t: t.armed, "arm", event, retry,
-    )  # fmt: skip
+        fleet,
+        vehicle_id,
+        lambda: commands.arm(vehicle_id, True),
+        commands.MAV_CMD_COMPONENT_ARM_DISARM,
+        lambda t: t.armed,
+        "arm",
+        event,
+        retry,
+    )
 
 
 async def set_param(

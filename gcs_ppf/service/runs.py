@@ -50,9 +50,14 @@ class FormationService:
         self._tasks: asyncio.TaskGroup | None = None
         self._kernels: asyncio.Task[None] | None = None  # loading them (``running``)
         self._station = Station(
-            settings, store, self.fleet, self._runs, self._spawn, self._publish,
+            settings,
+            store,
+            self.fleet,
+            self._runs,
+            self._spawn,
+            self._publish,
             self._kernels_loaded,
-        )  # fmt: skip
+        )
         for stale in store.interrupted_runs():  # a previous process stopped mid-flight
             store.update_run(stale.id, RunState.FAILED, ended=True, outcome="service restarted")
 
@@ -99,8 +104,11 @@ class FormationService:
                 if run.state == RunState.RUNNING:
                     ending.end(self._station, run, RunState.FAILED, "the service stopped")
         await asyncio.sleep(0)  # a hold just spawned plans its circles before it is cancelled
-        holds = [r.hold_task for r in self._runs.values()
-                 if r.hold_task is not None and not r.hold_task.done()]  # fmt: skip
+        holds = [
+            r.hold_task
+            for r in self._runs.values()
+            if r.hold_task is not None and not r.hold_task.done()
+        ]
         for task in holds:
             task.cancel()  # the holds and the watch after the end
         if holds or flying:
@@ -109,8 +117,10 @@ class FormationService:
     async def _kernels_loaded(self) -> None:
         if self._kernels is not None:
             if not self._kernels.done():
-                log.info("waiting for the planner's compiled kernels (compiled on the first "
-                         "run after an install: about 2 min on 2 cores)")  # fmt: skip
+                log.info(
+                    "waiting for the planner's compiled kernels (compiled on the first "
+                    "run after an install: about 2 min on 2 cores)"
+                )
             await asyncio.shield(self._kernels)
 
     def _spawn(self, coro: Any) -> asyncio.Task[Any]:

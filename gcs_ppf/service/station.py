@@ -86,6 +86,9 @@ class Station:
 
     def fleet_time_s(self) -> float | None:
         """The latest vehicle time any vehicle still heard has reported (seconds)."""
-        times = [v.telemetry.time_boot_ms for v in self.fleet.by_id.values()
-                 if not v.lost and v.telemetry.time_boot_ms is not None]  # fmt: skip
+        times = [
+            v.telemetry.time_boot_ms
+            for v in self.fleet.by_id.values()
+            if not v.lost and v.telemetry.time_boot_ms is not None
+        ]
         return max(times) / 1000.0 if times else None

@@ -162,8 +162,9 @@ class Store:
         """``write`` queued for the store's writer thread (started when none is running)."""
         with self._writer_lock:
             if self._writer is None:
-                self._writer = threading.Thread(target=self._write_queued, name="store-writer",
-                                                daemon=True)  # fmt: skip
+                self._writer = threading.Thread(
+                    target=self._write_queued, name="store-writer", daemon=True
+                )
                 self._writer.start()
             self._queue.put(write)
 
@@ -343,8 +344,14 @@ class Store:
         detail: dict[str, Any] | None = None,
     ) -> StoredEvent:
         now = time.time()
-        row = (run_id, mission_time_s, now, kind, vehicle_id,
-               json.dumps(detail) if detail is not None else None)  # fmt: skip
+        row = (
+            run_id,
+            mission_time_s,
+            now,
+            kind,
+            vehicle_id,
+            json.dumps(detail) if detail is not None else None,
+        )
 
         def write(db: sqlite3.Connection) -> None:
             db.execute(

@@ -24,9 +24,13 @@ Located = list[tuple[Vehicle, tuple[float, float, float]]]
 
 
 def watch_safety(
-    station: Station, run: Run, ids: list[int], positions: FloatArray,
-    ground_z_m: float | None, after_end_s: float = 0.0,
-) -> None:  # fmt: skip
+    station: Station,
+    run: Run,
+    ids: list[int],
+    positions: FloatArray,
+    ground_z_m: float | None,
+    after_end_s: float = 0.0,
+) -> None:
     """The safety monitor on the positions [N,3] the vehicles ``ids`` report, on one instant
     (``reported_together``; not planned): a ``safety_violation`` event for each keep-out
     entered."""
@@ -34,14 +38,24 @@ def watch_safety(
         return
     lim = run.mission.limits
     began = run.safety.watch(
-        ids, positions,
-        obstacles_from_mission(run.mission).at(run.mission_time_s + after_end_s), ground_z_m,
-        lim.safe_distance_uav, lim.safe_distance_obstacle,
-    )  # fmt: skip
+        ids,
+        positions,
+        obstacles_from_mission(run.mission).at(run.mission_time_s + after_end_s),
+        ground_z_m,
+        lim.safe_distance_uav,
+        lim.safe_distance_obstacle,
+    )
     late = {"after_end_s": round(after_end_s, 1)} if after_end_s else {}
     for v in began:
-        station.event(run, "safety_violation", v.vehicle_id, keep_out=v.kind, other=v.other,
-                      depth_m=round(v.depth_m, 1), **late)  # fmt: skip
+        station.event(
+            run,
+            "safety_violation",
+            v.vehicle_id,
+            keep_out=v.kind,
+            other=v.other,
+            depth_m=round(v.depth_m, 1),
+            **late,
+        )
 
 
 def reported_together(located: Located) -> FloatArray:
@@ -65,8 +79,13 @@ def ground(run: Run, located: Located) -> float | None:
     """The mission's ground, or the vehicles' home (``online.home_ground``)."""
     if run.mission.ground is not None:
         return run.mission.ground
-    return home_ground([(pos[2], v.telemetry.relative_alt_m) for v, pos in located
-                        if v.telemetry.relative_alt_m is not None])  # fmt: skip
+    return home_ground(
+        [
+            (pos[2], v.telemetry.relative_alt_m)
+            for v, pos in located
+            if v.telemetry.relative_alt_m is not None
+        ]
+    )
 
 
 def watch_once(station: Station, run: Run, located: Located, after_end_s: float) -> None:
@@ -74,8 +93,14 @@ def watch_once(station: Station, run: Run, located: Located, after_end_s: float)
     others take off, ``after_end_s`` 0; the holds and the watch after the end): a violation
     is a ``safety_violation`` event, and a completed run becomes ``completed_unsafe``."""
     before = run.safety.count
-    watch_safety(station, run, [v.system_id for v, _ in located],
-                 reported_together(located), ground(run, located), after_end_s)  # fmt: skip
+    watch_safety(
+        station,
+        run,
+        [v.system_id for v, _ in located],
+        reported_together(located),
+        ground(run, located),
+        after_end_s,
+    )
     if run.safety.count > before and run.state == RunState.COMPLETED:
         run.state = RunState.COMPLETED_UNSAFE
         run.outcome = f"{run.outcome}; a safety violation after the end"
@@ -107,5 +132,6 @@ async def watch_after_end(station: Station, run: Run) -> None:
         now = station.fleet_time_s()
         if now is None or now - start > WATCH_AFTER_END_S or superseded(station, run):
             return
-        watch_once(station, run, [(v, p) for v, p in station.located(run) if not v.lost],
-                   now - start)  # fmt: skip
+        watch_once(
+            station, run, [(v, p) for v, p in station.located(run) if not v.lost], now - start
+        )

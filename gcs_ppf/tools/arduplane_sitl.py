@@ -166,9 +166,12 @@ def instance_command(
         "--defaults",
         ",".join(str(f) for f in files),
         "-w",
-        *(arg for option, port in zip(serial, ports, strict=True)
-          for arg in (option, f"tcp:{port}")),
-    ]  # fmt: skip
+        *(
+            arg
+            for option, port in zip(serial, ports, strict=True)
+            for arg in (option, f"tcp:{port}")
+        ),
+    ]
 
 
 def listening(log_text: str, ports: Ports) -> bool:
@@ -242,9 +245,14 @@ def run_fleet(
             cmd = instance_command(binary, inst, speedup=speedup, defaults=defaults, serial=serial)
             logs.append((inst.workdir / LOG_NAME).open("wb"))
             procs.append(
-                subprocess.Popen(cmd, cwd=inst.workdir, stdin=subprocess.DEVNULL,
-                                 stdout=logs[-1], stderr=subprocess.STDOUT)
-            )  # fmt: skip
+                subprocess.Popen(
+                    cmd,
+                    cwd=inst.workdir,
+                    stdin=subprocess.DEVNULL,
+                    stdout=logs[-1],
+                    stderr=subprocess.STDOUT,
+                )
+            )
             print(describe(inst), flush=True)
         deadline = time.monotonic() + ready_timeout_s
         waiting = list(zip(instances, procs, strict=True))
@@ -252,26 +260,40 @@ def run_fleet(
             for inst, p in waiting:
                 if p.poll() is not None:
                     log = inst.workdir / LOG_NAME
-                    print(f"vehicle {inst.sysid}: ArduPlane SITL exited ({p.returncode}) before "
-                          f"its ports were up; {log}:\n{_tail(log)}", file=sys.stderr)  # fmt: skip
+                    print(
+                        f"vehicle {inst.sysid}: ArduPlane SITL exited ({p.returncode}) before "
+                        f"its ports were up; {log}:\n{_tail(log)}",
+                        file=sys.stderr,
+                    )
                     return 1
-            waiting = [(inst, p) for inst, p in waiting
-                       if not listening((inst.workdir / LOG_NAME).read_text(errors="replace"),
-                                        inst.ports)]  # fmt: skip
+            waiting = [
+                (inst, p)
+                for inst, p in waiting
+                if not listening((inst.workdir / LOG_NAME).read_text(errors="replace"), inst.ports)
+            ]
             if waiting and time.monotonic() > deadline:
-                print(f"gcs-ppf: error: ArduPlane SITL ports not up after {ready_timeout_s:g} s:"
-                      f" vehicles {[i.sysid for i, _ in waiting]}", file=sys.stderr)  # fmt: skip
+                print(
+                    f"gcs-ppf: error: ArduPlane SITL ports not up after {ready_timeout_s:g} s:"
+                    f" vehicles {[i.sysid for i, _ in waiting]}",
+                    file=sys.stderr,
+                )
                 return 1
             time.sleep(0.1)
         links = " ".join(f"--link tcp:127.0.0.1:{i.ports.service}" for i in instances)
-        print(f"ready: {len(instances)} ArduPlane SITL instances ({parameter}, speedup "
-              f"{speedup:g}) in {workdir}; serve them with: gcs-ppf serve {links}; "
-              "Ctrl-C stops them", flush=True)  # fmt: skip
+        print(
+            f"ready: {len(instances)} ArduPlane SITL instances ({parameter}, speedup "
+            f"{speedup:g}) in {workdir}; serve them with: gcs-ppf serve {links}; "
+            "Ctrl-C stops them",
+            flush=True,
+        )
         while True:
             for inst, p in zip(instances, procs, strict=True):
                 if p.poll() is not None:
-                    print(f"vehicle {inst.sysid}: ArduPlane SITL exited ({p.returncode}); "
-                          f"stopping the fleet", file=sys.stderr)  # fmt: skip
+                    print(
+                        f"vehicle {inst.sysid}: ArduPlane SITL exited ({p.returncode}); "
+                        f"stopping the fleet",
+                        file=sys.stderr,
+                    )
                     return 1
             time.sleep(0.5)
     except KeyboardInterrupt:

@@ -86,8 +86,13 @@ def process(
     """A child process (its output appended to ``log``) for the duration of the block,
     then ``stop``ped."""
     with log.open("a") as out:
-        p = subprocess.Popen(list(args), stdout=out, stderr=subprocess.STDOUT, cwd=ROOT,
-                             env={**os.environ, **(env or {})})  # fmt: skip
+        p = subprocess.Popen(
+            list(args),
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            cwd=ROOT,
+            env={**os.environ, **(env or {})},
+        )
         try:
             yield p
         finally:
@@ -160,9 +165,14 @@ def set_param(port: int, sysid: int, name: str, value: float, *, until_silent: b
 
 
 def fly_once(
-    mission_path: Path, cond: Condition, workdir: Path, *, event_at_s: float = 15.0,
-    after_s: float = AFTER_S, seed: int = 0,
-) -> dict[str, Any]:  # fmt: skip
+    mission_path: Path,
+    cond: Condition,
+    workdir: Path,
+    *,
+    event_at_s: float = 15.0,
+    after_s: float = AFTER_S,
+    seed: int = 0,
+) -> dict[str, Any]:
     """Fly ``mission_path`` once under ``cond`` in ``workdir``; the run's record (JSON-able).
     ``seed`` seeds the SITL's packet loss and noise: runs with one seed lose the same
     packets, so each run of a campaign gets its own."""
@@ -172,12 +182,35 @@ def fly_once(
     base = free_port_block(10 * len(mission.vehicles))
     api_port = free_port_block(1)
     ports = {v.id: base + 10 * k for k, v in enumerate(mission.vehicles)}
-    rec: dict[str, Any] = {"mission": mission.name, "mission_file": str(mission_path),
-                           "condition": cond.key, "dir": str(workdir)}  # fmt: skip
-    sitl = [sys.executable, "-m", "sitl", str(mission_path), "--speedup", f"{cond.speedup:g}",
-            "--base-port", str(base), "--seed", str(seed), *cond.sitl_args]  # fmt: skip
-    serve = [sys.executable, "-m", "gcs_ppf.cli", "serve", "--port", str(api_port),
-             "--db", str(workdir / "gcs.db")]  # fmt: skip
+    rec: dict[str, Any] = {
+        "mission": mission.name,
+        "mission_file": str(mission_path),
+        "condition": cond.key,
+        "dir": str(workdir),
+    }
+    sitl = [
+        sys.executable,
+        "-m",
+        "sitl",
+        str(mission_path),
+        "--speedup",
+        f"{cond.speedup:g}",
+        "--base-port",
+        str(base),
+        "--seed",
+        str(seed),
+        *cond.sitl_args,
+    ]
+    serve = [
+        sys.executable,
+        "-m",
+        "gcs_ppf.cli",
+        "serve",
+        "--port",
+        str(api_port),
+        "--db",
+        str(workdir / "gcs.db"),
+    ]
     budget_s = (mission.planner.max_time + 60.0) / cond.speedup * 2.0 + 60.0
     t_total = time.monotonic()
     url = f"http://127.0.0.1:{api_port}"
@@ -188,10 +221,16 @@ def fly_once(
     raw = {v: {"pos": r.pos, "texts": r.texts} for v, r in obs.records.items()}
     (workdir / "observer.json").write_text(json.dumps({"end_wall": flight.end_wall, **raw}))
     status, event = flight.status, flight.event
-    rec.update(state=status.get("state", "no status"), outcome=status.get("outcome"),
-               mission_time_s=round(flight.mission_time_s, 1), event=event,
-               service={k: status.get(k) for k in ("min_separation_m", "min_obstacle_clearance_m",
-                                                   "safety_violations")})  # fmt: skip
+    rec.update(
+        state=status.get("state", "no status"),
+        outcome=status.get("outcome"),
+        mission_time_s=round(flight.mission_time_s, 1),
+        event=event,
+        service={
+            k: status.get(k)
+            for k in ("min_separation_m", "min_obstacle_clearance_m", "safety_violations")
+        },
+    )
     if status.get("state") not in FINISHED:
         rec["state"] = f"not finished after {budget_s:.0f} s"
     _judge_run(rec, flight, obs, mission, after_s)
@@ -219,9 +258,13 @@ class Flight:
 
 
 def _start_processes(
-    stack: ExitStack, api: httpx.Client, sitl: list[str], serve: list[str], workdir: Path,
+    stack: ExitStack,
+    api: httpx.Client,
+    sitl: list[str],
+    serve: list[str],
+    workdir: Path,
     ports: dict[int, int],
-) -> Observer:  # fmt: skip
+) -> Observer:
     """Start the service and the SITL in ``stack``, link the service to every vehicle, and
     the observer once the vehicles are discovered and heard."""
     # The service first: the vehicles fly straight on from their start states until the
@@ -242,10 +285,17 @@ def _start_processes(
 
 
 def _fly(
-    api: httpx.Client, doc: dict[str, Any], mission: Mission, cond: Condition,
-    ports: dict[int, int], obs: Observer, budget_s: float, event_at_s: float, after_s: float,
+    api: httpx.Client,
+    doc: dict[str, Any],
+    mission: Mission,
+    cond: Condition,
+    ports: dict[int, int],
+    obs: Observer,
+    budget_s: float,
+    event_at_s: float,
+    after_s: float,
     rec: dict[str, Any],
-) -> Flight:  # fmt: skip
+) -> Flight:
     """Upload and start the mission, inject the condition's event on time, wait for the end
     (or ``budget_s``) and ``after_s`` of vehicle time more; ``rec`` gets the run's wall
     time and the service's events."""
@@ -268,8 +318,11 @@ def _fly(
     end_wall = time.time()
     rec["wall_s"] = round(time.monotonic() - t0, 1)
     end_v = max(obs.latest_boot_ms().values()) / 1000.0
-    wait_for(lambda: max(obs.latest_boot_ms().values()) / 1000.0 >= end_v + after_s,
-             after_s / cond.speedup * 4 + 30, "vehicle time after the end")  # fmt: skip
+    wait_for(
+        lambda: max(obs.latest_boot_ms().values()) / 1000.0 >= end_v + after_s,
+        after_s / cond.speedup * 4 + 30,
+        "vehicle time after the end",
+    )
     # the service watches after the end too: a violation then makes a completed run
     # completed_unsafe, so its last word is read after the watch
     status = _get(api, f"/missions/{mid}/status") or status
@@ -289,21 +342,28 @@ def _judge_run(
     leader's distance to the target, the violations of the safe distances, who sank."""
     tracks = tracks_enu(obs, mission)
     end_v = flight.end_v
-    j = judge(mission, tracks, flight.start_v, end_v + after_s,
-              run_start_s=end_v - flight.mission_time_s)  # fmt: skip
+    j = judge(
+        mission, tracks, flight.start_v, end_v + after_s, run_start_s=end_v - flight.mission_time_s
+    )
     lim = mission.limits
     event = flight.event
     uncontrolled = [event["vehicle"]] if event and event["kind"] == "stuck" else []
     clearance = j.min_clearance_m(exclude=uncontrolled)
     rec.update(
-        window_s=[round(flight.start_v, 1), round(end_v + after_s, 1)], samples=j.samples,
-        min_separation_m=_r(j.min_separation_m), closest_pair=j.closest_pair,
+        window_s=[round(flight.start_v, 1), round(end_v + after_s, 1)],
+        samples=j.samples,
+        min_separation_m=_r(j.min_separation_m),
+        closest_pair=j.closest_pair,
         min_clearance_m=_r(clearance),
-        uncontrolled_clearance_m=_r(min((c for v, c in j.clearance_m.items()
-                                         if v in uncontrolled and c is not None), default=None)),
+        uncontrolled_clearance_m=_r(
+            min(
+                (c for v, c in j.clearance_m.items() if v in uncontrolled and c is not None),
+                default=None,
+            )
+        ),
         lowest_height_m={v: _r(h) for v, h in j.lowest_m.items()},
         leader_to_target_m=_r(j.leader_to_target_m),
-    )  # fmt: skip
+    )
     violations = []
     if j.min_separation_m is not None and j.min_separation_m < lim.safe_distance_uav:
         violations.append(f"separation {j.min_separation_m:.1f} m {j.closest_pair}")
@@ -346,14 +406,21 @@ def _inject(
     vid = mission.wingmen[-1].id if kind == "stuck" else mission.leader.id
     name = "SIM_CMD_IGNORE" if kind == "stuck" else "SIM_KILL"
     set_param(ports[vid], vid, name, 1.0, until_silent=kind == "kill")
-    return {"kind": kind, "vehicle": vid, "mission_time_s": status.get("mission_time_s"),
-            "vehicle_s": max(obs.latest_boot_ms().values()) / 1000.0}  # fmt: skip
+    return {
+        "kind": kind,
+        "vehicle": vid,
+        "mission_time_s": status.get("mission_time_s"),
+        "vehicle_s": max(obs.latest_boot_ms().values()) / 1000.0,
+    }
 
 
 def _failed_in_time(
-    rec: dict[str, Any], obs: Observer, mission: Mission, event: dict[str, Any] | None,
+    rec: dict[str, Any],
+    obs: Observer,
+    mission: Mission,
+    event: dict[str, Any] | None,
     end_wall: float,
-) -> bool:  # fmt: skip
+) -> bool:
     """Condition (e): the run ended ``failed`` within the lost-vehicle timeout (+ slack) of
     the leader's last message, in vehicle time.  The end is when the status poll (every
     0.1 s of wall time) first saw it, dated on a live vehicle's clock: an upper bound."""
@@ -377,10 +444,16 @@ def mission_path(name: str) -> Path:
 
 
 def run_campaign(
-    missions: Sequence[Path], conditions: Sequence[str], runs: int, out: Path, *,
-    jobs: int = 1, event_at_s: float = 15.0, progress: Callable[[str], None] = print,
+    missions: Sequence[Path],
+    conditions: Sequence[str],
+    runs: int,
+    out: Path,
+    *,
+    jobs: int = 1,
+    event_at_s: float = 15.0,
+    progress: Callable[[str], None] = print,
     after_s: float = AFTER_S,
-) -> list[dict[str, Any]]:  # fmt: skip
+) -> list[dict[str, Any]]:
     """Fly every mission ``runs`` times under every condition; each run's record is
     appended to ``out/runs.jsonl`` as it ends, the summary written to ``out/summary.json``
     and the tables to ``out/table.txt``."""
@@ -399,9 +472,15 @@ def run_campaign(
                 try:
                     rec = fly_once(m, cond, workdir, event_at_s=event_at_s, seed=k, after_s=after_s)
                 except Exception as exc:  # a broken run is a result too
-                    rec = {"mission": m.stem, "condition": cond.key, "dir": str(workdir),
-                           "state": "error", "error": repr(exc), "ok": False,
-                           "violations": []}  # fmt: skip
+                    rec = {
+                        "mission": m.stem,
+                        "condition": cond.key,
+                        "dir": str(workdir),
+                        "state": "error",
+                        "error": repr(exc),
+                        "ok": False,
+                        "violations": [],
+                    }
                 rec["run"] = k
                 return rec
 
@@ -418,17 +497,28 @@ def run_campaign(
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m gcs_ppf.tools.campaign", description=__doc__,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    p = argparse.ArgumentParser(
+        prog="python -m gcs_ppf.tools.campaign",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("--runs", type=int, default=3, help="runs per mission and condition")
     labels = "; ".join(f"{c.key}: {c.label}" for c in CONDITIONS.values())
     p.add_argument("--conditions", default="a,b,c,d,e", help=labels.replace("%", "%%"))
-    p.add_argument("--missions", nargs="+", default=list(DEFAULT_MISSIONS),
-                   help="mission files, or names in examples/")  # fmt: skip
+    p.add_argument(
+        "--missions",
+        nargs="+",
+        default=list(DEFAULT_MISSIONS),
+        help="mission files, or names in examples/",
+    )
     p.add_argument("--out", type=Path, default=Path("out/campaign"))
     p.add_argument("--jobs", type=int, default=1, help="runs at once (the default 1 suits 2 cores)")
-    p.add_argument("--event-at", type=float, default=15.0,
-                   help="mission time (s) of (d)'s stuck wingman, (e)'s dead leader")  # fmt: skip
+    p.add_argument(
+        "--event-at",
+        type=float,
+        default=15.0,
+        help="mission time (s) of (d)'s stuck wingman, (e)'s dead leader",
+    )
     p.add_argument("--after", type=float, default=AFTER_S, help="vehicle s watched after the end")
     a = p.parse_args(argv)
     conditions = [c.strip() for c in a.conditions.split(",") if c.strip()]
@@ -439,8 +529,9 @@ def main(argv: list[str] | None = None) -> int:
     for m in missions:
         if not m.is_file():
             p.error(f"no mission file {m}")
-    results = run_campaign(missions, conditions, a.runs, a.out, jobs=a.jobs,
-                           event_at_s=a.event_at, after_s=a.after)  # fmt: skip
+    results = run_campaign(
+        missions, conditions, a.runs, a.out, jobs=a.jobs, event_at_s=a.event_at, after_s=a.after
+    )
     print(format_tables(summarize(results, CONDITIONS)), end="")
     print(f"runs: {a.out / 'runs.jsonl'}; summary: {a.out / 'summary.json'}")
     return 0

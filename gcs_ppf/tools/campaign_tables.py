@@ -27,11 +27,12 @@ def progress_line(rec: dict[str, Any]) -> str:
     extra = f" fail delay {rec['fail_delay_s']} s" if "fail_delay_s" in rec else ""
     if rec.get("formation_m") is not None:
         extra += f" formation {rec['formation_m']} m held {rec['formation_held_s']} s"
-    return (f"{rec['mission']} ({rec['condition']}) run {rec['run']}: {rec['state']}"
-            f" sep {rec['min_separation_m']} m clr {rec['min_clearance_m']} m flown"
-            f" {rec['mission_time_s']} s wall {rec['wall_s']} s{extra}"
-            + (f"  VIOLATION {'; '.join(rec['violations'])}"
-               if rec["violations"] else ""))  # fmt: skip
+    return (
+        f"{rec['mission']} ({rec['condition']}) run {rec['run']}: {rec['state']}"
+        f" sep {rec['min_separation_m']} m clr {rec['min_clearance_m']} m flown"
+        f" {rec['mission_time_s']} s wall {rec['wall_s']} s{extra}"
+        + (f"  VIOLATION {'; '.join(rec['violations'])}" if rec["violations"] else "")
+    )
 
 
 def _stats(values: list[float]) -> tuple[float | None, float | None]:
@@ -53,8 +54,11 @@ def summarize(
         }
         if len(groups) > 1:
             groups["all"] = rows
-        out[key] = {"label": conditions[key].label, "expect": conditions[key].expect,
-                    "missions": {m: _group(g) for m, g in groups.items()}}  # fmt: skip
+        out[key] = {
+            "label": conditions[key].label,
+            "expect": conditions[key].expect,
+            "missions": {m: _group(g) for m, g in groups.items()},
+        }
     return out
 
 
@@ -65,20 +69,24 @@ def _group(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
     sep, clr = _stats(vals("min_separation_m")), _stats(vals("min_clearance_m"))
     form = _stats(vals("formation_m"))
     return {
-        "runs": len(rows), "errors": sum(1 for r in rows if r.get("error")),
+        "runs": len(rows),
+        "errors": sum(1 for r in rows if r.get("error")),
         "violations": sum(1 for r in rows if r["violations"]),
         "as_expected": sum(1 for r in rows if r["ok"]),
         "states": {s: sum(1 for r in rows if r["state"] == s) for s in {r["state"] for r in rows}},
-        "separation_min_m": sep[0], "separation_median_m": sep[1],
-        "clearance_min_m": clr[0], "clearance_median_m": clr[1],
-        "formation_min_m": form[0], "formation_median_m": form[1],
+        "separation_min_m": sep[0],
+        "separation_median_m": sep[1],
+        "clearance_min_m": clr[0],
+        "clearance_median_m": clr[1],
+        "formation_min_m": form[0],
+        "formation_median_m": form[1],
         "formation_held_max_s": max(vals("formation_held_s"), default=None),
         "uncontrolled_clearance_min_m": _stats(vals("uncontrolled_clearance_m"))[0],
         "sank": sum(1 for r in rows if r.get("sank")),
         "fail_delay_max_s": max(vals("fail_delay_s"), default=None),
         "flown_median_s": _stats(vals("mission_time_s"))[1],
         "wall_median_s": _stats(vals("wall_s"))[1],
-    }  # fmt: skip
+    }
 
 
 def format_tables(summary: dict[str, Any]) -> str:
@@ -86,16 +94,22 @@ def format_tables(summary: dict[str, Any]) -> str:
     distance from its slot at the run's best moment (min and median over the runs),
     ``held`` the longest any run kept every wingman within the target accuracy."""
     lines = []
-    head = (f"{'mission':<18}{'runs':>5}{'viol':>5}{'ok':>4}{'sep min':>9}{'sep med':>9}"
-            f"{'clr min':>9}{'clr med':>9}{'form min':>9}{'form med':>9}{'held':>6}"
-            f"{'flown':>7}{'wall':>6}  note")  # fmt: skip
+    head = (
+        f"{'mission':<18}{'runs':>5}{'viol':>5}{'ok':>4}{'sep min':>9}{'sep med':>9}"
+        f"{'clr min':>9}{'clr med':>9}{'form min':>9}{'form med':>9}{'held':>6}"
+        f"{'flown':>7}{'wall':>6}  note"
+    )
 
     def f(x: float | None, w: int) -> str:
         return f"{'-' if x is None else f'{x:.1f}':>{w}}"
 
     for key, c in summary.items():
-        lines += ["", f"({key}) {c['label']}: ok = ended {c['expect']}"
-                  + (" within the lost-vehicle timeout" if key == "e" else ""), head]  # fmt: skip
+        lines += [
+            "",
+            f"({key}) {c['label']}: ok = ended {c['expect']}"
+            + (" within the lost-vehicle timeout" if key == "e" else ""),
+            head,
+        ]
         for m, g in c["missions"].items():
             note = [f"{s} {k}" for s, k in sorted(g["states"].items()) if s != c["expect"]]
             if g["uncontrolled_clearance_min_m"] is not None:

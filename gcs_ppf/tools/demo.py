@@ -23,8 +23,9 @@ FINISHED = ("completed", "completed_unsafe", "aborted", "failed")
 
 def http_json(method: str, url: str, body: Any = None) -> tuple[int, Any]:
     data = None if body is None else json.dumps(body).encode()
-    req = urllib.request.Request(url, data=data, method=method,
-                                 headers={"content-type": "application/json"})  # fmt: skip
+    req = urllib.request.Request(
+        url, data=data, method=method, headers={"content-type": "application/json"}
+    )
     try:
         with urllib.request.urlopen(req, timeout=10) as r:
             return r.status, json.loads(r.read() or b"null")
@@ -60,23 +61,52 @@ def formation_summary(formation: dict[str, Any] | None) -> str:
     figures = formation or {}
     if figures.get("time_to_form_s") is None:
         return "formation: never formed"
-    return (f"formation: formed after {figures['time_to_form_s']:.1f} s, in formation "
-            f"{100 * (figures.get('fraction_in_formation') or 0):.0f} % of the flight after, "
-            f"longest hold {figures.get('longest_hold_s', 0):.1f} s, "
-            f"slot error while formed RMS {figures.get('rms_slot_error_m')} m, "
-            f"p95 {figures.get('p95_slot_error_m')} m")  # fmt: skip
+    return (
+        f"formation: formed after {figures['time_to_form_s']:.1f} s, in formation "
+        f"{100 * (figures.get('fraction_in_formation') or 0):.0f} % of the flight after, "
+        f"longest hold {figures.get('longest_hold_s', 0):.1f} s, "
+        f"slot error while formed RMS {figures.get('rms_slot_error_m')} m, "
+        f"p95 {figures.get('p95_slot_error_m')} m"
+    )
 
 
-def run_demo(mission_path: Path, mission: Mission, *, speedup: float, port: int,
-             base_port: int, workdir: Path) -> int:  # fmt: skip
+def run_demo(
+    mission_path: Path,
+    mission: Mission,
+    *,
+    speedup: float,
+    port: int,
+    base_port: int,
+    workdir: Path,
+) -> int:
     api = f"http://127.0.0.1:{port}"
     workdir.mkdir(parents=True, exist_ok=True)
-    links = [arg for k in range(len(mission.vehicles))
-             for arg in ("--link", f"tcp:127.0.0.1:{base_port + 10 * k}")]  # fmt: skip
-    sitl_cmd = [sys.executable, "-m", "sitl", str(mission_path), "--speedup", str(speedup),
-                "--base-port", str(base_port)]  # fmt: skip
-    serve_cmd = [sys.executable, "-m", "gcs_ppf.cli", "serve", "--port", str(port),
-                 "--db", str(workdir / "gcs_ppf.db"), *links]  # fmt: skip
+    links = [
+        arg
+        for k in range(len(mission.vehicles))
+        for arg in ("--link", f"tcp:127.0.0.1:{base_port + 10 * k}")
+    ]
+    sitl_cmd = [
+        sys.executable,
+        "-m",
+        "sitl",
+        str(mission_path),
+        "--speedup",
+        str(speedup),
+        "--base-port",
+        str(base_port),
+    ]
+    serve_cmd = [
+        sys.executable,
+        "-m",
+        "gcs_ppf.cli",
+        "serve",
+        "--port",
+        str(port),
+        "--db",
+        str(workdir / "gcs_ppf.db"),
+        *links,
+    ]
 
     def stop(_signum: int, _frame: object) -> None:
         raise KeyboardInterrupt  # SIGTERM stops the demo like Ctrl-C
@@ -87,8 +117,10 @@ def run_demo(mission_path: Path, mission: Mission, *, speedup: float, port: int,
     try:
         procs.append(subprocess.Popen(sitl_cmd, stdout=logs[0], stderr=subprocess.STDOUT))
         procs.append(subprocess.Popen(serve_cmd, stdout=logs[1], stderr=subprocess.STDOUT))
-        print(f"SITL: {len(mission.vehicles)} ArduPlane-like vehicles on TCP "
-              f"127.0.0.1:{base_port}+10·i (speedup {speedup:g}); logs in {workdir}/")  # fmt: skip
+        print(
+            f"SITL: {len(mission.vehicles)} ArduPlane-like vehicles on TCP "
+            f"127.0.0.1:{base_port}+10·i (speedup {speedup:g}); logs in {workdir}/"
+        )
         if not _wait_vehicles(api, len(mission.vehicles), 60.0):
             print(f"the service did not see every vehicle; see {workdir}/gcs.log")
             return 1
@@ -108,10 +140,12 @@ def run_demo(mission_path: Path, mission: Mission, *, speedup: float, port: int,
                 last_print = now
                 sep, clear = s.get("min_separation_m"), s.get("min_obstacle_clearance_m")
                 states = " ".join(f"{v['id']}:{v['ppf_state']}" for v in s.get("vehicles", []))
-                print(f"t={s.get('mission_time_s', 0):6.1f} s  {s['state']:<9} "
-                      f"min separation {sep or float('nan'):6.1f} m  "
-                      f"min clearance {clear or float('nan'):6.1f} m  "
-                      f"{formation_line(s.get('formation'))}  PPF {states}")  # fmt: skip
+                print(
+                    f"t={s.get('mission_time_s', 0):6.1f} s  {s['state']:<9} "
+                    f"min separation {sep or float('nan'):6.1f} m  "
+                    f"min clearance {clear or float('nan'):6.1f} m  "
+                    f"{formation_line(s.get('formation'))}  PPF {states}"
+                )
             if s["state"] in FINISHED:
                 break
             time.sleep(0.2)

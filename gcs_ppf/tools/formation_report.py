@@ -78,8 +78,10 @@ def observed_tracks(path: Path, mission: Mission) -> dict[int, FloatArray]:
     for key, rec in raw.items():
         if not key.isdigit():
             continue
-        rows = [(tbm / 1000.0, *geodetic_to_enu(la, lo, al, mission.origin), h)
-                for _, tbm, la, lo, al, h in rec["pos"]]  # fmt: skip
+        rows = [
+            (tbm / 1000.0, *geodetic_to_enu(la, lo, al, mission.origin), h)
+            for _, tbm, la, lo, al, h in rec["pos"]
+        ]
         out[int(key)] = np.array(rows, dtype=float).reshape(-1, 5)
     return out
 
@@ -118,8 +120,10 @@ def report(records: list[dict[str, Any]]) -> str:
     groups: dict[tuple[str, str], list[FormationFlown | None]] = {}
     for rec in records:
         groups.setdefault((rec["mission"], rec["condition"]), []).append(run_formation(rec))
-    head = (f"{'mission':<14}{'cond':>5}{'runs':>5}{'formed':>7}{'form s min/med/max':>21}"
-            f"{'share min/med':>15}{'rms':>6}{'p95':>6}{'held':>6}{'flown':>7}")  # fmt: skip
+    head = (
+        f"{'mission':<14}{'cond':>5}{'runs':>5}{'formed':>7}{'form s min/med/max':>21}"
+        f"{'share min/med':>15}{'rms':>6}{'p95':>6}{'held':>6}{'flown':>7}"
+    )
     lines = [head]
     for (name, cond), runs in sorted(groups.items()):
         seen = [r for r in runs if r is not None and r.formed_after_s is not None]
@@ -140,8 +144,9 @@ def report(records: list[dict[str, Any]]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m gcs_ppf.tools.formation_report",
-                                     description=__doc__.split("\n\n")[0])  # fmt: skip
+    parser = argparse.ArgumentParser(
+        prog="python -m gcs_ppf.tools.formation_report", description=__doc__.split("\n\n")[0]
+    )
     parser.add_argument("campaign", type=Path, help="a campaign's --out directory")
     args = parser.parse_args(argv)
     files = sorted(args.campaign.rglob("runs.jsonl"))

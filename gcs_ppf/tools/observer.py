@@ -119,8 +119,10 @@ class Observer:
         self._sysid = sysid
         self._request = request_streams
         self._stop = threading.Event()
-        self._threads = [threading.Thread(target=self._run, args=(vid, port), daemon=True)
-                         for vid, port in ports.items()]  # fmt: skip
+        self._threads = [
+            threading.Thread(target=self._run, args=(vid, port), daemon=True)
+            for vid, port in ports.items()
+        ]
 
     def _run(self, vid: int, port: int) -> None:
         rec = self.records[vid]
@@ -136,10 +138,14 @@ class Observer:
                     asked = now
                     conn.mav.heartbeat_send(6, 8, 0, 0, 0)  # a GCS, MAV_AUTOPILOT_INVALID
                     for msg_id, interval_us in ((33, 100_000), (1, 1_000_000)):
-                        conn.mav.command_long_send(vid, 1, 511, 0, msg_id, interval_us,
-                                                   0, 0, 0, 0, 0)  # fmt: skip
-                msg = conn.recv_match(type=["GLOBAL_POSITION_INT", "STATUSTEXT", "SYS_STATUS"],
-                                      blocking=True, timeout=0.2)  # fmt: skip
+                        conn.mav.command_long_send(
+                            vid, 1, 511, 0, msg_id, interval_us, 0, 0, 0, 0, 0
+                        )
+                msg = conn.recv_match(
+                    type=["GLOBAL_POSITION_INT", "STATUSTEXT", "SYS_STATUS"],
+                    blocking=True,
+                    timeout=0.2,
+                )
                 if msg is None or msg.get_srcSystem() != vid:
                     continue
                 kind = msg.get_type()
@@ -147,8 +153,16 @@ class Observer:
                     if msg.lat == 0 and msg.lon == 0:  # no GPS fix yet
                         continue
                     last_pos, tbm = time.monotonic(), int(msg.time_boot_ms)
-                    rec.pos.append((time.time(), tbm, msg.lat * 1e-7, msg.lon * 1e-7,
-                                    msg.alt * 1e-3, msg.relative_alt * 1e-3))  # fmt: skip
+                    rec.pos.append(
+                        (
+                            time.time(),
+                            tbm,
+                            msg.lat * 1e-7,
+                            msg.lon * 1e-7,
+                            msg.alt * 1e-3,
+                            msg.relative_alt * 1e-3,
+                        )
+                    )
                 elif kind == "STATUSTEXT":
                     rec.texts.append((tbm, str(msg.text)))
                 else:
@@ -162,8 +176,10 @@ class Observer:
 
     def clocks(self) -> dict[int, FloatArray]:
         """Per vehicle, [K,2] rows of (our wall-clock s, vehicle s) of its samples."""
-        return {v: np.array([(p[0], p[1] * 1e-3) for p in r.pos], dtype=float).reshape(-1, 2)
-                for v, r in self.records.items()}  # fmt: skip
+        return {
+            v: np.array([(p[0], p[1] * 1e-3) for p in r.pos], dtype=float).reshape(-1, 2)
+            for v, r in self.records.items()
+        }
 
     def __enter__(self) -> Observer:
         for t in self._threads:
@@ -183,9 +199,12 @@ def tracks_enu(obs: Observer, mission: Mission) -> dict[int, FloatArray]:
     out = {}
     for vid, rec in obs.records.items():
         out[vid] = np.array(
-            [(tbm / 1000.0, *geodetic_to_enu(la, lo, al, mission.origin), h)
-             for _, tbm, la, lo, al, h in rec.pos], dtype=float,
-        ).reshape(-1, 5)  # fmt: skip
+            [
+                (tbm / 1000.0, *geodetic_to_enu(la, lo, al, mission.origin), h)
+                for _, tbm, la, lo, al, h in rec.pos
+            ],
+            dtype=float,
+        ).reshape(-1, 5)
     return out
 
 
@@ -235,10 +254,13 @@ def resample(tracks: dict[int, FloatArray], t: FloatArray) -> FloatArray:
     """Positions [T,N,3] of every vehicle (sorted ids) at common times t (linear
     interpolation; held constant outside a track)."""
     ids = sorted(tracks)
-    return np.stack([
-        np.stack([np.interp(t, tracks[i][:, 0], tracks[i][:, c]) for c in (1, 2, 3)], axis=1)
-        for i in ids
-    ], axis=1)  # fmt: skip
+    return np.stack(
+        [
+            np.stack([np.interp(t, tracks[i][:, 0], tracks[i][:, c]) for c in (1, 2, 3)], axis=1)
+            for i in ids
+        ],
+        axis=1,
+    )
 
 
 def observed_at(
@@ -279,8 +301,12 @@ def slot_distances(
     for w in mission.wingmen:
         assert w.slot is not None
         slot = np.array(w.slot)
-        points = np.array([local_target_point(pos[k, lead], float(pitch[k]), float(yaw[k]), slot)
-                           for k in range(len(t))])  # fmt: skip
+        points = np.array(
+            [
+                local_target_point(pos[k, lead], float(pitch[k]), float(yaw[k]), slot)
+                for k in range(len(t))
+            ]
+        )
         offsets[w.id] = np.linalg.norm(points - pos[:, ids.index(w.id)], axis=1)
     return offsets
 
@@ -389,11 +415,16 @@ def judge(
             continue
         p, tk = pos[mask, k], t[mask]
         clearance[vid] = min(
-            float((np.linalg.norm(
-                p - (np.array(o.center) + np.outer(tk - run0, np.array(o.velocity))), axis=1
-            ) - o.radius).min())
+            float(
+                (
+                    np.linalg.norm(
+                        p - (np.array(o.center) + np.outer(tk - run0, np.array(o.velocity))), axis=1
+                    )
+                    - o.radius
+                ).min()
+            )
             for o in mission.obstacles
-        )  # fmt: skip
+        )
     keepout = (
         mission.limits.safe_distance_obstacle if ground_keepout_m is None else ground_keepout_m
     )
@@ -409,5 +440,6 @@ def judge(
         seg = lead[(lead[:, 0] >= start_s) & (lead[:, 0] <= end_s)]
         if len(seg):
             to_target = closest_pass(seg, np.array(mission.target))
-    return Judgement((start_s, end_s), int(heard.any(axis=1).sum()), sep, pair, clearance,
-                     lowest, to_target)  # fmt: skip
+    return Judgement(
+        (start_s, end_s), int(heard.any(axis=1).sum()), sep, pair, clearance, lowest, to_target
+    )

@@ -29,9 +29,15 @@ def formation_mission(n: int) -> dict[str, Any]:
     vehicles = [{"id": 1, "role": "leader", "position": [0.0, 0.0, 500.0], "yaw": 0.0}]
     for k in range(1, n):
         row, col = (k - 1) // 10 + 1, (k - 1) % 10 - 4.5
-        vehicles.append({"id": k + 1, "role": "wingman", "yaw": 0.0,
-                         "position": [-150.0 * row - 200.0, 150.0 * col, 500.0],
-                         "slot": [-150.0 * row, 150.0 * col, 0.0]})  # fmt: skip
+        vehicles.append(
+            {
+                "id": k + 1,
+                "role": "wingman",
+                "yaw": 0.0,
+                "position": [-150.0 * row - 200.0, 150.0 * col, 500.0],
+                "slot": [-150.0 * row, 150.0 * col, 0.0],
+            }
+        )
     return {"name": f"bench-{n}", "target": [30_000.0, 0.0, 500.0], "vehicles": vehicles}
 
 
@@ -41,14 +47,28 @@ def measure(n: int, seconds: float, port: int, base_port: int) -> dict[str, Any]
         path.write_text(json.dumps(formation_mission(n)))
         links = [a for k in range(n) for a in ("--link", f"tcp:127.0.0.1:{base_port + 10 * k}")]
         procs = [
-            subprocess.Popen([sys.executable, "-m", "sitl", str(path), "--base-port",
-                              str(base_port)], stdout=subprocess.DEVNULL,
-                             stderr=subprocess.DEVNULL),
-            subprocess.Popen([sys.executable, "-m", "gcs_ppf.cli", "serve", "--port", str(port),
-                              "--db", str(Path(tmp) / "db.sqlite"), *links],
-                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                             env={**os.environ, "GCS_PPF_TLOG_DIR": str(Path(tmp) / "tlogs")}),
-        ]  # fmt: skip
+            subprocess.Popen(
+                [sys.executable, "-m", "sitl", str(path), "--base-port", str(base_port)],
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            ),
+            subprocess.Popen(
+                [
+                    sys.executable,
+                    "-m",
+                    "gcs_ppf.cli",
+                    "serve",
+                    "--port",
+                    str(port),
+                    "--db",
+                    str(Path(tmp) / "db.sqlite"),
+                    *links,
+                ],
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+                env={**os.environ, "GCS_PPF_TLOG_DIR": str(Path(tmp) / "tlogs")},
+            ),
+        ]
         api = f"http://127.0.0.1:{port}"
         try:
             if not _wait_vehicles(api, n, 90.0):
@@ -63,10 +83,13 @@ def measure(n: int, seconds: float, port: int, base_port: int) -> dict[str, Any]
                 http_json("POST", f"{api}/missions/{created['id']}/abort")
             except (TimeoutError, urllib.error.URLError):  # the service too busy to answer
                 return {"vehicles": n, "error": "no status (the service did not answer)"}
-            return {"vehicles": n, **(status.get("tick_latency_ms") or {}),
-                    "phases": status.get("tick_phases_ms") or {},
-                    "cpu_s_per_s": cpu / seconds,
-                    "rate": status.get("tick_rate") or {}}  # fmt: skip
+            return {
+                "vehicles": n,
+                **(status.get("tick_latency_ms") or {}),
+                "phases": status.get("tick_phases_ms") or {},
+                "cpu_s_per_s": cpu / seconds,
+                "rate": status.get("tick_rate") or {},
+            }
         finally:
             for p in procs:
                 p.terminate()
@@ -119,12 +142,16 @@ def print_phases(phases: dict[str, dict[str, float]]) -> None:
     """Each phase's p50 and mean (ms) and its share of the tick's mean."""
     total = sum(p["mean"] for p in phases.values()) or float("nan")
     for name, p in phases.items():
-        print(f"{'':>8} {name:<13} p50 {p['p50']:>8.2f}  mean {p['mean']:>8.2f} ms "
-              f"({100 * p['mean'] / total:4.1f} %)  p99 {p['p99']:>8.2f}")  # fmt: skip
+        print(
+            f"{'':>8} {name:<13} p50 {p['p50']:>8.2f}  mean {p['mean']:>8.2f} ms "
+            f"({100 * p['mean'] / total:4.1f} %)  p99 {p['p99']:>8.2f}"
+        )
 
 
-HEADER = (f"{'vehicles':>8} {'ticks':>6} {'Hz':>5} {'p50 ms':>8} {'p99 ms':>8} "
-          f"{'µs/vehicle':>10} {'CPU %':>6}")  # fmt: skip
+HEADER = (
+    f"{'vehicles':>8} {'ticks':>6} {'Hz':>5} {'p50 ms':>8} {'p99 ms':>8} "
+    f"{'µs/vehicle':>10} {'CPU %':>6}"
+)
 """A row's columns: ticks in the window, the rate measured (vehicle seconds), the latency's
 p50 and p99, the p50 per vehicle, and the service's CPU over the window (% of one core)."""
 
@@ -133,9 +160,11 @@ def row(r: dict[str, Any]) -> str:
     n, nan = r["vehicles"], float("nan")
     p50 = r.get("p50", nan)
     hz = r.get("rate", {}).get("measured_hz")
-    return (f"{n:>8} {r.get('ticks', 0):>6} {nan if hz is None else hz:>5.1f} {p50:>8.2f} "
-            f"{r.get('p99', nan):>8.2f} {1e3 * p50 / n:>10.0f} "
-            f"{100 * r.get('cpu_s_per_s', nan):>6.0f}")  # fmt: skip
+    return (
+        f"{n:>8} {r.get('ticks', 0):>6} {nan if hz is None else hz:>5.1f} {p50:>8.2f} "
+        f"{r.get('p99', nan):>8.2f} {1e3 * p50 / n:>10.0f} "
+        f"{100 * r.get('cpu_s_per_s', nan):>6.0f}"
+    )
 
 
 def summary(rows: list[dict[str, Any]]) -> str:

@@ -34,11 +34,19 @@ from sitl.handlers.base import Handler, Src
 #: What a vehicle stuck on its last command (``--fault ignore=T``, SIM_CMD_IGNORE; see
 #: ``sitl.faults``) acknowledges as ACCEPTED and does not act on: every command that changes
 #: how it flies.
-IGNORED_COMMANDS = frozenset({
-    MAV_CMD_DO_SET_MODE, MAV_CMD_MISSION_START, MAV_CMD_NAV_RETURN_TO_LAUNCH,
-    MAV_CMD_NAV_LOITER_UNLIM, MAV_CMD_DO_REPOSITION, *guided.GUIDED_SLEW_COMMANDS,
-    MAV_CMD_DO_CHANGE_SPEED, MAV_CMD_DO_SET_MISSION_CURRENT, MAV_CMD_COMPONENT_ARM_DISARM,
-})  # fmt: skip
+IGNORED_COMMANDS = frozenset(
+    {
+        MAV_CMD_DO_SET_MODE,
+        MAV_CMD_MISSION_START,
+        MAV_CMD_NAV_RETURN_TO_LAUNCH,
+        MAV_CMD_NAV_LOITER_UNLIM,
+        MAV_CMD_DO_REPOSITION,
+        *guided.GUIDED_SLEW_COMMANDS,
+        MAV_CMD_DO_CHANGE_SPEED,
+        MAV_CMD_DO_SET_MISSION_CURRENT,
+        MAV_CMD_COMPONENT_ARM_DISARM,
+    }
+)
 
 
 def addressed_elsewhere(ap: Autopilot, msg: Any) -> bool:

@@ -11,12 +11,29 @@ from sitl.handlers.base import Src
 from sitl.params import decode_param_id
 
 #: Parameters that change the flight model's envelope (``Autopilot.write_envelope``).
-ENVELOPE_PARAMS = frozenset({
-    "SIM_SPEED_MIN", "SIM_SPEED_MAX", "SIM_ACCEL_MAX", "SIM_DECEL_MAX", "SIM_YAW_RATE",
-    "SIM_PTCH_RATE", "SIM_SPD_HGT", "SIM_EAS2TAS", "PTCH_LIM_MAX_DEG", "PTCH_LIM_MIN_DEG",
-    "ROLL_LIMIT_DEG", "GUIDED_P", "TECS_CLMB_MAX", "TECS_SINK_MAX", "NAVL1_PERIOD",
-    "NAVL1_DAMPING", "AIRSPEED_CRUISE", "RLL2SRV_TCONST", "TECS_TIME_CONST",
-})  # fmt: skip
+ENVELOPE_PARAMS = frozenset(
+    {
+        "SIM_SPEED_MIN",
+        "SIM_SPEED_MAX",
+        "SIM_ACCEL_MAX",
+        "SIM_DECEL_MAX",
+        "SIM_YAW_RATE",
+        "SIM_PTCH_RATE",
+        "SIM_SPD_HGT",
+        "SIM_EAS2TAS",
+        "PTCH_LIM_MAX_DEG",
+        "PTCH_LIM_MIN_DEG",
+        "ROLL_LIMIT_DEG",
+        "GUIDED_P",
+        "TECS_CLMB_MAX",
+        "TECS_SINK_MAX",
+        "NAVL1_PERIOD",
+        "NAVL1_DAMPING",
+        "AIRSPEED_CRUISE",
+        "RLL2SRV_TCONST",
+        "TECS_TIME_CONST",
+    }
+)
 
 
 def _param_msg(ap: Autopilot, index: int) -> Any:

@@ -147,15 +147,18 @@ def mission_document(spec: SceneSpec, draws: Draws) -> dict[str, Any]:
     points = [*starts, target]
     apart = spec.obstacles.placement == "apart"  # else drawn after the fleet; here, none
     obstacles = _obstacles(draws, spec, spec.obstacles.count if apart else (0, 0), points)
-    vehicles = [{
-        "id": k + 1,
-        "role": "leader" if k == 0 else "wingman",
-        "position": starts[k],
-        "pitch": draws.uniform(*fleet.pitch_rad),
-        "yaw": draws.uniform(*fleet.yaw_rad),
-        "speed": draws.uniform(*spec.initial_speed_m_s),
-        **({"slot": slots[k - 1]} if k else {}),
-    } for k in range(wingmen + 1)]  # fmt: skip
+    vehicles = [
+        {
+            "id": k + 1,
+            "role": "leader" if k == 0 else "wingman",
+            "position": starts[k],
+            "pitch": draws.uniform(*fleet.pitch_rad),
+            "yaw": draws.uniform(*fleet.yaw_rad),
+            "speed": draws.uniform(*spec.initial_speed_m_s),
+            **({"slot": slots[k - 1]} if k else {}),
+        }
+        for k in range(wingmen + 1)
+    ]
     doc: dict[str, Any] = {
         "name": spec.name,
         "limits": lim.model_dump(),

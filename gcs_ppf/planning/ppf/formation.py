@@ -79,8 +79,9 @@ def formation_targets(
         if not formed[i] and (along >= 0.0 or not same_way):
             leader_waits = True
         elif not formed[i] and gx * gx + gy * gy + gz * gz <= 2.0 * along * along:
-            give_back = max(give_back, lim.v_min - falling_back_speed(lim.v_min, -along,
-                                                                      lim.accel, gain))  # fmt: skip
+            give_back = max(
+                give_back, lim.v_min - falling_back_speed(lim.v_min, -along, lim.accel, gain)
+            )
     return min(lim.v_min + give_back, lim.v_max) if leader_waits else 0.0
 
 

@@ -258,13 +258,31 @@ def move(
 
 @njit_without_refcounts
 def fleet_step(
-    pos: np.ndarray, pitch: np.ndarray, yaw: np.ndarray, speed: np.ndarray, slot: np.ndarray,
-    rank: np.ndarray, active: np.ndarray, obs_center: np.ndarray, obs_radius: np.ndarray,
-    obs_velocity: np.ndarray, target: np.ndarray, lim: KernelLimits, dt: float,
-    state: np.ndarray, avoiding: np.ndarray, formed: np.ndarray, direction: np.ndarray,
-    local_target: np.ndarray, next_motion: np.ndarray, near_start: np.ndarray,
-    near_obstacles: np.ndarray, mate_start: np.ndarray, mates: np.ndarray, trig: np.ndarray,
-) -> None:  # fmt: skip
+    pos: np.ndarray,
+    pitch: np.ndarray,
+    yaw: np.ndarray,
+    speed: np.ndarray,
+    slot: np.ndarray,
+    rank: np.ndarray,
+    active: np.ndarray,
+    obs_center: np.ndarray,
+    obs_radius: np.ndarray,
+    obs_velocity: np.ndarray,
+    target: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+    state: np.ndarray,
+    avoiding: np.ndarray,
+    formed: np.ndarray,
+    direction: np.ndarray,
+    local_target: np.ndarray,
+    next_motion: np.ndarray,
+    near_start: np.ndarray,
+    near_obstacles: np.ndarray,
+    mate_start: np.ndarray,
+    mates: np.ndarray,
+    trig: np.ndarray,
+) -> None:
     """Advance the fleet one step Δt in place: the paper's algorithm (Eq. 3–24).
 
     ``state[N]`` receives each vehicle's PPF state (1, 2, 3), ``avoiding[N]`` whether an
@@ -285,10 +303,19 @@ def fleet_step(
     yielding_back(pos, speed, trig, active, mate_start, mates, formed, lim, dt)  # Eq. 12–13
     ux, uy, uz = direction[0, 0], direction[0, 1], direction[0, 2]  # the leader's direction
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
-    leader_lim = leader_limits(lim, inside_turn(
-        pos[0, 0], pos[0, 1], trig[0, 2], trig[0, 3], speed[0], lim.leader_turn_rate,
-        target[0], target[1],
-    ))  # fmt: skip
+    leader_lim = leader_limits(
+        lim,
+        inside_turn(
+            pos[0, 0],
+            pos[0, 1],
+            trig[0, 2],
+            trig[0, 3],
+            speed[0],
+            lim.leader_turn_rate,
+            target[0],
+            target[1],
+        ),
+    )
     for i in range(pos.shape[0]):
         if not active[i]:
             continue
@@ -298,19 +325,55 @@ def fleet_step(
         # Its reach among teammates: R(v_i) of the safe distance (Eq. 10–11) and a step.
         own_reach = influence_radius(speed[i], omega, lim.safe_distance_uav) + speed[i] * dt
         fx, fy, fz, ax, ay, az = attraction(
-            i, g[0], g[1], g[2], ux, uy, uz, pos, speed, mate_start, mates, own_reach, lim, dt,
-            cy, sy,
-        )  # fmt: skip
+            i,
+            g[0],
+            g[1],
+            g[2],
+            ux,
+            uy,
+            uz,
+            pos,
+            speed,
+            mate_start,
+            mates,
+            own_reach,
+            lim,
+            dt,
+            cy,
+            sy,
+        )
         # Repulsion (Eq. 12–13): the obstacles', then the teammates' of higher priority,
         # never pushing the vehicle into an obstacle (``obstacles_first``).
         ox, oy, oz, moving_obstacle = obstacle_repulsion(
-            i, pos, speed, obs_center, obs_radius, obs_velocity, near_start, near_obstacles,
-            lim, dt,
-        )  # fmt: skip
+            i,
+            pos,
+            speed,
+            obs_center,
+            obs_radius,
+            obs_velocity,
+            near_start,
+            near_obstacles,
+            lim,
+            dt,
+        )
         rx, ry, rz, mate, hold_course = teammate_conflicts(
-            i, ox, oy, oz, fx, fy, fz, pos, speed, trig, mate_start, mates, formed, own_reach,
-            lim, dt,
-        )  # fmt: skip
+            i,
+            ox,
+            oy,
+            oz,
+            fx,
+            fy,
+            fz,
+            pos,
+            speed,
+            trig,
+            mate_start,
+            mates,
+            formed,
+            own_reach,
+            lim,
+            dt,
+        )
         rx, ry, rz = obstacles_first(rx, ry, rz, ox, oy, oz)
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0
         avoiding[i] = repelled
@@ -323,21 +386,57 @@ def fleet_step(
         # the leader following its target within ``leader_limits``.
         own_lim = leader_lim if i == 0 and not repelled else lim
         f_pitch, f_yaw, along_field, s = steer(
-            fx, fy, fz, rx, ry, rz, ox, oy, oz, moving_obstacle or mate, pos[i, 2], speed[i],
-            pitch[i], yaw[i], cp, sp, cy, sy, own_lim, dt,
-        )  # fmt: skip
+            fx,
+            fy,
+            fz,
+            rx,
+            ry,
+            rz,
+            ox,
+            oy,
+            oz,
+            moving_obstacle or mate,
+            pos[i, 2],
+            speed[i],
+            pitch[i],
+            yaw[i],
+            cp,
+            sp,
+            cy,
+            sy,
+            own_lim,
+            dt,
+        )
         slot_speed = speed[0]
         if i > 0 and active[0] and lim.leader_turn_rate < math.inf:  # a held turn
             turn = next_motion[0, 2] - yaw[0]  # the leader's, decided first (i = 0)
             turn = turn - 2.0 * math.pi * round(turn / (2.0 * math.pi))
             slot_speed = slot_point_speed(
-                speed[0], ux, uy, uz, turn / dt, local_target[i, 0] - pos[0, 0],
+                speed[0],
+                ux,
+                uy,
+                uz,
+                turn / dt,
+                local_target[i, 0] - pos[0, 0],
                 local_target[i, 1] - pos[0, 1],
-            )  # fmt: skip
+            )
         f_speed, state[i] = speed_trend(
-            i, along_field, repelled, wait_speed, pos, speed, ax, ay, az, direction,
-            formed, lim, dt, s, slot_speed,
-        )  # fmt: skip
+            i,
+            along_field,
+            repelled,
+            wait_speed,
+            pos,
+            speed,
+            ax,
+            ay,
+            az,
+            direction,
+            formed,
+            lim,
+            dt,
+            s,
+            slot_speed,
+        )
         next_motion[i, 0], next_motion[i, 1], next_motion[i, 2] = kinematics(
             speed[i], pitch[i], yaw[i], f_speed, f_pitch, f_yaw, own_lim, dt
         )

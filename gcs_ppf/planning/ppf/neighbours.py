@@ -405,8 +405,9 @@ def _mates_grid(
                         k = by_priority[s]
                         if rank[k] >= rank[i]:  # (i itself, and every one after it)
                             break
-                        if active[k] and _within_reach(i, k, pos, bound, change, own, other,
-                                                       vel, lim, dt, horizon_steps):  # fmt: skip
+                        if active[k] and _within_reach(
+                            i, k, pos, bound, change, own, other, vel, lim, dt, horizon_steps
+                        ):
                             found[m] = k
                             m += 1
         mates = _grow(mates, count + m)

@@ -127,12 +127,21 @@ def leader_limits(lim: KernelLimits, target_inside_turn: bool = False) -> Kernel
         climb = min(lim.max_climb_angle, MAX_AVOID_PITCH) * LEADER_PATH_ANGLE_SHARE
         dive = min(lim.max_dive_angle, MAX_AVOID_PITCH) * LEADER_PATH_ANGLE_SHARE
     return KernelLimits(
-        lim.v_min, lim.v_max, lim.accel, lim.decel, lim.max_pitch_rate,
+        lim.v_min,
+        lim.v_max,
+        lim.accel,
+        lim.decel,
+        lim.max_pitch_rate,
         lim.max_yaw_rate if target_inside_turn else min(lim.max_yaw_rate, lim.leader_turn_rate),
         lim.target_accuracy,
-        lim.safe_distance_uav, lim.safe_distance_obstacle, lim.ground, climb, dive,
-        lim.leader_cruise_speed, lim.leader_turn_rate,
-    )  # fmt: skip
+        lim.safe_distance_uav,
+        lim.safe_distance_obstacle,
+        lim.ground,
+        climb,
+        dive,
+        lim.leader_cruise_speed,
+        lim.leader_turn_rate,
+    )
 
 
 @njit(cache=True)

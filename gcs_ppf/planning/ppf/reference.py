@@ -111,9 +111,14 @@ def _formation(
 
 
 def _obstacle_repulsion(
-    pos: FloatArray, speed: FloatArray, obs_center: FloatArray, obs_radius: FloatArray,
-    obs_velocity: FloatArray, lim: KernelLimits, dt: float,
-) -> tuple[FloatArray, BoolArray]:  # fmt: skip
+    pos: FloatArray,
+    speed: FloatArray,
+    obs_center: FloatArray,
+    obs_radius: FloatArray,
+    obs_velocity: FloatArray,
+    lim: KernelLimits,
+    dt: float,
+) -> tuple[FloatArray, BoolArray]:
     """Eq. 10–13: obstacles inside the influence radius repel with ε₁."""
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     d_obs = pos[:, None, :] - obs_center[None]  # [N,M,3]
@@ -133,10 +138,17 @@ def _obstacle_repulsion(
 
 
 def _conflicts(
-    pos: FloatArray, vel: FloatArray, mate_vel: FloatArray, speed: FloatArray, rank: IntArray,
-    active: BoolArray, formed: BoolArray, lim: KernelLimits, dt: float,
+    pos: FloatArray,
+    vel: FloatArray,
+    mate_vel: FloatArray,
+    speed: FloatArray,
+    rank: IntArray,
+    active: BoolArray,
+    formed: BoolArray,
+    lim: KernelLimits,
+    dt: float,
     horizon_turns: float = CONFLICT_HORIZON_TURNS,
-) -> tuple[BoolArray, BoolArray, FloatArray]:  # fmt: skip
+) -> tuple[BoolArray, BoolArray, FloatArray]:
     """Teammates of higher priority as moving obstacles, by closest point of approach
     within ``horizon_turns`` quarter turns: [i,k] whether mate k is near (a conflict or
     just clear of one) and a conflict for vehicle i flying ``vel[i]`` (mates at
@@ -160,10 +172,14 @@ def _conflicts(
     )[:, None] + speed[None] * AVOIDANCE_TURN_ANGLE / omega
     threshold = lim.safe_distance_uav + margin
     near = (
-        (rank[None] < rank[:, None]) & active[None] & (approach > 0) & (w2 > 0)
+        (rank[None] < rank[:, None])
+        & active[None]
+        & (approach > 0)
+        & (w2 > 0)
         & (miss2 < (threshold + lim.safe_distance_uav) ** 2)
-        & (d2 <= mate_radius**2) & (d2 > 0)
-    )  # fmt: skip
+        & (d2 <= mate_radius**2)
+        & (d2 > 0)
+    )
     miss_vec = d_m - w * t_cpa[..., None]
     miss = np.linalg.norm(miss_vec, axis=-1)
     push = np.where((miss > 1e-6 * np.sqrt(d2))[..., None], _unit(miss_vec), _unit(d_m))
@@ -171,10 +187,17 @@ def _conflicts(
 
 
 def _repulsion(
-    pos: FloatArray, speed: FloatArray, a: Attitude, follow: FloatArray, rank: IntArray,
-    active: BoolArray, formed: BoolArray, obstacles: tuple[FloatArray, BoolArray],
-    lim: KernelLimits, dt: float,
-) -> Repulsion:  # fmt: skip
+    pos: FloatArray,
+    speed: FloatArray,
+    a: Attitude,
+    follow: FloatArray,
+    rank: IntArray,
+    active: BoolArray,
+    formed: BoolArray,
+    obstacles: tuple[FloatArray, BoolArray],
+    lim: KernelLimits,
+    dt: float,
+) -> Repulsion:
     """Eq. 12–13 with the teammates of higher priority as moving obstacles (``_conflicts``),
     added to the obstacles' repulsion (Eq. 10–13), never pushing a vehicle into an
     obstacle (the kernel's ``obstacles_first``).  Just clear of a conflict a vehicle holds
@@ -184,10 +207,12 @@ def _repulsion(
     n = pos.shape[0]
     rep, moving = obstacles
     near, threat, push = _conflicts(pos, a.vel, a.vel, speed, rank, active, formed, lim, dt)
-    _, threat_after, _ = _conflicts(pos, speed[:, None] * follow, a.vel, speed, rank, active,
-                                    formed, lim, dt)  # fmt: skip
-    _, late, push_late = _conflicts(pos, a.vel, a.vel, speed, rank, active, formed, lim, dt,
-                                    YIELD_BACK_TURNS)  # fmt: skip
+    _, threat_after, _ = _conflicts(
+        pos, speed[:, None] * follow, a.vel, speed, rank, active, formed, lim, dt
+    )
+    _, late, push_late = _conflicts(
+        pos, a.vel, a.vel, speed, rank, active, formed, lim, dt, YIELD_BACK_TURNS
+    )
     late = late & active[:, None]
     hold: BoolArray = np.any(near & ~threat & threat_after, axis=1)
     back = -(push_late * late[..., None]).sum(0)
@@ -229,9 +254,16 @@ def _crossing(
 
 
 def _aims(
-    pos: FloatArray, target: FloatArray, speed: FloatArray, a: Attitude, f: Formation,
-    rank: IntArray, active: BoolArray, lim: KernelLimits, dt: float,
-) -> FloatArray:  # fmt: skip
+    pos: FloatArray,
+    target: FloatArray,
+    speed: FloatArray,
+    a: Attitude,
+    f: Formation,
+    rank: IntArray,
+    active: BoolArray,
+    lim: KernelLimits,
+    dt: float,
+) -> FloatArray:
     """The points made for [N,3]: the mission target (the leader), G_i or the point to
     make for to pass a teammate of higher priority (``_crossing``; a wingman)."""
     n = pos.shape[0]
@@ -258,8 +290,9 @@ def _aims(
     return aim
 
 
-def _follow(pos: FloatArray, aim: FloatArray, speed: FloatArray, a: Attitude,
-            lim: KernelLimits) -> FloatArray:  # fmt: skip
+def _follow(
+    pos: FloatArray, aim: FloatArray, speed: FloatArray, a: Attitude, lim: KernelLimits
+) -> FloatArray:
     """Eq. 14: the unit attraction towards the points made for (``_aims``), a wingman's one
     turn time ahead along the leader's flight, no steeper than MAX_FOLLOW_PITCH."""
     aim = aim.copy()
@@ -288,9 +321,14 @@ def _field(follow: FloatArray, a: Attitude, r: Repulsion) -> FloatArray:
 
 
 def _wanted_direction(
-    field: FloatArray, pos: FloatArray, speed: FloatArray, a: Attitude, r: Repulsion,
-    lim: KernelLimits, dt: float,
-) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray, FloatArray]:  # fmt: skip
+    field: FloatArray,
+    pos: FloatArray,
+    speed: FloatArray,
+    a: Attitude,
+    r: Repulsion,
+    lim: KernelLimits,
+    dt: float,
+) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray, FloatArray]:
     """Eq. 16–18 into the VCS, Eq. 20 (s2), the slide along static obstacles and the
     flight-path and ground limits.  Returns (F_v [N,3], the wanted ICS direction d [N,3],
     the sine of the lowest flight-path angle allowed, s2, F_v^x before any change)."""
@@ -338,10 +376,18 @@ def _wanted_direction(
     d = np.stack([cy * px_ - sy * fvy, sy * px_ + cy * fvy, sp * fvx + cp * fvz], axis=1)
     for i in range(n):
         d[i] = limit_climb(
-            d[i, 0], d[i, 1], d[i, 2], r.rep[i, 0], r.rep[i, 1], r.rep[i, 2],
-            bool(closing_in[i]), cy[i], sy[i], float(lowest[i]),
+            d[i, 0],
+            d[i, 1],
+            d[i, 2],
+            r.rep[i, 0],
+            r.rep[i, 1],
+            r.rep[i, 2],
+            bool(closing_in[i]),
+            cy[i],
+            sy[i],
+            float(lowest[i]),
             leader_limits(lim) if i == 0 and not repelled[i] else lim,
-        )  # fmt: skip
+        )
     bx = cy * d[:, 0] + sy * d[:, 1]  # ICS → VCS
     fv = np.stack(
         [cp * bx + sp * d[:, 2], -sy * d[:, 0] + cy * d[:, 1], -sp * bx + cp * d[:, 2]], 1
@@ -350,9 +396,17 @@ def _wanted_direction(
 
 
 def _turn_trends(
-    fv: FloatArray, d: FloatArray, lowest: FloatArray, pitch: FloatArray, yaw: FloatArray,
-    a: Attitude, r: Repulsion, lim: KernelLimits, dt: float, yaw_rate: FloatArray,
-) -> tuple[FloatArray, FloatArray]:  # fmt: skip
+    fv: FloatArray,
+    d: FloatArray,
+    lowest: FloatArray,
+    pitch: FloatArray,
+    yaw: FloatArray,
+    a: Attitude,
+    r: Repulsion,
+    lim: KernelLimits,
+    dt: float,
+    yaw_rate: FloatArray,
+) -> tuple[FloatArray, FloatArray]:
     """Eq. 19 (erratum 2), saturated: the pitch and yaw entries of the trend matrix, the
     yaw never turning further towards a repelling obstacle when the other sense does not
     (the kernel's ``away_from_obstacles``); ``yaw_rate`` [N] each vehicle's ω_ψ."""
@@ -383,10 +437,18 @@ def _turn_trends(
 
 
 def _speed_trend(
-    along_field: FloatArray, pos: FloatArray, aim: FloatArray, speed: FloatArray, a: Attitude,
-    f: Formation, r: Repulsion, state: IntArray, lim: KernelLimits, dt: float,
+    along_field: FloatArray,
+    pos: FloatArray,
+    aim: FloatArray,
+    speed: FloatArray,
+    a: Attitude,
+    f: Formation,
+    r: Repulsion,
+    state: IntArray,
+    lim: KernelLimits,
+    dt: float,
     leader_turn: float = 0.0,
-) -> FloatArray:  # fmt: skip
+) -> FloatArray:
     """Eq. 19's f_l with Eq. 21–24: the leader slows to its wait speed (s3); wingmen brake
     to arrive at the leader's speed, Eq. 21–23 relative to the moving local target point
     (s3 once d_i ≤ Δd'_i), or give ground back (the kernel's ``catching_up_speed`` and
@@ -424,10 +486,18 @@ def _speed_trend(
 
 
 def _kinematics(
-    pos: FloatArray, pitch: FloatArray, yaw: FloatArray, speed: FloatArray, active: BoolArray,
-    f_speed: FloatArray, f_pitch: FloatArray, f_yaw: FloatArray, lim: KernelLimits, dt: float,
+    pos: FloatArray,
+    pitch: FloatArray,
+    yaw: FloatArray,
+    speed: FloatArray,
+    active: BoolArray,
+    f_speed: FloatArray,
+    f_pitch: FloatArray,
+    f_yaw: FloatArray,
+    lim: KernelLimits,
+    dt: float,
     yaw_rate: FloatArray,
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:  # fmt: skip
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Eq. 3–5: the new speed, pitch and yaw within their limits (``yaw_rate`` [N] each
     vehicle's ω_ψ), and one step of flight; inactive vehicles keep theirs."""
     a_l = np.where(f_speed > 0, lim.accel, lim.decel)
@@ -443,18 +513,32 @@ def _kinematics(
         yaw[keep_old],
     )
     step = new_speed[:, None] * np.stack(
-        [np.cos(new_pitch) * np.cos(new_yaw), np.cos(new_pitch) * np.sin(new_yaw),
-         np.sin(new_pitch)], axis=1)  # fmt: skip
+        [
+            np.cos(new_pitch) * np.cos(new_yaw),
+            np.cos(new_pitch) * np.sin(new_yaw),
+            np.sin(new_pitch),
+        ],
+        axis=1,
+    )
     new_pos = pos + np.where(active[:, None], step * dt, 0.0)
     return new_pos, new_pitch, new_yaw, new_speed
 
 
 def reference_step(
-    pos: FloatArray, pitch: FloatArray, yaw: FloatArray, speed: FloatArray,
-    slot: FloatArray, rank: IntArray, active: BoolArray, obs_center: FloatArray,
-    obs_radius: FloatArray, obs_velocity: FloatArray, target: FloatArray,
-    lim: KernelLimits, dt: float,
-) -> Step:  # fmt: skip
+    pos: FloatArray,
+    pitch: FloatArray,
+    yaw: FloatArray,
+    speed: FloatArray,
+    slot: FloatArray,
+    rank: IntArray,
+    active: BoolArray,
+    obs_center: FloatArray,
+    obs_radius: FloatArray,
+    obs_velocity: FloatArray,
+    target: FloatArray,
+    lim: KernelLimits,
+    dt: float,
+) -> Step:
     """One step Δt of the whole fleet (Eq. 3–24), in numpy."""
     a = _attitude(pitch, yaw, speed)
     f = _formation(pos, slot, active, a, lim)
@@ -467,9 +551,16 @@ def reference_step(
     state = np.where(s2, S2_LOCAL_MINIMUM, S1_FOLLOW).astype(np.int64)
     yaw_rate = np.full(pos.shape[0], lim.max_yaw_rate)
     if not (r.rep[0] != 0).any():  # the leader following its target (``leader_limits``)
-        inside = inside_turn(float(pos[0, 0]), float(pos[0, 1]), float(a.cy[0]), float(a.sy[0]),
-                             float(speed[0]), lim.leader_turn_rate, float(target[0]),
-                             float(target[1]))  # fmt: skip
+        inside = inside_turn(
+            float(pos[0, 0]),
+            float(pos[0, 1]),
+            float(a.cy[0]),
+            float(a.sy[0]),
+            float(speed[0]),
+            lim.leader_turn_rate,
+            float(target[0]),
+            float(target[1]),
+        )
         yaw_rate[0] = leader_limits(lim, inside).max_yaw_rate
     f_pitch, f_yaw = _turn_trends(fv, d, lowest, pitch, yaw, a, r, lim, dt, yaw_rate)
     held_turn = bool(active[0]) and lim.leader_turn_rate < math.inf

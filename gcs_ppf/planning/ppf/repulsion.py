@@ -231,9 +231,19 @@ def teammate_conflicts(
         wx, wy, wz = trig[k, 4], trig[k, 5], trig[k, 6]
         together = formed[i] and (k == 0 or formed[k])
         kind, mx, my, mz = teammate_conflict(
-            dx, dy, dz, wx - trig[i, 4], wy - trig[i, 5], wz - trig[i, 6], vi, speed[k],
-            own_reach, lim, dt, together,
-        )  # fmt: skip
+            dx,
+            dy,
+            dz,
+            wx - trig[i, 4],
+            wy - trig[i, 5],
+            wz - trig[i, 6],
+            vi,
+            speed[k],
+            own_reach,
+            lim,
+            dt,
+            together,
+        )
         if kind == JUST_CLEAR and not hold_course:
             # Were it to follow: a conflict if it closes to within the threshold (the mate
             # is within reach, the distance being the same).
@@ -295,10 +305,20 @@ def yielding_back(
             k = mates[c]
             dx, dy, dz = pos[i, 0] - pos[k, 0], pos[i, 1] - pos[k, 1], pos[i, 2] - pos[k, 2]
             kind, mx, my, mz = teammate_conflict(
-                dx, dy, dz, trig[k, 4] - trig[i, 4], trig[k, 5] - trig[i, 5],
-                trig[k, 6] - trig[i, 6], vi, speed[k], own_reach, lim, dt,
-                formed[i] and (k == 0 or formed[k]), YIELD_BACK_TURNS,
-            )  # fmt: skip
+                dx,
+                dy,
+                dz,
+                trig[k, 4] - trig[i, 4],
+                trig[k, 5] - trig[i, 5],
+                trig[k, 6] - trig[i, 6],
+                vi,
+                speed[k],
+                own_reach,
+                lim,
+                dt,
+                formed[i] and (k == 0 or formed[k]),
+                YIELD_BACK_TURNS,
+            )
             if kind == CONFLICT:
                 trig[k, 7], trig[k, 8], trig[k, 9] = (
                     trig[k, 7] - mx,
