@@ -1,5 +1,5 @@
-"""The named scene families: those of the property tests and the explorer (README, "Feasible
-scenes and where the method fails"), as specs.
+"""The named scene families: those of the property tests and the explorer (docs/sweeps.md,
+"where the method fails"), as specs.
 
 * ``feasible``: the guarantees can hold: obstacle influence spheres at v_max do not overlap,
   starts and target lie outside them, vehicles start ≥ 300 m apart, obstacles static;

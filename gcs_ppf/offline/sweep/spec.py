@@ -4,8 +4,8 @@ A family says how many wingmen and obstacles a scene has, where the vehicles sta
 target lies, how big the obstacles are and how fast they move, the vehicles' initial
 state, the envelope (``limits``, the mission's model) and the planner settings (``planner``,
 the mission's model: method, Δt, max_time). Every key has a default, and the defaults are
-the *feasible* family of the property tests (README, "Feasible scenes and where the method
-fails"), so a spec file states only what it changes::
+the *feasible* family of the property tests (docs/sweeps.md), so a spec file states only
+what it changes::
 
     name = "big-v"
     planner = { dt = 0.02, max_time = 120.0 }

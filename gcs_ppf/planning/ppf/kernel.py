@@ -40,7 +40,7 @@ Fleet layout (structure of arrays, N vehicles, M obstacles):
 ``obs_center[M,3]``, ``obs_radius[M]``, ``obs_velocity[M,3]``.
 
 Design choices where the paper is silent or cannot be used as printed are documented
-next to the code that makes them; the README summarises them.
+next to the code that makes them; docs/planner.md summarises them.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """A plain-numpy reference of one PPF step, vectorised over the fleet, to check the kernel.
 
 The same equations as ``gcs_ppf.planning.ppf.kernel.fleet_step`` written with whole-array numpy
-operations, one function per equation group: slower (see the README's speed table) but
+operations, one function per equation group: slower (docs/speed.md) but
 short, and independent enough of the compiled kernel to check it in tests.  Same
 arguments; returns new arrays (pos, pitch, yaw, speed, state) instead of updating in place.
 """
