@@ -42,17 +42,6 @@ def traffic_radius_m(mission: Mission) -> float:
     return max(lim.safe_distance_uav - lim.safe_distance_obstacle, lim.collision_radius)
 
 
-def passes_within(start: Any, end: Any, point: Any, radius: float) -> bool:
-    """Whether the segment start → end (or the point ``end`` alone when ``start`` is None)
-    comes within ``radius`` of ``point``: telemetry at 10 Hz can step over a 10 m sphere."""
-    if start is None:
-        return bool(np.linalg.norm(end - point) <= radius)
-    seg = end - start
-    length2 = float(seg @ seg)
-    s = 0.0 if length2 == 0.0 else min(max(float((point - start) @ seg) / length2, 0.0), 1.0)
-    return bool(np.linalg.norm(start + s * seg - point) <= radius)
-
-
 @dataclass(frozen=True)
 class Tuning:
     """The service settings the plan depends on (``gcs_ppf.service.settings.Settings``)."""

@@ -60,7 +60,8 @@ def _along(start: FloatArray, end: FloatArray) -> FloatArray:
 
 def leg_flown(leg: Leg, previous_m: FloatArray | None, position_m: FloatArray) -> bool:
     """Whether the leader, from ``previous_m`` (None: not known) to ``position_m``, came
-    within the leg's radius of its end or crossed its finish line."""
+    within the leg's radius of its end or crossed its finish line.  The whole segment
+    counts: telemetry at 10 Hz can step over a 10 m sphere."""
     end = leg.end_m
     if previous_m is None:
         return bool(np.linalg.norm(position_m - end) <= leg.radius_m)

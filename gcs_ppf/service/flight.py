@@ -14,7 +14,6 @@ import math
 import statistics
 import time
 from collections import deque
-from typing import Any
 
 import numpy as np
 
@@ -23,7 +22,7 @@ from gcs_ppf.guidance import assurance, lag, obedience, speed_reference, tick_pl
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.formation_watch import slot_errors_m
 from gcs_ppf.guidance.online import VehicleState, clearance, home_ground, separations
-from gcs_ppf.guidance.tick_plan import passes_within, traffic_radius_m
+from gcs_ppf.guidance.tick_plan import traffic_radius_m
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_HEADING
 from gcs_ppf.planning.route import leg_flown
@@ -307,9 +306,8 @@ async def tick(station: Station, run: Run) -> bool:
         leader_pos = np.array(reported[leader_id])
         previous, run.leader_pos = run.leader_pos, leader_pos
         follow_route(station, run, previous, leader_pos)
-        reached = run.legs[run.leg].final and passes_within(
-            previous, leader_pos, np.array(mission.target), mission.limits.target_accuracy
-        )
+        leg = run.legs[run.leg]  # the target's leg: reached within the target accuracy
+        reached = leg.final and leg_flown(leg, previous, leader_pos)
     if reached:
         end(station, run, RunState.COMPLETED, "leader reached the target", states)
         return True
@@ -334,7 +332,9 @@ async def tick(station: Station, run: Run) -> bool:
     return False
 
 
-def follow_route(station: Station, run: Run, previous: Any, leader_pos: FloatArray) -> None:
+def follow_route(
+    station: Station, run: Run, previous: FloatArray | None, leader_pos: FloatArray
+) -> None:
     """On to the route's next leg once the leader, as reported, has flown this one
     (``route.leg_flown``): a ``waypoint_reached`` event with the waypoint's index."""
     leg = run.legs[run.leg]
