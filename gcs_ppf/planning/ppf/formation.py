@@ -131,6 +131,8 @@ def crossing_point(
     ahead = max(ex * ux + ey * uy + ez * uz, 0.0)
     ex, ey, ez = ex - ahead * ux, ey - ahead * uy, ez - ahead * uz  # the side to pass on
     d = math.sqrt(bx * bx + by * by + bz * bz)
+    if d <= 1e-9 * clearance:  # on the teammate: no line to pass it by (repulsion's case)
+        return -1.0, gx, gy, gz
     bx, by, bz = bx / d, by / d, bz / d
     k = ex * bx + ey * by + ez * bz
     cx, cy, cz = ex - k * bx, ey - k * by, ez - k * bz  # the side, across the line to M
