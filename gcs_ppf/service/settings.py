@@ -8,6 +8,8 @@ from typing import Literal
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from gcs_ppf.tokens import TokenEntry, load_token_file
+
 
 class Settings(BaseSettings):
     """How the ground-station service runs; every field can be set as ``GCS_PPF_<NAME>``
@@ -83,3 +85,36 @@ class Settings(BaseSettings):
     telemetry_sample_hz: float = Field(default=2.0, gt=0.0)
     stream_rate_hz: float = Field(default=10.0, gt=0.0)
     tlog_dir: Path | None = Path("tlogs")
+    tokens: list[TokenEntry] = Field(
+        default_factory=list,
+        description="API bearer tokens, hashed: [{id, sha256, scopes}] (`gcs-ppf token` makes "
+        "one); with none here nor in token_file the API is open, on loopback only",
+    )
+    token_file: Path | None = Field(
+        default=None, description="a JSON file of more such entries (`gcs-ppf token --file`)"
+    )
+    link_allow: list[str] = Field(
+        default_factory=list,
+        description="hosts (names or addresses) and networks (CIDR) that POST /links may "
+        "connect to besides loopback",
+    )
+    audit_log: Path | None = Field(
+        default=None,
+        description="JSON lines, one per command request; unset: beside the database "
+        "(<db>.audit.jsonl), none for an in-memory database",
+    )
+    max_body_bytes: int = Field(default=1_000_000, ge=1_000, description="request bodies (413)")
+    max_vehicles: int = Field(default=100, ge=1, le=1000, description="vehicles of a mission")
+    max_obstacles: int = Field(default=1000, ge=0, le=10_000, description="obstacles of one")
+
+    def api_tokens(self) -> list[TokenEntry]:
+        """``tokens`` and those of ``token_file`` (raises ``TokenFileError``)."""
+        extra = [] if self.token_file is None else load_token_file(self.token_file)
+        return [*self.tokens, *extra]
+
+    def audit_path(self) -> Path | None:
+        if self.audit_log is not None:
+            return self.audit_log
+        if str(self.db) == ":memory:":
+            return None
+        return self.db.with_name(self.db.stem + ".audit.jsonl")
