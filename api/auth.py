@@ -24,14 +24,14 @@ from fastapi.security.utils import get_authorization_scheme_param
 from starlette.status import WS_1008_POLICY_VIOLATION
 
 from gcs_ppf.service.settings import Settings
-from gcs_ppf.tokens import SCOPES, Scope, TokenEntry, token_hash
+from gcs_ppf.tokens import SCOPES, Scope, TokenEntry, grants, token_hash
 
 OPEN_ID = "open"
 WS_SUBPROTOCOL = "gcs-ppf"
 WS_TOKEN_PREFIX = "bearer."
 HOW_TO = (
     "make one with `gcs-ppf token NAME --file tokens.json` and start the service with "
-    "GCS_PPF_TOKEN_FILE=tokens.json (or GCS_PPF_TOKENS)"
+    "--token-file tokens.json (or GCS_PPF_TOKEN_FILE=tokens.json, or GCS_PPF_TOKENS)"
 )
 
 bearer = HTTPBearer(
@@ -58,13 +58,12 @@ class Keyring:
     def open(self) -> bool:
         return not self.by_hash
 
-    def caller(self, token: str | None, scopes: list[str]) -> Caller:
-        """The caller holding ``token``; raises 401 (no or unknown token) or 403 (a scope of
-        ``scopes`` missing)."""
+    def identify(self, token: str | None, scopes: list[str]) -> Caller:
+        """Who holds ``token`` (``open`` without tokens), whatever their scopes; raises 401
+        for no or an unknown token."""
         if self.open:
             return Caller(OPEN_ID, SCOPES)
-        needed = " ".join(scopes) or "read"
-        challenge = {"WWW-Authenticate": f'Bearer scope="{needed}"'}
+        challenge = {"WWW-Authenticate": f'Bearer scope="{" ".join(scopes) or "read"}"'}
         if not token:
             raise HTTPException(
                 401, "a bearer token is needed (Authorization: Bearer TOKEN)", challenge
@@ -72,14 +71,26 @@ class Keyring:
         entry = self.by_hash.get(token_hash(token))
         if entry is None:
             raise HTTPException(401, "the bearer token is not one this service knows", challenge)
-        missing = [s for s in scopes if not entry.grants(s)]
-        if missing:
-            raise HTTPException(
-                403,
-                f"token {entry.id!r} lacks the scope {' '.join(missing)!r} this request needs",
-                {"WWW-Authenticate": f'Bearer error="insufficient_scope" scope="{needed}"'},
-            )
         return Caller(entry.id, entry.scopes)
+
+    def caller(self, token: str | None, scopes: list[str]) -> Caller:
+        """The caller holding ``token``; raises 401 (no or unknown token) or 403 (a scope of
+        ``scopes`` missing)."""
+        return require(self.identify(token, scopes), scopes)
+
+
+def require(caller: Caller, scopes: list[str]) -> Caller:
+    """``caller`` if it holds every scope of ``scopes`` (``command`` includes ``read``),
+    else 403."""
+    missing = [s for s in scopes if not grants(caller.scopes, s)]
+    if missing:
+        needed = " ".join(scopes)
+        raise HTTPException(
+            403,
+            f"token {caller.token_id!r} lacks the scope {' '.join(missing)!r} this request needs",
+            {"WWW-Authenticate": f'Bearer error="insufficient_scope" scope="{needed}"'},
+        )
+    return caller
 
 
 def keyring_of(request: Request) -> Keyring:
@@ -95,11 +106,11 @@ async def authorize(
     """The caller of an HTTP request, who must hold ``security_scopes``; recorded in the
     request's state for the audit log (``api.guard``)."""
     request.state.token_id = None
-    caller = keyring_of(request).caller(
+    caller = keyring_of(request).identify(
         None if credentials is None else credentials.credentials, security_scopes.scopes
     )
     request.state.token_id = caller.token_id
-    return caller
+    return require(caller, security_scopes.scopes)
 
 
 READ = Security(authorize, scopes=["read"])

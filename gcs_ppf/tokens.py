@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import secrets
 from pathlib import Path
 from typing import Literal
@@ -34,8 +35,12 @@ class TokenEntry(BaseModel):
     scopes: tuple[Scope, ...] = Field(min_length=1)
 
     def grants(self, scope: str) -> bool:
-        """``command`` includes ``read``."""
-        return scope in self.scopes or (scope == "read" and "command" in self.scopes)
+        return grants(self.scopes, scope)
+
+
+def grants(scopes: tuple[Scope, ...], scope: str) -> bool:
+    """Do ``scopes`` allow ``scope``: ``command`` includes ``read``."""
+    return scope in scopes or (scope == "read" and "command" in scopes)
 
 
 ENTRIES = TypeAdapter(list[TokenEntry])
@@ -79,3 +84,20 @@ def load_token_file(path: Path) -> list[TokenEntry]:
     if len(set(ids)) != len(ids):
         raise TokenFileError(f"token_file {path}: duplicate token ids")
     return entries
+
+
+def add_to_token_file(path: Path, entry: TokenEntry) -> None:
+    """Add ``entry`` to the token file at ``path`` (created with mode 0600; an id it holds
+    already is an error, the file left as it was)."""
+    entries = load_token_file(path) if path.exists() else []
+    if any(e.id == entry.id for e in entries):
+        raise TokenFileError(f"token_file {path}: it has a token {entry.id!r} already")
+    text = json.dumps([e.model_dump(mode="json") for e in [*entries, entry]], indent=1) + "\n"
+    partial = path.with_name(path.name + ".partial")
+    try:
+        fd = os.open(partial, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(partial, path)
+    except OSError as exc:
+        raise TokenFileError(f"token_file {path}: {exc.strerror or exc}") from None
