@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+import ipaddress
+import re
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from gcs_ppf.tokens import TokenEntry, load_token_file
+
+HOST = re.compile(r"[A-Za-z0-9_.:-]{1,253}")  # a name, an IPv4 or an IPv6 address
 
 
 class Settings(BaseSettings):
@@ -106,6 +110,21 @@ class Settings(BaseSettings):
     max_body_bytes: int = Field(default=1_000_000, ge=1_000, description="request bodies (413)")
     max_vehicles: int = Field(default=100, ge=1, le=1000, description="vehicles of a mission")
     max_obstacles: int = Field(default=1000, ge=0, le=10_000, description="obstacles of one")
+
+    @field_validator("link_allow")
+    @classmethod
+    def _allowed_hosts(cls, entries: list[str]) -> list[str]:
+        for entry in entries:
+            if "/" in entry:
+                try:
+                    ipaddress.ip_network(entry, strict=False)
+                except ValueError:
+                    raise ValueError(
+                        f"{entry!r} is not a network (CIDR, e.g. 10.0.0.0/24)"
+                    ) from None
+            elif not HOST.fullmatch(entry.strip("[]")):
+                raise ValueError(f"{entry!r} is not a host name or address")
+        return entries
 
     def api_tokens(self) -> list[TokenEntry]:
         """``tokens`` and those of ``token_file`` (raises ``TokenFileError``)."""
