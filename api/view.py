@@ -36,6 +36,7 @@ from fastapi.staticfiles import StaticFiles
 from starlette.websockets import WebSocketState
 
 from api.auth import READ, WsCaller, accept
+from api.deps import AUTH_ERRORS
 from gcs_ppf.frames import local_target_point
 from gcs_ppf.geodesy import heading_ned_to_yaw
 from gcs_ppf.guidance.online import state_from_velocity
@@ -284,7 +285,7 @@ def install(app: FastAPI) -> None:
 
     @app.get(
         "/runs/{run_id}/telemetry",
-        responses={404: {"description": "unknown run"}},
+        responses={404: {"description": "unknown run"}, **AUTH_ERRORS},
         dependencies=[READ],
     )
     async def run_telemetry(run_id: RunId, request: Request) -> dict[str, Any]:
