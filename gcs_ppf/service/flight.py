@@ -91,6 +91,7 @@ async def launch_fleet(station: Station, run: Run) -> None:
             takeoff_dist_m=station.settings.takeoff_dist_m,
             is_lost=is_lost,
             on_lost=on_lost,
+            ready_timeout_s=station.settings.prearm_timeout_s,
         )
     finally:
         if holding is not None:  # the holds flown until now, sent once, before the run

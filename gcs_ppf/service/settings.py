@@ -73,6 +73,14 @@ class Settings(BaseSettings):
         "towards a point this far ahead instead of circling 200 m ahead (ArduPlane's default), "
         "so the formation starts as the plan assumes",
     )
+    prearm_timeout_s: float = Field(
+        default=60.0,
+        ge=0.0,
+        le=600.0,
+        description="how long (our seconds) a start waits for each vehicle's pre-arm checks "
+        "and retries an arm refused for a reason that may clear (real ArduPlane: some seconds "
+        "after boot while the EKF settles); 0: arm at once, or fail naming the reasons",
+    )
     vehicle_timeout_s: float = Field(
         default=5.0, gt=0.0, description="silence, in the vehicle's own seconds, that makes it lost"
     )
