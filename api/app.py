@@ -2,9 +2,11 @@
 
 Every error a client can cause answers 4xx with a message a person understands:
 422 for a body or path that does not validate (pydantic names the field), 404 for an
-unknown id, 409 for a call in the wrong state; the stored state is left as it was.
-The routes are routers per resource: ``api.fleet`` (links, vehicles), ``api.missions``,
-``api.runs`` (runs, live telemetry); the operator's page is ``api.view``.
+unknown id, 409 for a call in the wrong state, 413 for a document too large; the stored
+state is left as it was.  Who may call what is ``api.auth`` (bearer tokens, scopes); request
+sizes and the audit log are ``api.guard``.  The routes are routers per resource:
+``api.fleet`` (links, vehicles), ``api.missions``, ``api.runs`` (runs, live telemetry); the
+operator's page is ``api.view``.
 """
 
 from __future__ import annotations
@@ -14,9 +16,13 @@ from collections.abc import AsyncIterator
 from typing import Any
 
 from fastapi import FastAPI, Request
+from fastapi.encoders import jsonable_encoder
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 
 from api import fleet, missions, runs, view
+from api.auth import Keyring, check_exposure
+from api.guard import AuditLog, Guard
 from gcs_ppf.service.errors import ServiceError
 from gcs_ppf.service.runs import FormationService
 from gcs_ppf.service.settings import Settings
@@ -28,9 +34,26 @@ async def service_error(request: Request, exc: ServiceError) -> JSONResponse:
     return JSONResponse(status_code=exc.status, content={"detail": exc.message, "info": exc.detail})
 
 
+ECHO_CHARS = 200  # a 422's field error quotes the input it rejects up to this many characters
+
+
+async def validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:
+    """FastAPI's 422 body, but never echoing back more than ``ECHO_CHARS`` of the input."""
+    errors = []
+    for error in jsonable_encoder(exc.errors()):
+        if "input" in error and len(text := repr(error["input"])) > ECHO_CHARS:
+            error["input"] = text[:ECHO_CHARS] + f"… ({len(text)} characters)"
+        errors.append(error)
+    return JSONResponse(status_code=422, content={"detail": errors})
+
+
 def create_app(settings: Settings | None = None) -> FastAPI:
-    """The app; its lifespan opens the store and runs the service."""
+    """The app; its lifespan opens the store and runs the service.  Raises
+    ``ExposureError`` for an open API (no tokens) on an address that is not loopback, and
+    ``TokenFileError`` for a token file that cannot be read."""
     settings = settings or Settings()
+    keyring = Keyring(settings.api_tokens())
+    check_exposure(settings, keyring)
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[dict[str, Any]]:
@@ -48,8 +71,19 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         lifespan=lifespan,
         description="Fixed-wing formation planning (PPF) over MAVLink.",
     )
+    app.state.keyring = keyring
     app.exception_handler(ServiceError)(service_error)
+    app.exception_handler(RequestValidationError)(validation_error)
+
+    @app.get("/health", tags=["health"])
+    async def health() -> dict[str, str]:
+        """The one route without a token: the service is up."""
+        return {"status": "ok"}
+
     for router in (fleet.router, missions.router, runs.router):
         app.include_router(router)
     view.install(app)  # the operator's page and its read-only routes (api/view.py)
+    app.add_middleware(
+        Guard, max_body_bytes=settings.max_body_bytes, audit=AuditLog(settings.audit_path())
+    )
     return app

@@ -1,4 +1,5 @@
-"""What every router shares: the service the lifespan runs, the ids in paths, the error bodies."""
+"""What every router shares: the service the lifespan runs, the ids in paths, the error bodies,
+the security dependencies of routes that read (``READ_ONLY``) and that command (``COMMANDS``)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ from typing import Annotated, Any
 
 from fastapi import Depends, Path, Request
 
+from api.auth import COMMAND, READ
 from api.models import ErrorBody
 from gcs_ppf.service.runs import FormationService
 
@@ -24,3 +26,10 @@ ERRORS: dict[int | str, dict[str, Any]] = {
     409: {"model": ErrorBody},
     400: {"model": ErrorBody},
 }
+# What every route may answer besides: no or a bad token, a token without the scope.
+AUTH_ERRORS: dict[int | str, dict[str, Any]] = {
+    401: {"model": ErrorBody, "description": "no bearer token, or one the service does not know"},
+    403: {"model": ErrorBody, "description": "the token lacks the scope the route needs"},
+}
+READ_ONLY = [READ]
+COMMANDS = [COMMAND]

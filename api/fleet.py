@@ -6,27 +6,47 @@ from typing import Any
 
 from fastapi import APIRouter, status
 
-from api.deps import ERRORS, LinkId, Service
+from api.auth import link_allowed
+from api.deps import AUTH_ERRORS, COMMANDS, ERRORS, READ_ONLY, LinkId, Service
 from api.models import LinkRequest
+from gcs_ppf.service.errors import Forbidden
+from gcs_ppf.service.links import parse_link_url
 
-router = APIRouter()
+router = APIRouter(responses=AUTH_ERRORS)
 
 
-@router.post("/links", status_code=status.HTTP_201_CREATED, responses=ERRORS)
+@router.post("/links", status_code=status.HTTP_201_CREATED, responses=ERRORS, dependencies=COMMANDS)
 async def add_link(body: LinkRequest, service: Service) -> dict[str, Any]:
+    """A link to a loopback address, or to a host or network of the settings' ``link_allow``
+    (403 otherwise: the service would connect wherever it is told)."""
+    try:
+        host = parse_link_url(body.url).host
+    except (ValueError, NotImplementedError):
+        host = None  # the service names what is wrong with the URL
+    if host is not None and not link_allowed(host, service.settings.link_allow):
+        raise Forbidden(
+            f"url: {host} is neither loopback nor in the service's link_allow "
+            '(GCS_PPF_LINK_ALLOW=\'["HOST", "10.0.0.0/24"]\')',
+            {"host": host},
+        )
     return await service.fleet.add_link(body.url)
 
 
-@router.get("/links")
+@router.get("/links", dependencies=READ_ONLY)
 async def list_links(service: Service) -> list[dict[str, Any]]:
     return service.fleet.links()
 
 
-@router.delete("/links/{link_id}", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)
+@router.delete(
+    "/links/{link_id}",
+    status_code=status.HTTP_204_NO_CONTENT,
+    responses=ERRORS,
+    dependencies=COMMANDS,
+)
 async def delete_link(link_id: LinkId, service: Service) -> None:
     await service.fleet.remove_link(link_id)
 
 
-@router.get("/vehicles")
+@router.get("/vehicles", dependencies=READ_ONLY)
 async def list_vehicles(service: Service) -> list[dict[str, Any]]:
     return service.fleet.vehicles()

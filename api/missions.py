@@ -8,32 +8,55 @@ from typing import TYPE_CHECKING, Any
 
 from fastapi import APIRouter, status
 
-from api.deps import ERRORS, MissionId, Service
+from api.deps import AUTH_ERRORS, COMMANDS, ERRORS, READ_ONLY, MissionId, Service
 from api.models import MissionDetail, MissionSummary, mission_detail, mission_summary
 from gcs_ppf.mission import Mission, Obstacle
+from gcs_ppf.service.errors import TooLarge
+from gcs_ppf.service.settings import Settings
 
 if TYPE_CHECKING:
     from gcs_ppf.offline.plan import PlanRun
 
-router = APIRouter()
+router = APIRouter(responses=AUTH_ERRORS)
+TOO_LARGE: dict[int | str, dict[str, Any]] = {413: {"description": "more than the service takes"}}
 
 
-@router.post("/missions", status_code=status.HTTP_201_CREATED)
+def check_size(settings: Settings, vehicles: int | None, obstacles: int) -> None:
+    """413 naming the list and the limit when a document has more vehicles or obstacles
+    than the settings' ``max_vehicles`` / ``max_obstacles``."""
+    if vehicles is not None and vehicles > settings.max_vehicles:
+        raise TooLarge(
+            f"vehicles: {vehicles} vehicles, the service takes at most {settings.max_vehicles} "
+            "(max_vehicles, GCS_PPF_MAX_VEHICLES)",
+            {"field": "vehicles", "count": vehicles, "limit": settings.max_vehicles},
+        )
+    if obstacles > settings.max_obstacles:
+        raise TooLarge(
+            f"obstacles: {obstacles} obstacles, the service takes at most "
+            f"{settings.max_obstacles} (max_obstacles, GCS_PPF_MAX_OBSTACLES)",
+            {"field": "obstacles", "count": obstacles, "limit": settings.max_obstacles},
+        )
+
+
+@router.post(
+    "/missions", status_code=status.HTTP_201_CREATED, responses=TOO_LARGE, dependencies=COMMANDS
+)
 async def create_mission(mission: Mission, service: Service) -> MissionDetail:
+    check_size(service.settings, len(mission.vehicles), len(mission.obstacles))
     return mission_detail(service.create_mission(mission))
 
 
-@router.get("/missions")
+@router.get("/missions", dependencies=READ_ONLY)
 async def list_missions(service: Service) -> list[MissionSummary]:
     return [mission_summary(m) for m in service.missions()]
 
 
-@router.get("/missions/{mission_id}", responses=ERRORS)
+@router.get("/missions/{mission_id}", responses=ERRORS, dependencies=READ_ONLY)
 async def get_mission(mission_id: MissionId, service: Service) -> MissionDetail:
     return mission_detail(service.mission(mission_id))
 
 
-@router.post("/missions/{mission_id}/plan", responses=ERRORS)
+@router.post("/missions/{mission_id}/plan", responses=ERRORS, dependencies=READ_ONLY)
 async def plan(mission_id: MissionId, service: Service, every_s: float = 1.0) -> dict[str, Any]:
     """The offline plan from the same planner: metrics (CONVENTIONS §4) and the
     trajectories decimated to one point every ``every_s`` seconds."""
@@ -61,28 +84,34 @@ def decimated_trajectories(run: PlanRun, every_s: float) -> dict[str, dict[str, 
     }
 
 
-@router.put("/missions/{mission_id}/obstacles", responses=ERRORS)
+@router.put("/missions/{mission_id}/obstacles", responses=ERRORS | TOO_LARGE, dependencies=COMMANDS)
 async def put_obstacles(
     mission_id: MissionId, obstacles: list[Obstacle], service: Service
 ) -> MissionDetail:
+    check_size(service.settings, None, len(obstacles))
     return mission_detail(service.replace_obstacles(mission_id, obstacles))
 
 
-@router.post("/missions/{mission_id}/start", status_code=status.HTTP_202_ACCEPTED, responses=ERRORS)
+@router.post(
+    "/missions/{mission_id}/start",
+    status_code=status.HTTP_202_ACCEPTED,
+    responses=ERRORS,
+    dependencies=COMMANDS,
+)
 async def start(mission_id: MissionId, service: Service) -> dict[str, Any]:
     return await service.start(mission_id)
 
 
-@router.post("/missions/{mission_id}/abort", responses=ERRORS)
+@router.post("/missions/{mission_id}/abort", responses=ERRORS, dependencies=COMMANDS)
 async def abort(mission_id: MissionId, service: Service) -> dict[str, Any]:
     return await service.abort(mission_id)
 
 
-@router.get("/missions/{mission_id}/status", responses=ERRORS)
+@router.get("/missions/{mission_id}/status", responses=ERRORS, dependencies=READ_ONLY)
 async def mission_status(mission_id: MissionId, service: Service) -> dict[str, Any]:
     return service.status(mission_id)
 
 
-@router.get("/missions/{mission_id}/events", responses=ERRORS)
+@router.get("/missions/{mission_id}/events", responses=ERRORS, dependencies=READ_ONLY)
 async def mission_events(mission_id: MissionId, service: Service) -> list[dict[str, Any]]:
     return service.events(mission_id)

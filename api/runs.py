@@ -4,22 +4,23 @@ from __future__ import annotations
 
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 
-from api.deps import Service
+from api.auth import WsCaller, accept
+from api.deps import AUTH_ERRORS, READ_ONLY, Service
 from api.models import RunSummary, run_summary
 from gcs_ppf.service.runs import FormationService
 
-router = APIRouter()
+router = APIRouter(responses=AUTH_ERRORS)
 
 
-@router.get("/runs")
+@router.get("/runs", dependencies=READ_ONLY)
 async def list_runs(service: Service) -> list[RunSummary]:
     return [run_summary(r) for r in service.runs()]
 
 
 @router.websocket("/ws/telemetry")
-async def telemetry(websocket: WebSocket) -> None:
+async def telemetry(websocket: WebSocket, _caller: WsCaller) -> None:
     service: FormationService = websocket.state.service
-    await websocket.accept()
+    await accept(websocket)
     queue = service.subscribe()
     try:
         await websocket.send_json(service.snapshot())

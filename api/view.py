@@ -12,7 +12,10 @@
   mission's last, else the service's last.
 * ``GET /runs/{run_id}/telemetry``: a past run's sampled telemetry, for replay.
 
-``WS /ws/telemetry`` and every other route are unchanged.
+``WS /ws/telemetry`` and every other route are unchanged.  The page's files hold no data
+and need no token; its routes and its socket do (``api.auth``): the page asks for a token
+once when the service answers 401 (or refuses the socket) and keeps it in the browser's
+``sessionStorage``.
 """
 
 from __future__ import annotations
@@ -32,6 +35,8 @@ from fastapi.responses import FileResponse
 from fastapi.staticfiles import StaticFiles
 from starlette.websockets import WebSocketState
 
+from api.auth import READ, WsCaller, accept
+from api.deps import AUTH_ERRORS
 from gcs_ppf.frames import local_target_point
 from gcs_ppf.geodesy import heading_ned_to_yaw
 from gcs_ppf.guidance.online import state_from_velocity
@@ -278,7 +283,11 @@ def install(app: FastAPI) -> None:
 
     app.mount("/ui", StaticFiles(directory=STATIC_DIR), name="ui")
 
-    @app.get("/runs/{run_id}/telemetry", responses={404: {"description": "unknown run"}})
+    @app.get(
+        "/runs/{run_id}/telemetry",
+        responses={404: {"description": "unknown run"}, **AUTH_ERRORS},
+        dependencies=[READ],
+    )
     async def run_telemetry(run_id: RunId, request: Request) -> dict[str, Any]:
         """A run's sampled telemetry (``telemetry_sample_hz`` of mission time), per
         vehicle: mission times, ICS positions (metres) and ground speeds."""
@@ -296,10 +305,12 @@ def install(app: FastAPI) -> None:
 
     @app.websocket("/ws/view")
     async def view(
-        websocket: WebSocket, mission_id: Annotated[int | None, Query(ge=1)] = None
+        websocket: WebSocket,
+        _caller: WsCaller,
+        mission_id: Annotated[int | None, Query(ge=1)] = None,
     ) -> None:
         service: FormationService = websocket.state.service
-        await websocket.accept()
+        await accept(websocket)
         source = FrameSource(service, mission_id)
         queue = service.subscribe()
         try:

@@ -1,5 +1,5 @@
 """The `gcs-ppf` command line: plan (``gcs_ppf.offline.command``), sweep
-(``gcs_ppf.offline.sweep.command``), serve, demo, arduplane-sitl."""
+(``gcs_ppf.offline.sweep.command``), serve, token, demo, arduplane-sitl."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ from gcs_ppf.mission import MissionError, load_mission_file
 from gcs_ppf.offline.command import EXIT_BAD_INPUT, plan_command
 from gcs_ppf.offline.sweep.command import add_arguments as add_sweep_arguments
 from gcs_ppf.offline.sweep.command import sweep_command
+from gcs_ppf.tokens import Scope
 
 log = logging.getLogger("gcs_ppf")
 
@@ -61,6 +62,28 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--host", help="address to serve the API on (default 127.0.0.1)")
     serve.add_argument("--port", type=int, help="port of the API (default 8000)")
     serve.add_argument("--db", type=Path, help="SQLite file (default gcs_ppf.db)")
+    serve.add_argument(
+        "--token-file",
+        type=Path,
+        help="API tokens (`gcs-ppf token --file`); without any the API is open, on loopback only",
+    )
+    token = sub.add_parser(
+        "token",
+        help="make an API bearer token: prints it once; the service keeps only its hash",
+    )
+    token.add_argument("id", help="its name in the audit log (letters, digits, _ . -)")
+    token.add_argument(
+        "--scope",
+        choices=["read", "command"],
+        default="command",
+        help="read: GETs and the live streams; command (default): those and every change",
+    )
+    token.add_argument(
+        "--file",
+        type=Path,
+        help="add its entry to this token file (created, mode 0600) for --token-file; "
+        "without it the entry is printed for GCS_PPF_TOKENS",
+    )
     ap = sub.add_parser("arduplane-sitl", help="start real ArduPlane SITL, one per vehicle")
     ap.add_argument("mission", type=Path, help="mission document (JSON)")
     ap.add_argument("--binary", type=Path, required=True, help="build/sitl/bin/arduplane")
@@ -76,18 +99,63 @@ def serve_command(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
     from api.app import create_app
+    from api.auth import ExposureError
     from gcs_ppf.service.settings import Settings
+    from gcs_ppf.tokens import TokenFileError
 
-    given = {"links": args.link, "host": args.host, "port": args.port, "db": args.db}
+    given = {
+        "links": args.link,
+        "host": args.host,
+        "port": args.port,
+        "db": args.db,
+        "token_file": args.token_file,
+    }
     try:
         settings = Settings(**{k: v for k, v in given.items() if v is not None})
+        app = create_app(settings)
     except ValidationError as exc:
         first = exc.errors()[0]
         field = ".".join(str(p) for p in first["loc"])
         print(f"gcs-ppf: error: settings: {field}: {first['msg']}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    log.info("serving on http://%s:%d (docs at /docs)", settings.host, settings.port)
-    uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level="info")
+    except (ExposureError, TokenFileError) as exc:
+        print(f"gcs-ppf: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    tokens = len(app.state.keyring.by_hash)
+    log.info(
+        "serving on http://%s:%d (docs at /docs), %s",
+        settings.host,
+        settings.port,
+        f"{tokens} API token(s)" if tokens else "no API token: open to loopback callers",
+    )
+    uvicorn.run(app, host=settings.host, port=settings.port, log_level="info")
+    return 0
+
+
+def token_command(args: argparse.Namespace) -> int:
+    """``gcs-ppf token ID``: the token on stdout (nothing else there, for scripts), what to
+    do with it on stderr."""
+    from pydantic import ValidationError
+
+    from gcs_ppf.tokens import TokenFileError, add_to_token_file, entries_json, new_token
+
+    scopes: tuple[Scope, ...] = ("read", "command") if args.scope == "command" else ("read",)
+    try:
+        token, entry = new_token(args.id, scopes)
+        if args.file is not None:
+            add_to_token_file(args.file, entry)
+    except ValidationError as exc:
+        print(f"gcs-ppf: error: id {args.id!r}: {exc.errors()[0]['msg']}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except TokenFileError as exc:
+        print(f"gcs-ppf: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    print(token)
+    if args.file is not None:
+        hint = f"added {entry.id!r} to {args.file}: gcs-ppf serve --token-file {args.file}"
+    else:
+        hint = f"GCS_PPF_TOKENS='{entries_json([entry])}' gcs-ppf serve"
+    print(f"{hint}\nclients send: Authorization: Bearer <the token above>", file=sys.stderr)
     return 0
 
 
@@ -105,6 +173,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return sweep_command(args)
     if args.command == "serve":
         return serve_command(args)
+    if args.command == "token":
+        return token_command(args)
     if args.command == "arduplane-sitl":
         from gcs_ppf.tools.arduplane_sitl import arduplane_sitl_command
 

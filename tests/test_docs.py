@@ -32,6 +32,7 @@ README_MAX_LINES = 300
 
 LINK = re.compile(r"!?\[[^\]]*\]\(([^)\s]+)\)")
 EXAMPLE = re.compile(r"examples/([a-z0-9_]+\.json)")
+SHELL_OPERATORS = {">", ">>", "2>", "|", "&&", ";"}
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.MULTILINE | re.DOTALL)
 
 # Each model's fields are listed as table rows (| `field` | …) in the section with this heading.
@@ -85,7 +86,8 @@ def readme_gcs_ppf_commands() -> list[list[str]]:
         for line in block.splitlines():
             words = shlex.split(line, comments=True)
             if words and words[0] == ".venv/bin/gcs-ppf":
-                out.append(words[1:])
+                shell = [i for i, w in enumerate(words) if w in SHELL_OPERATORS]
+                out.append(words[1 : shell[0] if shell else None])  # up to `> file`, `| …`
     return out
 
 

@@ -70,10 +70,24 @@ LAYERS = (
             }
         ),
     ),
+    # API tokens: hashes and token files; no network, no server (service, api, cli use it)
+    Layer(
+        "tokens",
+        ("gcs_ppf.tokens",),
+        ("gcs_ppf.tokens",),
+        IO - {"os"},
+    ),
     Layer(
         "service",
         ("gcs_ppf.service",),
-        (*CONTRACTS, "gcs_ppf.planning", "gcs_ppf.mavlink", "gcs_ppf.guidance", "gcs_ppf.service"),
+        (
+            *CONTRACTS,
+            "gcs_ppf.planning",
+            "gcs_ppf.mavlink",
+            "gcs_ppf.guidance",
+            "gcs_ppf.service",
+            "gcs_ppf.tokens",
+        ),
         frozenset({"matplotlib", "api", "sitl"}),
     ),
     Layer("tools", ("gcs_ppf.tools",), (*CONTRACTS, "gcs_ppf.tools"), frozenset({"api", "sitl"})),
@@ -88,6 +102,7 @@ LAYERS = (
             "gcs_ppf.guidance",
             "gcs_ppf.service",
             "gcs_ppf.offline",
+            "gcs_ppf.tokens",
             "api",
         ),
         frozenset(),

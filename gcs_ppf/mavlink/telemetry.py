@@ -132,6 +132,14 @@ class VehicleTelemetry:
     pitch_min_deg: float | None = None
     params: tuple[ParamValue, ...] = ()
     """The last PARAM_VALUE of each of ``AIRFRAME_PARAMS`` received, ordered by name."""
+    prearm_ok: bool | None = None
+    """SYS_STATUS: ArduPilot's pre-arm checks pass (``MAV_SYS_STATUS_PREARM_CHECK`` healthy);
+    None when the vehicle does not report the bit (or no SYS_STATUS yet)."""
+    gps_fix_type: int | None = None
+    """GPS_RAW_INT.fix_type (``GPS_FIX_TYPE``: 3 = 3D fix)."""
+    arming_reasons: tuple[ArmingReason, ...] = ()
+    """The vehicle's own reasons not to arm: its latest ``PreArm:`` / ``Arm:`` STATUSTEXTs,
+    one per text (the newest of each), newest last, at most ``ARMING_REASONS_KEPT``."""
 
     @property
     def mode_name(self) -> str | None:
@@ -153,6 +161,25 @@ class VehicleTelemetry:
         return None
 
 
+@dataclass(frozen=True, slots=True)
+class ArmingReason:
+    """One STATUSTEXT saying why the vehicle will not arm, as received."""
+
+    text: str
+    received_s: float
+    """Caller's clock when it came."""
+
+
+MAV_SYS_STATUS_PREARM_CHECK = 1 << 28
+ARMING_PREFIXES = ("PreArm:", "Arm:")
+ARMING_REASONS_KEPT = 8
+
+
+def recent_reasons(t: VehicleTelemetry, since_s: float) -> list[str]:
+    """The texts of ``t``'s arming reasons received at or after ``since_s`` (caller's clock)."""
+    return [r.text for r in t.arming_reasons if r.received_s >= since_s]
+
+
 _FIELDS = tuple(f.name for f in fields(VehicleTelemetry))
 _FIELD_NAMES = frozenset(_FIELDS)
 
@@ -163,7 +190,8 @@ def apply(tel: VehicleTelemetry | None, msg: MAVLinkMessage, now_s: float) -> Ve
     ``tel`` None starts a record for the message's sender.  Messages from another system or
     component than ``tel``'s, and message types not decoded here, return ``tel`` unchanged.
     Decoded: HEARTBEAT, GLOBAL_POSITION_INT, ATTITUDE, VFR_HUD, SYSTEM_TIME, COMMAND_ACK,
-    PARAM_VALUE of ``AIRFRAME_PARAMS`` (and the pitch limits among them as their own fields);
+    PARAM_VALUE of ``AIRFRAME_PARAMS`` (and the pitch limits among them as their own fields),
+    SYS_STATUS's pre-arm bit, GPS_RAW_INT's fix, the arming reasons of STATUSTEXT;
     the ``time_boot_ms`` of any message carrying one.
     """
     src = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
@@ -357,6 +385,31 @@ def _param_value(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> di
     return out
 
 
+def _sys_status(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:
+    present = int(msg.onboard_control_sensors_present)
+    if not present & MAV_SYS_STATUS_PREARM_CHECK:
+        return {"prearm_ok": None}
+    return {
+        "prearm_ok": bool(int(msg.onboard_control_sensors_health) & MAV_SYS_STATUS_PREARM_CHECK)
+    }
+
+
+def _gps_raw_int(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:
+    return {"gps_fix_type": int(msg.fix_type)}
+
+
+def _statustext(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:
+    text = msg.text
+    if isinstance(text, bytes):
+        text = text.decode("ascii", "replace")
+    text = str(text).rstrip("\x00").strip()
+    if not text.startswith(ARMING_PREFIXES):
+        return {}
+    kept = [r for r in tel.arming_reasons if r.text != text]
+    kept.append(ArmingReason(text, now_s))
+    return {"arming_reasons": tuple(kept[-ARMING_REASONS_KEPT:])}
+
+
 _DECODERS = {
     "HEARTBEAT": _heartbeat,
     "GLOBAL_POSITION_INT": _global_position_int,
@@ -365,4 +418,7 @@ _DECODERS = {
     "SYSTEM_TIME": _system_time,
     "COMMAND_ACK": _command_ack,
     "PARAM_VALUE": _param_value,
+    "SYS_STATUS": _sys_status,
+    "GPS_RAW_INT": _gps_raw_int,
+    "STATUSTEXT": _statustext,
 }

@@ -11,7 +11,7 @@ import logging
 
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import VehicleState
-from gcs_ppf.service import commanding, confirmation, hold_flight
+from gcs_ppf.service import commanding, confirmation, hold_flight, launch
 from gcs_ppf.service.fleet import planning_states
 from gcs_ppf.service.run import FINISHED, Run, RunState, summary
 from gcs_ppf.service.station import Station
@@ -59,12 +59,25 @@ def end(
     run.hold_task = station.spawn(hold(station, run, states, stacked))
 
 
+def on_ground(station: Station, vehicle_id: int) -> bool:
+    """The vehicle reports itself on the ground, not flying (``launch.on_ground``)."""
+    vehicle = station.fleet.by_id.get(vehicle_id)
+    return vehicle is not None and launch.on_ground(vehicle.telemetry)
+
+
 async def hold(station: Station, run: Run, states: dict[int, VehicleState], stacked: bool) -> None:
-    """Every vehicle still heard flown to its holding circle and round it by the service,
+    """Every vehicle still heard and flying (one on the ground, after a start that failed,
+    is left alone: ``holds_not_on_ground``; a hold's course commands a vehicle standing
+    still cannot turn at all) flown to its holding circle and round it by the service,
     under run-time assurance (``fly``), then the circles handed to the autopilots, every
     command confirmed (``confirmation.confirm_all``), then the safety watch for the rest of
     its time after the end."""
     heard = {i for i, v in station.fleet.by_id.items() if not v.lost}
+    ids = {v.id for v in run.mission.vehicles}
+    grounded = sorted(i for i in heard if i in ids and on_ground(station, i))
+    if grounded:  # a failed start: those that never took off are left alone, not commanded
+        station.event(run, "holds_not_on_ground", None, vehicles=grounded)
+        heard -= set(grounded)
     plan = _plan(station, run, states, stacked, heard)
     await fly(station, run, plan, launching=False)
     taken = hold_flight.taken_over(station, run)

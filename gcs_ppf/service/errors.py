@@ -22,3 +22,11 @@ class NotFound(ServiceError):
 
 class Conflict(ServiceError):
     status = 409
+
+
+class Forbidden(ServiceError):
+    status = 403
+
+
+class TooLarge(ServiceError):
+    status = 413

@@ -342,6 +342,11 @@ class Fleet:
                     "groundspeed_m_s": t.groundspeed_m_s,
                     "pitch_limits_deg": {"max": t.pitch_max_deg, "min": t.pitch_min_deg},
                     "airframe": Airframe.from_telemetry(t).as_dict(),
+                    "prearm": {  # null: not reported (SYS_STATUS, GPS_RAW_INT)
+                        "ok": t.prearm_ok,
+                        "gps_fix_type": t.gps_fix_type,
+                        "reasons": [r.text for r in t.arming_reasons],
+                    },
                 }
             )
         return out

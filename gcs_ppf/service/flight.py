@@ -56,6 +56,9 @@ async def fly(station: Station, run: Run) -> None:
         await tick_loop(station, run)
     except asyncio.CancelledError:
         raise
+    except launch.CommandFailed as exc:  # a vehicle refused: its answer, not a bug
+        log.warning("mission %d failed: %s", run.mission_id, exc)
+        end(station, run, RunState.FAILED, f"error: {exc}")
     except Exception as exc:  # a run must never take the service down
         log.exception("mission %d failed", run.mission_id)
         end(station, run, RunState.FAILED, f"error: {exc}")
@@ -88,6 +91,7 @@ async def launch_fleet(station: Station, run: Run) -> None:
             takeoff_dist_m=station.settings.takeoff_dist_m,
             is_lost=is_lost,
             on_lost=on_lost,
+            ready_timeout_s=station.settings.prearm_timeout_s,
         )
     finally:
         if holding is not None:  # the holds flown until now, sent once, before the run

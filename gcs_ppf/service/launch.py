@@ -14,6 +14,13 @@ What it relies on (ArduPlane 4.7; measured on its SITL, ``../shared/arduplane-tr
   A command whose ACK is lost is sent again a few times, as MAVSDK and QGroundControl do;
   a refusal (DENIED, FAILED, UNSUPPORTED, TEMPORARILY_REJECTED) is final.
 - PARAM_SET is answered with the PARAM_VALUE of the parameter (``GCS_MAVLINK::handle_param_set``).
+- Real ArduPlane refuses to arm (COMMAND_ACK FAILED) until its pre-arm checks pass: some
+  seconds after boot while the EKF settles and the GPS gets its fix.  It reports them in
+  SYS_STATUS (``MAV_SYS_STATUS_PREARM_CHECK`` healthy), says why not in ``PreArm:``
+  STATUSTEXTs (every 30 s, and at each refused arm), and GPS_RAW_INT gives the fix.  So a
+  vehicle is armed only once ready (``wait_ready``, within the start's bound), and an arm
+  refused FAILED or TEMPORARILY_REJECTED is tried again every ``ARM_RETRY_S`` within it
+  (``arm_when_ready``); the failure names the vehicle's own reasons.
 """
 
 from __future__ import annotations
@@ -26,7 +33,7 @@ from collections.abc import Awaitable, Callable
 
 from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import PlaneMode
-from gcs_ppf.mavlink.telemetry import VehicleTelemetry
+from gcs_ppf.mavlink.telemetry import VehicleTelemetry, recent_reasons
 from gcs_ppf.service.confirmation import (
     DEFAULT_RETRY,
     CommandFailed,
@@ -37,7 +44,7 @@ from gcs_ppf.service.confirmation import (
     wait_until,
 )
 
-__all__ = ["CommandFailed", "EventSink", "Retry", "launch", "take_off"]
+__all__ = ["CommandFailed", "EventSink", "Retry", "arm_when_ready", "launch", "take_off"]
 
 log = logging.getLogger("gcs_ppf.service.launch")
 
@@ -47,6 +54,13 @@ TAKEOFF_DONE_FRACTION = 0.9
 """A vehicle taking off is switched to GUIDED once at this fraction of its TKOFF_ALT."""
 LOST_POLL_S = 0.1
 """How often (our seconds) a vehicle being launched is looked at for the watchdog's verdict."""
+ARM_RETRY_S = 2.0
+"""Our seconds between arms refused for a reason that may clear."""
+RETRYABLE_ARM = frozenset({"FAILED", "TEMPORARILY_REJECTED"})
+"""Refusals of an arm that pre-arm checks still settling give (ArduPilot: FAILED)."""
+REASONS_RECENT_S = 35.0
+"""ArduPilot repeats its PreArm reasons every 30 s: the ones this recent still hold."""
+GPS_3D_FIX = 3
 
 
 def never_lost(vehicle_id: int) -> bool:
@@ -61,6 +75,87 @@ def on_ground(t: VehicleTelemetry) -> bool:
     """Lower than ``ON_GROUND_ALT_M`` above home (not also slow: ArduPlane's takeoff roll
     passes 5 m/s 1.3 s after arming)."""
     return t.relative_alt_m is not None and t.relative_alt_m < ON_GROUND_ALT_M
+
+
+def ready(t: VehicleTelemetry) -> bool:
+    """Pre-arm checks passing (or not reported) and a 3D GPS fix (or no GPS_RAW_INT)."""
+    return t.prearm_ok is not False and (t.gps_fix_type is None or t.gps_fix_type >= GPS_3D_FIX)
+
+
+def not_ready_reasons(t: VehicleTelemetry | None, now_s: float) -> list[str]:
+    """Why the vehicle is not ready: its own recent reasons, else what its status says."""
+    if t is None:
+        return ["no telemetry"]
+    reasons = recent_reasons(t, now_s - REASONS_RECENT_S)
+    if reasons:
+        return reasons
+    out = []
+    if t.prearm_ok is False:
+        out.append("pre-arm checks failing (SYS_STATUS), no reason given")
+    if t.gps_fix_type is not None and t.gps_fix_type < GPS_3D_FIX:
+        out.append(f"no 3D GPS fix (GPS_RAW_INT fix_type {t.gps_fix_type})")
+    return out
+
+
+async def wait_ready(
+    fleet: Vehicles, vehicle_id: int, event: EventSink, timeout_s: float, poll_s: float
+) -> None:
+    """Until the vehicle is ``ready``, at most ``timeout_s``: ``prearm_waiting`` with its
+    reasons, then ``prearm_passed``; or ``prearm_failed`` and ``CommandFailed`` naming
+    them."""
+
+    def is_ready() -> bool:
+        t = fleet.telemetry(vehicle_id)
+        return t is not None and ready(t)
+
+    if is_ready():
+        return
+    started = time.monotonic()
+    event(
+        "prearm_waiting",
+        vehicle_id,
+        reasons=not_ready_reasons(fleet.telemetry(vehicle_id), started),
+    )
+    if timeout_s > 0 and await wait_until(is_ready, timeout_s, poll_s):
+        event("prearm_passed", vehicle_id, waited_s=round(time.monotonic() - started, 1))
+        return
+    reasons = not_ready_reasons(fleet.telemetry(vehicle_id), time.monotonic())
+    event("prearm_failed", vehicle_id, waited_s=round(timeout_s, 1), reasons=reasons)
+    raise CommandFailed(vehicle_id, "pre-arm checks", reasons="; ".join(reasons) or "none given")
+
+
+async def arm_when_ready(
+    fleet: Vehicles,
+    vehicle_id: int,
+    event: EventSink,
+    retry: Retry = DEFAULT_RETRY,
+    ready_timeout_s: float = 0.0,
+) -> None:
+    """Armed (``arm``) once ``ready`` (``wait_ready``), within ``ready_timeout_s`` in all;
+    an arm refused FAILED or TEMPORARILY_REJECTED (``arm_refused``, with the vehicle's
+    reasons) is tried again every ``ARM_RETRY_S`` within it.  ``CommandFailed`` names the
+    last refusal and the vehicle's reasons."""
+    deadline = time.monotonic() + ready_timeout_s
+    while True:
+        await wait_ready(
+            fleet, vehicle_id, event, max(0.0, deadline - time.monotonic()), retry.poll_s
+        )
+        asked = time.monotonic()
+        try:
+            await arm(fleet, vehicle_id, event, retry)
+            return
+        except CommandFailed as exc:
+            result = exc.detail.get("result")
+            # the reasons come as STATUSTEXT just before the ACK; wait a moment for them
+            await asyncio.sleep(min(0.2, 4 * retry.poll_s))
+            t = fleet.telemetry(vehicle_id)
+            reasons = [] if t is None else recent_reasons(t, asked - 1.0)
+            if result not in RETRYABLE_ARM or time.monotonic() + ARM_RETRY_S > deadline:
+                raise CommandFailed(
+                    vehicle_id, "arm", result=result, reasons="; ".join(reasons) or "none given"
+                ) from None
+            event("arm_refused", vehicle_id, result=result, reasons=reasons, retry_in_s=ARM_RETRY_S)
+            await asyncio.sleep(ARM_RETRY_S)
 
 
 async def set_mode(
@@ -139,17 +234,18 @@ async def take_off(
     event: EventSink,
     retry: Retry = DEFAULT_RETRY,
     takeoff_dist_m: float | None = None,
+    ready_timeout_s: float = 0.0,
 ) -> float:
     """A vehicle on the ground up to its takeoff altitude: TKOFF_ALT set and read back,
-    TAKEOFF mode, armed (each confirmed), then until it is at ``TAKEOFF_DONE_FRACTION`` of
-    the TKOFF_ALT it reported (of ``takeoff_alt_m`` if it did not answer).  Returns that
-    TKOFF_ALT."""
+    TAKEOFF mode, armed once ready (``arm_when_ready``, within ``ready_timeout_s``; each
+    confirmed), then until it is at ``TAKEOFF_DONE_FRACTION`` of the TKOFF_ALT it reported
+    (of ``takeoff_alt_m`` if it did not answer).  Returns that TKOFF_ALT."""
     read = await set_param(fleet, vehicle_id, "TKOFF_ALT", takeoff_alt_m, event, retry)
     alt = takeoff_alt_m if read is None or read <= 0.0 else read
     if takeoff_dist_m is not None:  # ArduPlane ≥ 4.5: climb out straight, not in circles
         await set_param(fleet, vehicle_id, "TKOFF_DIST", takeoff_dist_m, event, retry)
     await set_mode(fleet, vehicle_id, PlaneMode.TAKEOFF, event, retry)
-    await arm(fleet, vehicle_id, event, retry)
+    await arm_when_ready(fleet, vehicle_id, event, retry, ready_timeout_s)
     event("takeoff", vehicle_id, takeoff_alt_m=alt)
 
     def high_enough() -> bool:
@@ -174,6 +270,7 @@ async def launch(
     takeoff_dist_m: float | None = None,
     is_lost: Callable[[int], bool] = never_lost,
     on_lost: Callable[[int], None] = ignore_lost,
+    ready_timeout_s: float = 0.0,
 ) -> None:
     """Every vehicle flying in GUIDED: those on the ground taken off (``take_off``), the
     others armed if they are not; all at once, then each switched to GUIDED (confirmed).
@@ -211,9 +308,9 @@ async def launch(
         if t is None:
             raise CommandFailed(vid, "launch", reason="no telemetry")
         if on_ground(t):
-            await take_off(fleet, vid, takeoff_alt_m, event, retry, takeoff_dist_m)
+            await take_off(fleet, vid, takeoff_alt_m, event, retry, takeoff_dist_m, ready_timeout_s)
         elif not t.armed:
-            await arm(fleet, vid, event, retry)
+            await arm_when_ready(fleet, vid, event, retry, ready_timeout_s)
 
     async def guided(vid: int) -> None:
         await set_mode(fleet, vid, PlaneMode.GUIDED, event, retry)

@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import ipaddress
+import re
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
+
+from gcs_ppf.tokens import TokenEntry, load_token_file
+
+HOST = re.compile(r"[A-Za-z0-9_.:-]{1,253}")  # a name, an IPv4 or an IPv6 address
 
 
 class Settings(BaseSettings):
@@ -67,6 +73,14 @@ class Settings(BaseSettings):
         "towards a point this far ahead instead of circling 200 m ahead (ArduPlane's default), "
         "so the formation starts as the plan assumes",
     )
+    prearm_timeout_s: float = Field(
+        default=60.0,
+        ge=0.0,
+        le=600.0,
+        description="how long (our seconds) a start waits for each vehicle's pre-arm checks "
+        "and retries an arm refused for a reason that may clear (real ArduPlane: some seconds "
+        "after boot while the EKF settles); 0: arm at once, or fail naming the reasons",
+    )
     vehicle_timeout_s: float = Field(
         default=5.0, gt=0.0, description="silence, in the vehicle's own seconds, that makes it lost"
     )
@@ -83,3 +97,51 @@ class Settings(BaseSettings):
     telemetry_sample_hz: float = Field(default=2.0, gt=0.0)
     stream_rate_hz: float = Field(default=10.0, gt=0.0)
     tlog_dir: Path | None = Path("tlogs")
+    tokens: list[TokenEntry] = Field(
+        default_factory=list,
+        description="API bearer tokens, hashed: [{id, sha256, scopes}] (`gcs-ppf token` makes "
+        "one); with none here nor in token_file the API is open, on loopback only",
+    )
+    token_file: Path | None = Field(
+        default=None, description="a JSON file of more such entries (`gcs-ppf token --file`)"
+    )
+    link_allow: list[str] = Field(
+        default_factory=list,
+        description="hosts (names or addresses) and networks (CIDR) that POST /links may "
+        "connect to besides loopback",
+    )
+    audit_log: Path | None = Field(
+        default=None,
+        description="JSON lines, one per command request; unset: beside the database "
+        "(<db>.audit.jsonl), none for an in-memory database",
+    )
+    max_body_bytes: int = Field(default=1_000_000, ge=1_000, description="request bodies (413)")
+    max_vehicles: int = Field(default=100, ge=1, le=1000, description="vehicles of a mission")
+    max_obstacles: int = Field(default=1000, ge=0, le=10_000, description="obstacles of one")
+
+    @field_validator("link_allow")
+    @classmethod
+    def _allowed_hosts(cls, entries: list[str]) -> list[str]:
+        for entry in entries:
+            if "/" in entry:
+                try:
+                    ipaddress.ip_network(entry, strict=False)
+                except ValueError:
+                    raise ValueError(
+                        f"{entry!r} is not a network (CIDR, e.g. 10.0.0.0/24)"
+                    ) from None
+            elif not HOST.fullmatch(entry.strip("[]")):
+                raise ValueError(f"{entry!r} is not a host name or address")
+        return entries
+
+    def api_tokens(self) -> list[TokenEntry]:
+        """``tokens`` and those of ``token_file`` (raises ``TokenFileError``)."""
+        extra = [] if self.token_file is None else load_token_file(self.token_file)
+        return [*self.tokens, *extra]
+
+    def audit_path(self) -> Path | None:
+        if self.audit_log is not None:
+            return self.audit_log
+        if str(self.db) == ":memory:":
+            return None
+        return self.db.with_name(self.db.stem + ".audit.jsonl")

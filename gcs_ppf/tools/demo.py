@@ -21,11 +21,13 @@ from gcs_ppf.mission import Mission
 FINISHED = ("completed", "completed_unsafe", "aborted", "failed")
 
 
-def http_json(method: str, url: str, body: Any = None) -> tuple[int, Any]:
+def http_json(method: str, url: str, body: Any = None, token: str | None = None) -> tuple[int, Any]:
+    """One JSON request, with ``token`` as its bearer token when given; (status, body)."""
     data = None if body is None else json.dumps(body).encode()
-    req = urllib.request.Request(
-        url, data=data, method=method, headers={"content-type": "application/json"}
-    )
+    headers = {"content-type": "application/json"}
+    if token is not None:
+        headers["authorization"] = f"Bearer {token}"
+    req = urllib.request.Request(url, data=data, method=method, headers=headers)
     try:
         with urllib.request.urlopen(req, timeout=10) as r:
             return r.status, json.loads(r.read() or b"null")

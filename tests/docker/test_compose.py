@@ -19,8 +19,8 @@ from typing import Any
 
 import pytest
 
-from gcs_ppf.tools.demo import FINISHED
-from gcs_ppf.tools.demo import http_json as http
+from gcs_ppf.tokens import entries_json, new_token
+from gcs_ppf.tools.demo import FINISHED, http_json
 from gcs_ppf.tools.observer import free_port_block
 from tests.checks import wait_for
 from tests.conftest import EXAMPLES, ROOT
@@ -36,6 +36,12 @@ pytestmark = [
 PROJECT = "gcs-ppf-check"
 SPEEDUP = 10
 STOP_S = 5.0  # `down` of both containers; a container that ignores SIGTERM takes 10 s
+# docker-compose.yml serves on 0.0.0.0 in its container: it needs GCS_PPF_TOKENS
+TOKEN, ENTRY = new_token("compose-check")
+
+
+def http(method: str, url: str, body: Any = None) -> tuple[int, Any]:
+    return http_json(method, url, body, token=TOKEN)
 
 
 def compose_command() -> list[str]:
@@ -68,7 +74,12 @@ def finished(api: str, mid: int) -> dict[str, Any] | None:
 def stack() -> Iterator[tuple[list[str], dict[str, str], str]]:
     """The compose project up (detached, without building); taken down however the test ends."""
     port = free_port_block(1)
-    env = {**os.environ, "GCS_PPF_PORT": str(port), "GCS_PPF_SITL_SPEEDUP": str(SPEEDUP)}
+    env = {
+        **os.environ,
+        "GCS_PPF_PORT": str(port),
+        "GCS_PPF_SITL_SPEEDUP": str(SPEEDUP),
+        "GCS_PPF_TOKENS": entries_json([ENTRY]),
+    }
     compose = compose_command()
     subprocess.run([*compose, "down", "--volumes"], cwd=ROOT, env=env, check=False)
     try:
@@ -98,6 +109,7 @@ def test_compose_serves_the_vehicles_and_flies_a_mission(
     assert ids
     print(f"\ncompose up: /vehicles lists {expected} {time.monotonic() - started:.1f} s after up")
 
+    assert http_json("GET", f"{api}/vehicles")[0] == 401  # without the token
     status, created = http("POST", f"{api}/missions", mission)
     assert status == 201, created
     mid = created["id"]

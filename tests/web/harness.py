@@ -95,7 +95,7 @@ def http(method: str, url: str, body: Any = None) -> tuple[int, Any]:
 
 def up(api: str) -> bool:
     try:
-        return http("GET", f"{api}/links")[0] == 200
+        return http("GET", f"{api}/health")[0] == 200
     except OSError:
         return False
 

@@ -1,4 +1,39 @@
 // The service's REST API and the page's WebSocket (/ws/view), with reconnection.
+//
+// A service started with API tokens answers 401 without one: the page then asks for a token
+// once (or takes it from the address's fragment, `/#token=…`, which no request carries) and
+// keeps it in sessionStorage; requests send it as `Authorization: Bearer …`, the WebSocket
+// as its subprotocol `bearer.…` (a browser cannot set headers on a WebSocket).
+
+const TOKEN_KEY = "gcs-ppf-token";
+let asking = null; // the one prompt shown while several requests wait for a token
+
+function takeFragmentToken() {
+  const m = /(?:^#|&)token=([^&]+)/.exec(location.hash);
+  if (!m) return;
+  sessionStorage.setItem(TOKEN_KEY, decodeURIComponent(m[1]));
+  history.replaceState(null, "", location.pathname + location.search);
+}
+takeFragmentToken();
+
+/** The token the page holds (null: none; an open service needs none). */
+export function token() {
+  return sessionStorage.getItem(TOKEN_KEY);
+}
+
+/** Ask the operator for a token (once for all requests waiting); resolves to it or null. */
+export function askToken(why) {
+  if (!asking) {
+    asking = Promise.resolve().then(() => {
+      const given = window.prompt(`${why}\nAPI token (gcs-ppf token NAME makes one):`, "");
+      if (given && given.trim()) sessionStorage.setItem(TOKEN_KEY, given.trim());
+      else sessionStorage.removeItem(TOKEN_KEY);
+      asking = null;
+      return token();
+    });
+  }
+  return asking;
+}
 
 /** A failed request, in words a person reads: `message`, the HTTP `status` (0: no answer),
  * and the API's `detail` (a string, or pydantic's list of field errors for a 422). */
@@ -10,15 +45,27 @@ export class ApiError extends Error {
   }
 }
 
-/** Calls the API; resolves to the JSON body (null for 204), throws ApiError otherwise. */
+function send(method, path, body) {
+  const headers = body === undefined ? {} : { "Content-Type": "application/json" };
+  const held = token();
+  if (held) headers.Authorization = `Bearer ${held}`;
+  return fetch(path, {
+    method,
+    headers,
+    body: body === undefined ? undefined : JSON.stringify(body),
+  });
+}
+
+/** Calls the API; resolves to the JSON body (null for 204), throws ApiError otherwise.
+ * A 401 asks for a token once and sends the request again with it. */
 export async function api(method, path, body) {
   let response;
   try {
-    response = await fetch(path, {
-      method,
-      headers: body === undefined ? {} : { "Content-Type": "application/json" },
-      body: body === undefined ? undefined : JSON.stringify(body),
-    });
+    response = await send(method, path, body);
+    if (response.status === 401) {
+      const why = token() ? "The service does not know this token." : "The service needs a token.";
+      if (await askToken(why)) response = await send(method, path, body);
+    }
   } catch (err) {
     throw new ApiError(`The service did not answer ${method} ${path} (is it running?)`, 0, null);
   }
@@ -86,9 +133,14 @@ export class ViewStream {
   open() {
     this.attempt += 1;
     if (!this.lostAt) this.onState("connecting", "Connecting to the service…");
-    const ws = new WebSocket(this.url());
+    const held = token();
+    const ws = held
+      ? new WebSocket(this.url(), ["gcs-ppf", `bearer.${held}`])
+      : new WebSocket(this.url());
     this.ws = ws;
+    this.opened = false;
     ws.onopen = () => {
+      this.opened = true;
       const was = this.lostAt;
       this.attempt = 0;
       this.lostAt = null;
@@ -111,6 +163,11 @@ export class ViewStream {
     ws.onclose = (ev) => {
       if (this.ws !== ws) return;
       this.ws = null;
+      if (!this.opened) {
+        // A refused handshake looks like a service that is down: ask the API which it is
+        // (a 401 there asks for a token).
+        api("GET", "/vehicles").catch(() => {});
+      }
       this.lost(`the connection closed (code ${ev.code}${ev.reason ? ": " + ev.reason : ""})`);
     };
     ws.onerror = () => {};

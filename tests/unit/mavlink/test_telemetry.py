@@ -268,3 +268,52 @@ def test_the_airspeed_ratio_is_taken_along_the_flight_path() -> None:
     msg = _wire(mavlink2.MAVLink_vfr_hud_message(100.0, horizontal, 0, 50, 650.0, climb))
     tel = apply(tel, msg, 0.0)
     assert tel.speed_ratio_mean == pytest.approx(1.0)
+
+
+def _sys_status(present: int, health: int) -> MAVLinkMessage:
+    return _wire(
+        mavlink2.MAVLink_sys_status_message(
+            present, present, health, 200, 12600, 1000, 90, 0, 0, 0, 0, 0, 0
+        )
+    )
+
+
+def test_the_pre_arm_bit_of_sys_status_and_the_gps_fix() -> None:
+    prearm = 1 << 28
+    tel = apply(None, _heartbeat(), 1.0)
+    assert tel.prearm_ok is None
+    tel = apply(tel, _sys_status(0x3F, 0x3F), 2.0)  # a vehicle that does not report the bit
+    assert tel.prearm_ok is None
+    tel = apply(tel, _sys_status(0x3F | prearm, 0x3F), 3.0)  # ArduPilot, checks failing
+    assert tel.prearm_ok is False
+    tel = apply(tel, _sys_status(0x3F | prearm, 0x3F | prearm), 4.0)
+    assert tel.prearm_ok is True
+    gps = mavlink2.MAVLink_gps_raw_int_message(0, 2, 0, 0, 0, 65535, 65535, 0, 65535, 5)
+    assert apply(tel, _wire(gps), 5.0).gps_fix_type == 2
+
+
+def test_arming_reasons_from_statustext_newest_last_one_per_text() -> None:
+    def text(t: str) -> MAVLinkMessage:
+        return _wire(mavlink2.MAVLink_statustext_message(4, t.encode()))
+
+    tel = apply(None, _heartbeat(), 1.0)
+    tel = apply(tel, text("PreArm: AHRS: waiting for home"), 2.0)
+    tel = apply(tel, text("Throttle armed"), 2.5)  # not a reason
+    tel = apply(tel, text("PreArm: GPS 1: Bad fix"), 3.0)
+    tel = apply(tel, text("PreArm: AHRS: waiting for home"), 4.0)
+    tel = apply(tel, text("Arm: Throttle (RC3) is not neutral"), 5.0)
+    assert [(r.text, r.received_s) for r in tel.arming_reasons] == [
+        ("PreArm: GPS 1: Bad fix", 3.0),
+        ("PreArm: AHRS: waiting for home", 4.0),
+        ("Arm: Throttle (RC3) is not neutral", 5.0),
+    ]
+    from gcs_ppf.mavlink.telemetry import ARMING_REASONS_KEPT, recent_reasons
+
+    assert recent_reasons(tel, 4.0) == [
+        "PreArm: AHRS: waiting for home",
+        "Arm: Throttle (RC3) is not neutral",
+    ]
+    for k in range(2 * ARMING_REASONS_KEPT):
+        tel = apply(tel, text(f"PreArm: check {k}"), 10.0 + k)
+    assert len(tel.arming_reasons) == ARMING_REASONS_KEPT
+    assert tel.arming_reasons[-1].text == f"PreArm: check {2 * ARMING_REASONS_KEPT - 1}"

@@ -12,7 +12,7 @@ import pytest
 
 from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import PlaneMode
-from gcs_ppf.mavlink.telemetry import CommandAck, ParamValue, VehicleTelemetry
+from gcs_ppf.mavlink.telemetry import ArmingReason, CommandAck, ParamValue, VehicleTelemetry
 from gcs_ppf.service import launch
 from gcs_ppf.service.launch import CommandFailed, Retry
 
@@ -286,3 +286,97 @@ def test_a_vehicle_failing_and_not_lost_still_fails_the_launch() -> None:
         run(launch.launch(FakeFleet(good, bad), [1, 2], 50.0, event, FAST,
                           is_lost=lambda vid: False, on_lost=lambda vid: None))  # fmt: skip
     assert failed.value.vehicle_id == 2
+
+
+def not_ready_until(plane: FakePlane, ready_after_s: float, reason: str) -> None:
+    """``plane`` reports its pre-arm checks failing (SYS_STATUS) with ``reason`` (STATUSTEXT)
+    until ``ready_after_s`` from now, as real ArduPlane does while its EKF settles."""
+    now = time.monotonic()
+    plane.t = dataclasses.replace(
+        plane.t, prearm_ok=False, arming_reasons=(ArmingReason(reason, now),)
+    )
+    asyncio.get_running_loop().call_later(
+        ready_after_s, lambda: plane._later(prearm_ok=True, gps_fix_type=3)
+    )
+
+
+def test_a_vehicle_is_armed_only_once_its_pre_arm_checks_pass() -> None:
+    plane = FakePlane(2, 0.0, mode=PlaneMode.MANUAL)
+    events, event = recorder()
+
+    async def scenario() -> None:
+        not_ready_until(plane, 0.3, "PreArm: AHRS: waiting for home")
+        await launch.launch(FakeFleet(plane), [2], 50.0, event, FAST, ready_timeout_s=5.0)
+
+    run(scenario())
+    kinds = [k for k, _, _ in events]
+    assert kinds.index("prearm_waiting") < kinds.index("prearm_passed") < kinds.index("takeoff")
+    waiting = next(d for k, _, d in events if k == "prearm_waiting")
+    assert waiting["reasons"] == ["PreArm: AHRS: waiting for home"]
+    passed = next(d for k, _, d in events if k == "prearm_passed")
+    assert 0.2 <= passed["waited_s"] <= 2.0
+    assert commands_sent(plane, commands.MAV_CMD_COMPONENT_ARM_DISARM) == 1
+    assert plane.t.custom_mode == PlaneMode.GUIDED
+
+
+def test_never_ready_fails_naming_the_vehicles_reasons_and_never_arms() -> None:
+    plane = FakePlane(2, 0.0, mode=PlaneMode.MANUAL)
+    events, event = recorder()
+
+    async def scenario() -> None:
+        not_ready_until(plane, 60.0, "PreArm: GPS 1: Bad fix")
+        await launch.launch(FakeFleet(plane), [2], 50.0, event, FAST, ready_timeout_s=0.3)
+
+    with pytest.raises(CommandFailed, match=r"pre-arm checks failed.*PreArm: GPS 1: Bad fix"):
+        run(scenario())
+    assert commands_sent(plane, commands.MAV_CMD_COMPONENT_ARM_DISARM) == 0
+    assert events[-1] == (
+        "prearm_failed",
+        2,
+        {"waited_s": 0.3, "reasons": ["PreArm: GPS 1: Bad fix"]},
+    )
+
+
+def test_an_arm_refused_for_a_reason_that_clears_is_tried_again(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr(launch, "ARM_RETRY_S", 0.05)
+    plane = FakePlane(1, 100.0, mode=PlaneMode.LOITER)  # flying, disarmed: armed in place
+    plane.script[commands.MAV_CMD_COMPONENT_ARM_DISARM] = [FAILED, FAILED]
+
+    def refused_with_reason(msg: Any, receive: Any = plane.receive) -> None:
+        if getattr(msg, "command", None) == commands.MAV_CMD_COMPONENT_ARM_DISARM:
+            reason = ArmingReason("PreArm: Gyros still settling", time.monotonic())
+            plane.t = dataclasses.replace(plane.t, arming_reasons=(reason,))
+        receive(msg)
+
+    plane.receive = refused_with_reason  # type: ignore[method-assign]
+    events, event = recorder()
+    run(launch.launch(FakeFleet(plane), [1], 50.0, event, FAST, ready_timeout_s=5.0))
+    refusals = [d for k, _, d in events if k == "arm_refused"]
+    assert len(refusals) == 2
+    assert refusals[0]["result"] == "FAILED"
+    assert refusals[0]["reasons"] == ["PreArm: Gyros still settling"]
+    assert plane.t.armed
+    assert plane.t.custom_mode == PlaneMode.GUIDED
+
+
+@pytest.mark.parametrize(("result", "name"), [(DENIED, "DENIED"), (FAILED, "FAILED")])
+def test_an_arm_refused_for_good_fails_with_the_result_and_no_retry_past_the_bound(
+    monkeypatch: pytest.MonkeyPatch, result: int, name: str
+) -> None:
+    monkeypatch.setattr(launch, "ARM_RETRY_S", 0.05)
+    plane = FakePlane(1, 100.0, mode=PlaneMode.LOITER)
+    plane.script[commands.MAV_CMD_COMPONENT_ARM_DISARM] = [result] * 100
+    _, event = recorder()
+    with pytest.raises(
+        CommandFailed, match=f"arm failed \\(result {name}, reasons none given"
+    ) as err:
+        run(launch.launch(FakeFleet(plane), [1], 50.0, event, FAST, ready_timeout_s=0.3))
+    assert err.value.vehicle_id == 1
+    tries = commands_sent(plane, commands.MAV_CMD_COMPONENT_ARM_DISARM)
+    if result == DENIED:
+        assert tries == 1  # final
+    else:
+        assert 2 <= tries <= 8  # every 0.05 s (+ the reasons' moment) for 0.3 s
+    assert not plane.t.armed

@@ -184,3 +184,83 @@ def test_while_one_vehicle_takes_off_the_others_holds_are_flown_then_handed_over
     assert all(sent_to(v, commands.MAV_CMD_DO_REPOSITION) == 1 for v in flying)
     assert sent_to(2, commands.MAV_CMD_GUIDED_CHANGE_HEADING) == 0
     assert sent_to(2, commands.MAV_CMD_DO_REPOSITION) == 0
+
+
+def report_on_ground(service: FormationService, mission: Mission) -> None:
+    """Every vehicle of ``mission`` standing on the ground where the mission starts it,
+    disarmed, as a SITL just booted reports it."""
+    from gcs_ppf.geodesy import enu_to_geodetic
+
+    for v in mission.vehicles:
+        lat, lon, alt = enu_to_geodetic(v.position[0], v.position[1], 0.0, mission.origin)
+        t = VehicleTelemetry(
+            v.id,
+            1,
+            lat_deg=lat,
+            lon_deg=lon,
+            alt_amsl_m=alt,
+            relative_alt_m=0.0,
+            vn_m_s=0.0,
+            ve_m_s=0.0,
+            vd_m_s=0.0,
+            time_boot_ms=1000,
+            position_received_s=time.monotonic(),
+        )
+        service.fleet.by_id[v.id] = Vehicle(v.id, 0, t, last_heard_s=time.monotonic() + 60)
+
+
+@pytest.mark.parametrize("some_flying", [False, True])
+def test_a_start_that_fails_leaves_the_vehicles_on_the_ground_alone(
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    caplog: pytest.LogCaptureFixture,
+    some_flying: bool,
+) -> None:
+    """Real ArduPlane refused the arm (pre-arm checks not passed yet) and the run failed;
+    the holds that followed were commanded to vehicles still on the ground, and raised
+    ``ValueError: lateral_accel_m_s2 must be > 0`` (``holds_flight_failed``).  Now those on
+    the ground are left alone (``holds_not_on_ground``), the flying ones hold, nothing
+    raises."""
+    from gcs_ppf.mavlink import commands
+
+    monkeypatch.setattr(runs, "load_kernels", lambda planner_dt_s: None)
+
+    async def refused(*args: object, **kwargs: object) -> None:
+        raise launch.CommandFailed(2, "arm", result="FAILED", attempts=1)
+
+    monkeypatch.setattr(launch, "launch", refused)
+    mission = Mission.model_validate_json((EXAMPLES / "paper_table3.json").read_text())
+    sent: list[tuple[int, object]] = []
+    events: list[dict[str, object]] = []
+
+    async def scenario() -> None:
+        service = recording(tmp_path, monkeypatch, sent)
+        async with service.running():
+            if some_flying:
+                report_flying(service, mission, on_ground=2)
+            else:
+                report_on_ground(service, mission)
+            mid = service.create_mission(mission).id
+            await service.start(mid)
+            for _ in range(100):
+                events[:] = service.events(mid)
+                if any(e["kind"] in ("holds_loitering", "holds_flight_failed") for e in events):
+                    break
+                await asyncio.sleep(0.05)
+            assert service.status(mid)["state"] == "failed"
+            service.fleet.by_id.clear()
+
+    asyncio.run(scenario())
+    kinds = [e["kind"] for e in events]
+    assert "holds_flight_failed" not in kinds
+    grounded = [e for e in events if e["kind"] == "holds_not_on_ground"]
+    on_ground = [2] if some_flying else [v.id for v in mission.vehicles]
+    assert [e["detail"]["vehicles"] for e in grounded] == [on_ground]  # type: ignore[index]
+    # the launch (refused at once) asked for parameters only; the holds sent them nothing
+    kinds_sent = {getattr(m, "get_type", lambda: "?")() for vid, m in sent if vid in on_ground}
+    assert kinds_sent <= {"PARAM_REQUEST_READ"}
+    assert not [r for r in caplog.records if r.exc_info], "a refusal is not an exception"
+    if some_flying:
+        reposition = commands.MAV_CMD_DO_REPOSITION
+        holds = {vid for vid, m in sent if getattr(m, "command", None) == reposition}
+        assert holds == {v.id for v in mission.vehicles} - {2}
