@@ -14,7 +14,7 @@ router = APIRouter()
 
 @router.post("/links", status_code=status.HTTP_201_CREATED, responses=ERRORS)
 async def add_link(body: LinkRequest, service: Service) -> dict[str, Any]:
-    return await service.fleet.add_link(body.url)
+    return await service.fleet.add_link(body.url, allow_unsigned=body.allow_unsigned)
 
 
 @router.get("/links")

@@ -61,6 +61,13 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--host", help="address to serve the API on (default 127.0.0.1)")
     serve.add_argument("--port", type=int, help="port of the API (default 8000)")
     serve.add_argument("--db", type=Path, help="SQLite file (default gcs_ppf.db)")
+    serve.add_argument(
+        "--signing-key-file",
+        type=Path,
+        metavar="PATH",
+        help="MAVLink 2 signing key (64 hex digits or a passphrase) in a file; or set "
+        "GCS_PPF_SIGNING_KEY (there is no option for the key itself: ps would show it)",
+    )
     ap = sub.add_parser("arduplane-sitl", help="start real ArduPlane SITL, one per vehicle")
     ap.add_argument("mission", type=Path, help="mission document (JSON)")
     ap.add_argument("--binary", type=Path, required=True, help="build/sitl/bin/arduplane")
@@ -78,13 +85,21 @@ def serve_command(args: argparse.Namespace) -> int:
     from api.app import create_app
     from gcs_ppf.service.settings import Settings
 
-    given = {"links": args.link, "host": args.host, "port": args.port, "db": args.db}
+    given = {
+        "links": args.link,
+        "host": args.host,
+        "port": args.port,
+        "db": args.db,
+        "signing_key_file": args.signing_key_file,
+    }
     try:
         settings = Settings(**{k: v for k, v in given.items() if v is not None})
     except ValidationError as exc:
         first = exc.errors()[0]
         field = ".".join(str(p) for p in first["loc"])
-        print(f"gcs-ppf: error: settings: {field}: {first['msg']}", file=sys.stderr)
+        where = f"{field}: " if field else ""  # a check of several fields names them itself
+        message = str(first["msg"]).removeprefix("Value error, ")
+        print(f"gcs-ppf: error: settings: {where}{message}", file=sys.stderr)
         return EXIT_BAD_INPUT
     log.info("serving on http://%s:%d (docs at /docs)", settings.host, settings.port)
     uvicorn.run(create_app(settings), host=settings.host, port=settings.port, log_level="info")

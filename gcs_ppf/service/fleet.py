@@ -138,7 +138,13 @@ class Fleet:
                 entry.task.cancel()
 
     # Links -------------------------------------------------------------------------------
-    async def add_link(self, url: str) -> dict[str, Any]:
+    async def add_link(self, url: str, *, allow_unsigned: bool | None = None) -> dict[str, Any]:
+        """Open a link to ``url``.  With a signing key (``Settings.signing_key``) it signs
+        every frame it sends, as MAVLink link id ``id % 256``, and refuses unsigned or wrongly
+        signed frames unless ``allow_unsigned`` (default: ``url`` is one of the settings'
+        ``unsigned_links``)."""
+        if allow_unsigned is None:
+            allow_unsigned = url in self.settings.unsigned_links
         try:
             parse_link_url(url)
         except (ValueError, NotImplementedError) as exc:
@@ -160,11 +166,17 @@ class Fleet:
             on_message,
             source_system=self.settings.system_id,
             tlog_path=tlog,
+            signing_key=self.settings.signing_key_bytes,
+            signing_link_id=link_id % 256,
+            accept_unsigned=allow_unsigned,
         )
         entry = LinkEntry(link_id, url, link)
         entry.task = self._spawn(link.run())
         self._links[link_id] = entry
-        log.info("link %d: %s", link_id, url)
+        signing = "unsigned" if not link.codec.signing else "signed"
+        if link.codec.accept_unsigned:
+            signing += ", unsigned frames accepted"
+        log.info("link %d: %s (%s)", link_id, url, signing)
         return self._link_info(entry)
 
     def decoding_s(self) -> float:
@@ -186,11 +198,16 @@ class Fleet:
 
     def _link_info(self, entry: LinkEntry) -> dict[str, Any]:
         vehicles = sorted(v.system_id for v in self.by_id.values() if v.link_id == entry.id)
+        stats = entry.link.stats
         return {
             "id": entry.id,
             "url": entry.url,
             "connected": entry.link.connected,
             "vehicles": vehicles,
+            "signing": entry.link.codec.signing,
+            "allow_unsigned": entry.link.codec.accept_unsigned,
+            "refused_unsigned": stats.refused_unsigned,
+            "refused_bad_signature": stats.refused_bad_signature,
         }
 
     # Vehicles ----------------------------------------------------------------------------

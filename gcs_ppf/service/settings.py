@@ -5,15 +5,19 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, PrivateAttr, SecretStr, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
+
+from gcs_ppf.mavlink.codec import signing_key_from_text
 
 
 class Settings(BaseSettings):
     """How the ground-station service runs; every field can be set as ``GCS_PPF_<NAME>``
     (``GCS_PPF_LINKS='["tcp:127.0.0.1:5760"]'``)."""
 
-    model_config = SettingsConfigDict(env_prefix="GCS_PPF_", extra="forbid")
+    model_config = SettingsConfigDict(
+        env_prefix="GCS_PPF_", extra="forbid", hide_input_in_errors=True
+    )
 
     host: str = "127.0.0.1"
     port: int = Field(default=8000, ge=1, le=65535)
@@ -83,3 +87,47 @@ class Settings(BaseSettings):
     telemetry_sample_hz: float = Field(default=2.0, gt=0.0)
     stream_rate_hz: float = Field(default=10.0, gt=0.0)
     tlog_dir: Path | None = Path("tlogs")
+    signing_key: SecretStr | None = Field(
+        default=None,
+        description="MAVLink 2 signing key: 64 hex digits, or a passphrase hashed with SHA-256 "
+        "(as MAVProxy's `signing setup`); set GCS_PPF_SIGNING_KEY or signing_key_file, never "
+        "a command-line argument (ps shows those). With a key every frame sent is signed and "
+        "unsigned or wrongly signed frames are refused, except on unsigned_links",
+    )
+    signing_key_file: Path | None = Field(
+        default=None, description="a file holding the signing key (hex or passphrase)"
+    )
+    unsigned_links: list[str] = Field(
+        default_factory=list,
+        description="link URLs on which unsigned frames are accepted although signing is on "
+        "(vehicles that do not sign); wrongly signed frames are refused there too",
+    )
+    _signing_key: bytes | None = PrivateAttr(default=None)
+
+    @model_validator(mode="after")
+    def _load_signing_key(self) -> Settings:
+        if self.signing_key is not None and self.signing_key_file is not None:
+            raise ValueError("signing_key and signing_key_file: set one of them, not both")
+        text: str | None = None
+        if self.signing_key is not None:
+            text = self.signing_key.get_secret_value()
+        elif self.signing_key_file is not None:
+            try:
+                text = self.signing_key_file.read_text(encoding="utf-8")
+            except (OSError, UnicodeDecodeError) as exc:
+                reason = getattr(exc, "strerror", None) or type(exc).__name__
+                raise ValueError(
+                    f"signing_key_file: cannot read {self.signing_key_file}: {reason}"
+                ) from None
+        if text is not None:
+            try:
+                self._signing_key = signing_key_from_text(text)
+            except ValueError as exc:
+                field = "signing_key" if self.signing_key is not None else "signing_key_file"
+                raise ValueError(f"{field}: {exc}") from None
+        return self
+
+    @property
+    def signing_key_bytes(self) -> bytes | None:
+        """The 32-byte MAVLink signing key, or None: no signing."""
+        return self._signing_key
