@@ -58,6 +58,30 @@ def signing_key_from_text(text: str) -> bytes:
     return hashlib.sha256(text.encode("utf-8")).digest()
 
 
+def guard_stream_timestamps(mav: Any) -> None:
+    """Make ``mav`` (a pymavlink ``MAVLink``) forget the timestamp of a frame whose signature
+    is wrong.  pymavlink records a stream's timestamp before it checks the signature
+    (``MAVLink.check_signature``), so one forged frame with a far-future timestamp would
+    make every genuine frame of that stream (link id, system, component) look like a replay,
+    and be refused, until the forger's timestamp is reached (the C library records it only
+    after the check)."""
+    check = mav.check_signature
+
+    def checked(msgbuf: bytearray, src_system: int, src_component: int) -> bool:
+        streams = mav.signing.stream_timestamps
+        stream = (msgbuf[-13], src_system, src_component)
+        before = streams.get(stream)
+        ok = bool(check(msgbuf, src_system, src_component))
+        if not ok:
+            if before is None:
+                streams.pop(stream, None)
+            else:
+                streams[stream] = before
+        return ok
+
+    mav.check_signature = checked
+
+
 @dataclass(frozen=True, slots=True)
 class CodecStats:
     """What ``Codec.parse`` has seen so far."""
@@ -138,6 +162,7 @@ class Codec:
             signing.link_id = signing_link_id
             signing.timestamp = signing_timestamp
             signing.sign_outgoing = True
+            guard_stream_timestamps(self._mav)
             # pymavlink asks this callback of wrongly signed frames too: only frames that
             # carry no signature at all are let through, and only with ``accept_unsigned``.
             signing.allow_unsigned_callback = lambda _mav, _msg_id: (
@@ -219,7 +244,7 @@ class Codec:
         buf += data
         out: list[MAVLinkMessage] = []
         skipped = framing = unknown = rejected = unsigned = bad_sig = 0
-        signing = self._mav.signing if self._mav.signing.secret_key is not None else None
+        signing = self._mav.signing.secret_key is not None
         i = 0
         n = len(buf)
         while i < n:
@@ -252,23 +277,14 @@ class Codec:
                 continue
             i += length
             signed = frame[0] == STX_V2 and bool(frame[2] & _IFLAG_SIGNED)
-            stream = (frame[-13], frame[5], frame[6]) if signed else None
-            before = None if signing is None else signing.stream_timestamps.get(stream)
             self._frame_signed = signed
             try:
                 out.append(self._mav.decode(frame))
             except Exception as exc:  # MAVError, struct.error, ...: all mean "drop it"
                 rejected += 1
-                if signing is not None and str(exc) == "Invalid signature":
+                if signing and str(exc) == "Invalid signature":
                     if signed:
                         bad_sig += 1
-                        # pymavlink records a stream's timestamp before it checks the
-                        # signature: a forged frame with a far-future timestamp would make
-                        # every genuine frame of that stream look like a replay.  Undo it.
-                        if before is None:
-                            signing.stream_timestamps.pop(stream, None)
-                        else:
-                            signing.stream_timestamps[stream] = before
                     else:
                         unsigned += 1
                     self.last_refused = _frame_ids(frame)

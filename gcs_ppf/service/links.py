@@ -31,6 +31,8 @@ from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage, signing_timestamp
 log = logging.getLogger(__name__)
 
 _READ_SIZE = 65536
+_SETUP_SIGNING_ID = 256
+"""SETUP_SIGNING carries a signing key: never written to a tlog."""
 _TLOG_FLUSH_S = 1.0
 REFUSED_LOG_PERIOD_S = 10.0
 """Frames refused for their signature are logged at the first, then at most this often."""
@@ -466,7 +468,7 @@ class MavlinkLink:
             self._tlog_flushed_s = time.monotonic()
 
     def _tlog_write(self, frame: bytes) -> None:
-        if self._tlog is None:
+        if self._tlog is None or _message_id(frame) == _SETUP_SIGNING_ID:
             return
         self._tlog.write(struct.pack(">Q", int(time.time() * 1e6)) + frame)
         now = time.monotonic()
@@ -478,3 +480,10 @@ class MavlinkLink:
         if self._tlog is not None:
             self._tlog.close()
             self._tlog = None
+
+
+def _message_id(frame: bytes) -> int:
+    """The message id of a whole MAVLink frame (1 or 2)."""
+    if frame[0] == 0xFD:
+        return frame[7] | (frame[8] << 8) | (frame[9] << 16)
+    return frame[5]
