@@ -6,7 +6,7 @@ from typing import Any
 
 from fastapi import APIRouter, status
 
-from api.deps import ERRORS, LinkId, Service
+from api.deps import ERRORS, LinkId, Service, SystemId
 from api.models import LinkRequest
 
 router = APIRouter()
@@ -25,6 +25,13 @@ async def list_links(service: Service) -> list[dict[str, Any]]:
 @router.delete("/links/{link_id}", status_code=status.HTTP_204_NO_CONTENT, responses=ERRORS)
 async def delete_link(link_id: LinkId, service: Service) -> None:
     await service.fleet.remove_link(link_id)
+
+
+@router.post("/vehicles/{system_id}/signing", responses=ERRORS)
+async def setup_signing(system_id: SystemId, service: Service) -> dict[str, Any]:
+    """Install the service's MAVLink signing key on the vehicle (SETUP_SIGNING): from then
+    on it signs, and refuses unsigned commands.  The key itself is never answered."""
+    return await service.fleet.setup_signing(system_id)
 
 
 @router.get("/vehicles")

@@ -28,6 +28,7 @@ from gcs_ppf.guidance.online import VehicleState, state_from_velocity
 from gcs_ppf.guidance.vehicle_clock import VehicleClock
 from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import mode_name
+from gcs_ppf.mavlink.codec import signing_timestamp
 from gcs_ppf.mavlink.telemetry import AIRFRAME_PARAMS, VehicleTelemetry, apply
 from gcs_ppf.mission import Mission
 from gcs_ppf.service.errors import Conflict, NotFound, ServiceError
@@ -269,6 +270,31 @@ class Fleet:
             if missing_only and vehicle is not None and vehicle.telemetry.param(name) is not None:
                 continue
             await self.send(system_id, commands.param_request_read(system_id, name))
+
+    async def setup_signing(self, system_id: int) -> dict[str, Any]:
+        """Install the service's signing key on vehicle ``system_id`` by SETUP_SIGNING, on
+        the link it was last heard on: only ever at the operator's explicit request (the
+        frame carries the key).  Raises Conflict without a key or a connected link,
+        NotFound for a vehicle never heard."""
+        key = self.settings.signing_key_bytes
+        if key is None:
+            raise Conflict(
+                "signing: the service has no signing key (set GCS_PPF_SIGNING_KEY or "
+                "signing_key_file)"
+            )
+        vehicle = self.by_id.get(system_id)
+        if vehicle is None:
+            raise NotFound(f"vehicle {system_id} has not been heard")
+        entry = self._links.get(vehicle.link_id)
+        msg = commands.setup_signing(system_id, key, signing_timestamp(time.time()))
+        if entry is None or not await entry.link.send(msg):
+            raise Conflict(f"vehicle {system_id}: its link {vehicle.link_id} is not connected")
+        log.warning(
+            "vehicle %d: signing key sent by SETUP_SIGNING on link %d",
+            system_id,
+            vehicle.link_id,
+        )
+        return {"system_id": system_id, "link_id": vehicle.link_id, "sent": True}
 
     def telemetry(self, system_id: int) -> VehicleTelemetry | None:
         """What is known of vehicle ``system_id``, if it has been heard."""
