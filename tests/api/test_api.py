@@ -140,7 +140,7 @@ def test_signing_links_and_setup_signing_never_answer_the_key(tmp_path: Path) ->
     settings = Settings(
         db=tmp_path / "gcs.db",
         tlog_dir=None,
-        signing_key=passphrase,  # type: ignore[arg-type]
+        signing_key=passphrase,
         unsigned_links=["tcp:127.0.0.1:11"],
     )
     with TestClient(create_app(settings)) as c:
