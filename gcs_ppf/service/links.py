@@ -35,7 +35,9 @@ _SETUP_SIGNING_ID = 256
 """SETUP_SIGNING carries a signing key: never written to a tlog."""
 _TLOG_FLUSH_S = 1.0
 REFUSED_LOG_PERIOD_S = 10.0
-"""Frames refused for their signature are logged at the first, then at most this often."""
+"""Frames refused for their signature are logged at the first, then at most this often..."""
+REFUSED_NEWS_LOG_PERIOD_S = 1.0
+"""...or this often when a new sender, or a kind of refusal not seen before, appears."""
 
 
 class LinkKind(enum.StrEnum):
@@ -204,6 +206,7 @@ class MavlinkLink:
         )
         self._refused_logged = (0, 0)  # (unsigned, bad signature) counts last logged
         self._refused_logged_s = -math.inf
+        self._refused_logged_from: tuple[int, int, int] | None = None
         self._tlog_path = tlog_path
         self._tlog: IO[bytes] | None = None
         self._tlog_flushed_s = 0.0
@@ -389,19 +392,25 @@ class MavlinkLink:
 
     def _log_refused(self) -> None:
         """A warning when frames were refused for their signature: at the first, then at most
-        every ``REFUSED_LOG_PERIOD_S``, with the counts since the last one and who sent the
-        last (never anything of the key)."""
+        every ``REFUSED_LOG_PERIOD_S`` (``REFUSED_NEWS_LOG_PERIOD_S`` for a new sender or a
+        new kind of refusal), with the counts since the last one and who sent the last
+        (never anything of the key).  Called on every read and every send, so refusals
+        that no others follow are told too, with the next heartbeat at the latest."""
         codec = self._codec.stats
         counts = (codec.refused_unsigned, codec.refused_bad_signature)
         if counts == self._refused_logged:
             return
         now = time.monotonic()
-        if now - self._refused_logged_s < REFUSED_LOG_PERIOD_S:
+        who = self._codec.last_refused
+        new_kind = any(c and not old for c, old in zip(counts, self._refused_logged, strict=True))
+        news = new_kind or who != self._refused_logged_from
+        wait = REFUSED_NEWS_LOG_PERIOD_S if news else REFUSED_LOG_PERIOD_S
+        if now - self._refused_logged_s < wait:
             return
         unsigned = counts[0] - self._refused_logged[0]
         bad = counts[1] - self._refused_logged[1]
         self._refused_logged, self._refused_logged_s = counts, now
-        who = self._codec.last_refused
+        self._refused_logged_from = who
         sender = "" if who is None else f"; last from system {who[0]} component {who[1]}, "
         sender += "" if who is None else f"message id {who[2]}"
         log.warning(
@@ -423,6 +432,7 @@ class MavlinkLink:
         Raises ValueError if ``msg`` cannot be encoded.  A TCP peer that stops reading for
         ``send_timeout_s`` is treated as gone: the connection is dropped and remade.
         """
+        self._log_refused()  # refusals since the last read are told even if none follow
         if not self.connected:
             self._stats = replace(self._stats, dropped_out=self._stats.dropped_out + 1)
             return False
