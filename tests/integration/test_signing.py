@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -14,9 +15,18 @@ from typing import Any
 import pytest
 from pymavlink import mavutil
 
+from gcs_ppf.tools.campaign import process
 from gcs_ppf.tools.demo import http_json as http
-from gcs_ppf.tools.observer import free_port
-from tests.integration.test_service_sitl import MISSION, check_safety, commands_sent, fly
+from gcs_ppf.tools.observer import free_port, free_port_block
+from tests.checks import wait_for
+from tests.integration.test_service_sitl import (
+    MISSION,
+    _vehicle_count,
+    check_safety,
+    commands_sent,
+    fly,
+)
+from tests.sitl.sitl_helpers import TWO, Client
 
 PASSPHRASE = "integration signing passphrase 26"
 KEY = hashlib.sha256(PASSPHRASE.encode()).digest()
@@ -153,3 +163,45 @@ def test_table3_signed_intruders_refused_and_the_key_nowhere(tmp_path: Path) -> 
         f"service's link: {forged['refused_unsigned']} unsigned, "
         f"{forged['refused_bad_signature']} wrongly signed; files checked: {len(written)}"
     )
+
+
+@pytest.mark.integration
+def test_setup_signing_from_the_operator_makes_an_unsigned_vehicle_sign(tmp_path: Path) -> None:
+    """A SITL without a key on a link that allows unsigned frames; ``POST /vehicles/1/signing``
+    installs the service's key: from then on the vehicle signs (the service still hears it
+    and counts no refusal) and an unsigned client's command is not answered."""
+    base, api_port = free_port_block(20), free_port_block(1)
+    api = f"http://127.0.0.1:{api_port}"
+    links = [f"tcp:127.0.0.1:{base}", f"tcp:127.0.0.1:{base + 10}"]
+    serve = [sys.executable, "-m", "gcs_ppf.cli", "serve", "--port", str(api_port)]
+    serve += ["--db", str(tmp_path / "gcs.db"), *(a for u in links for a in ("--link", u))]
+    env = {
+        "GCS_PPF_SIGNING_KEY": PASSPHRASE,
+        "GCS_PPF_UNSIGNED_LINKS": json.dumps(links),
+        "GCS_PPF_TLOG_DIR": str(tmp_path / "tlogs"),
+    }
+    sitl = [sys.executable, "-m", "sitl", str(TWO), "--speedup", "10", "--base-port", str(base)]
+    with process(sitl, tmp_path / "sitl.log"), process(serve, tmp_path / "gcs.log", env):
+        wait_for(lambda: _vehicle_count(api) == 2, 60, "vehicles discovered")
+        with Client(base) as plain:  # before: unsigned commands are obeyed
+            assert plain.set_mode(1, GUIDED).result == 0
+        status, body = http("POST", f"{api}/vehicles/1/signing")
+        assert status == 200, body
+        assert body == {"system_id": 1, "link_id": 1, "sent": True}
+        with Client(base) as plain:
+            plain.mav.command_long_send(1, 1, 176, 0, 1, 12, 0, 0, 0, 0, 0)
+            with pytest.raises(TimeoutError):
+                plain.wait("COMMAND_ACK", timeout=1.0)
+            plain.drain()
+            hb = plain.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 1)
+            assert hb.get_msgbuf()[2] & 0x01  # MAVLINK_IFLAG_SIGNED
+        time.sleep(1.0)
+        _, vehicles = http("GET", f"{api}/vehicles")
+        heard = {v["system_id"]: v for v in vehicles}
+        assert heard[1]["seconds_since_heard"] < 1.0
+        assert not heard[1]["lost"]
+        _, listed = http("GET", f"{api}/links")
+        assert listed[0]["refused_bad_signature"] == 0
+    for path in [p for p in tmp_path.rglob("*") if p.is_file()]:
+        assert KEY not in path.read_bytes(), path
+        assert PASSPHRASE.encode() not in path.read_bytes(), path

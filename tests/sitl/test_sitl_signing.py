@@ -109,10 +109,8 @@ def test_two_key_sources_are_an_error(tmp_path: Path) -> None:
     key_file = tmp_path / "key"
     key_file.write_text(PASSPHRASE)
     env = {**os.environ, "SITL_SIGNING_KEY": PASSPHRASE}
-    done = subprocess.run(
-        [sys.executable, "-m", "sitl", str(TWO), "--signing-key-file", str(key_file)],
-        cwd=REPO, env=env, capture_output=True, text=True, timeout=60,
-    )  # fmt: skip
+    args = [sys.executable, "-m", "sitl", str(TWO), "--signing-key-file", str(key_file)]
+    done = subprocess.run(args, cwd=REPO, env=env, capture_output=True, text=True, timeout=60)
     assert done.returncode == 2
     assert "--signing-key-file and SITL_SIGNING_KEY" in done.stderr
     assert PASSPHRASE not in done.stderr
