@@ -84,6 +84,10 @@ class Vehicle:
     """The link's last round trips (our seconds), from TIMESYNC."""
     param_asks: int = 0
     """How many times its airframe parameters not answered yet were asked for again."""
+    heard_on: dict[int, float] = field(default_factory=dict)
+    """Link id → when (our monotonic seconds) it was last heard there."""
+    duplicate_links: tuple[int, ...] = ()
+    """The links it is heard on at once, when more than one (``Fleet.duplicates``)."""
     boot_history: deque[tuple[float, int]] = field(
         default_factory=lambda: deque(maxlen=BOOT_HISTORY_KEPT)
     )
@@ -227,7 +231,11 @@ class Fleet:
             self._spawn(self._request_streams(vehicle))
         else:
             vehicle.telemetry = apply(vehicle.telemetry, msg, now)
-            vehicle.link_id = link_id
+        vehicle.heard_on[link_id] = now
+        self._check_duplicate(vehicle, now)
+        if not vehicle.duplicate_links:
+            vehicle.link_id = link_id  # a vehicle that moved links is followed...
+        # ...but not one heard on two at once: commands stay on the link first heard.
         vehicle.last_heard_s = now
         boot_ms = getattr(msg, "time_boot_ms", None)
         if isinstance(boot_ms, int):
@@ -247,6 +255,45 @@ class Fleet:
         if msg.get_type() == "GLOBAL_POSITION_INT":
             self.telemetry_received_s = time.perf_counter()
             self.telemetry_event.set()
+
+    def _check_duplicate(self, vehicle: Vehicle, now: float) -> None:
+        """Note (and log, when it starts and ends) a system id heard on more than one link
+        within the lost-vehicle timeout (in the vehicle's seconds): two vehicles with one
+        id, or one vehicle on two links.  A run does not start with it (``duplicates``)."""
+        timeout = self.settings.vehicle_timeout_s
+        live = tuple(
+            sorted(
+                lid
+                for lid, t in vehicle.heard_on.items()
+                if lid in self._links and vehicle.clock.vehicle_seconds(now - t) <= timeout
+            )
+        )
+        links = live if len(live) > 1 else ()
+        if links == vehicle.duplicate_links:
+            return
+        if links:
+            log.warning(
+                "system id %d heard on links %s at once: two vehicles with one id, or one "
+                "vehicle on two links; commands stay on link %d, and no run starts with it",
+                vehicle.system_id,
+                ", ".join(map(str, links)),
+                vehicle.link_id,
+            )
+        else:
+            log.info("system id %d now heard on one link only", vehicle.system_id)
+        vehicle.duplicate_links = links
+
+    def duplicates(self, system_ids: list[int] | None = None) -> dict[int, tuple[int, ...]]:
+        """System id → the links it is heard on at once, for those heard on several (of
+        ``system_ids``, or all)."""
+        now = time.monotonic()
+        out = {}
+        for v in self.by_id.values():
+            if system_ids is None or v.system_id in system_ids:
+                self._check_duplicate(v, now)
+                if v.duplicate_links:
+                    out[v.system_id] = v.duplicate_links
+        return out
 
     async def _request_streams(self, vehicle: Vehicle) -> None:
         """Ask a new vehicle for the telemetry the planner needs, by SET_MESSAGE_INTERVAL
@@ -369,6 +416,7 @@ class Fleet:
                     "mode": mode_name(t.custom_mode) if t.custom_mode is not None else None,
                     "armed": t.armed,
                     "lost": v.lost,
+                    "duplicate_links": list(v.duplicate_links),
                     "seconds_since_heard": round(now - v.last_heard_s, 3),
                     "round_trip_s": None if v.round_trip_s is None else round(v.round_trip_s, 3),
                     "position": {

@@ -79,6 +79,8 @@ class Run:
     the reported positions every tick, formed or broken, the run's formation figures."""
     abort: asyncio.Event = field(default_factory=asyncio.Event)
     lost_ids: set[int] = field(default_factory=set)
+    duplicates: dict[int, tuple[int, ...]] = field(default_factory=dict)
+    """Vehicle id → the links it was heard on at once (``duplicate_system_id`` told)."""
     commanded_speed: dict[int, float] = field(default_factory=dict)
     climb_trims: dict[int, slew.ClimbTrim] = field(default_factory=dict)
     """Each vehicle's climb trim (``gcs_ppf.guidance.slew.climb_trim``)."""

@@ -13,6 +13,7 @@ import pytest
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission
 from gcs_ppf.service import flight, launch, runs
+from gcs_ppf.service.errors import Conflict
 from gcs_ppf.service.fleet import Vehicle
 from gcs_ppf.service.run import Run
 from gcs_ppf.service.runs import FormationService
@@ -184,3 +185,28 @@ def test_while_one_vehicle_takes_off_the_others_holds_are_flown_then_handed_over
     assert all(sent_to(v, commands.MAV_CMD_DO_REPOSITION) == 1 for v in flying)
     assert sent_to(2, commands.MAV_CMD_GUIDED_CHANGE_HEADING) == 0
     assert sent_to(2, commands.MAV_CMD_DO_REPOSITION) == 0
+
+
+def test_a_start_with_a_system_id_heard_on_two_links_is_refused(tmp_path: Path) -> None:
+    mission = Mission.model_validate_json((EXAMPLES / "paper_table3.json").read_text())
+
+    async def scenario() -> None:
+        settings = Settings(db=tmp_path / "gcs.db", tlog_dir=None)
+        service = FormationService(settings, Store(settings.db))
+        async with service.running():
+            for v in mission.vehicles:
+                service.fleet.by_id[v.id] = Vehicle(
+                    v.id, 0, VehicleTelemetry(v.id, 1), last_heard_s=time.monotonic() + 60
+                )
+            first = await service.fleet.add_link("tcp:127.0.0.1:9")
+            second = await service.fleet.add_link("tcp:127.0.0.1:10")
+            now = time.monotonic()
+            service.fleet.by_id[3].heard_on = {first["id"]: now, second["id"]: now}
+            mid = service.create_mission(mission).id
+            with pytest.raises(Conflict) as refused:
+                await service.start(mid)
+            assert "vehicle 3 on links 1, 2" in refused.value.message
+            assert refused.value.detail == {"duplicate_links": {"3": [1, 2]}}
+            assert service.status(mid)["state"] == "pending"  # nothing started
+
+    asyncio.run(scenario())
