@@ -44,9 +44,18 @@ class RunState(StrEnum):
     """Stopped by the operator; every vehicle loiters."""
     FAILED = "failed"
     """The leader was lost (or the run could not go on); every vehicle loiters."""
+    INTERRUPTED = "interrupted"
+    """The service stopped (a crash, ``kill -9``) while the run flew, and was started again:
+    the vehicles flew on their last commands (and their own GCS failsafe) meanwhile."""
 
 
-FINISHED = {RunState.COMPLETED, RunState.COMPLETED_UNSAFE, RunState.ABORTED, RunState.FAILED}
+FINISHED = {
+    RunState.COMPLETED,
+    RunState.COMPLETED_UNSAFE,
+    RunState.ABORTED,
+    RunState.FAILED,
+    RunState.INTERRUPTED,
+}
 
 
 @dataclass

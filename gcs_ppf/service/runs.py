@@ -59,7 +59,10 @@ class FormationService:
             self._kernels_loaded,
         )
         for stale in store.interrupted_runs():  # a previous process stopped mid-flight
-            store.update_run(stale.id, RunState.FAILED, ended=True, outcome="service restarted")
+            outcome = f"the service stopped while the run was {stale.state}"
+            store.add_event(stale.id, "run_interrupted", detail={"outcome": outcome})
+            store.update_run(stale.id, RunState.INTERRUPTED, ended=True, outcome=outcome)
+            log.warning("run %d of mission %d: %s", stale.id, stale.mission_id, outcome)
 
     # Lifetime ----------------------------------------------------------------------------
     @contextlib.asynccontextmanager

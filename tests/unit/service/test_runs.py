@@ -210,3 +210,31 @@ def test_a_start_with_a_system_id_heard_on_two_links_is_refused(tmp_path: Path) 
             assert service.status(mid)["state"] == "pending"  # nothing started
 
     asyncio.run(scenario())
+
+
+def test_a_run_left_flying_by_a_dead_service_is_interrupted_on_restart(tmp_path: Path) -> None:
+    """``kill -9`` mid-run leaves the run unended in the store; the next service marks it
+    ``interrupted`` (not ``failed``: nothing handed the vehicles their holds), with an
+    event, and keeps every event stored before."""
+    mission = Mission.model_validate_json((EXAMPLES / "paper_table3.json").read_text())
+    store = Store(tmp_path / "gcs.db")
+    mid = store.add_mission(mission).id
+    run = store.add_run(mid, runs.RunState.RUNNING)
+    store.add_event(run.id, "run_started")
+    store.add_event(run.id, "run_running", mission_time_s=1.5)
+    store.close()
+    settings = Settings(db=tmp_path / "gcs.db", tlog_dir=None)
+    again = Store(settings.db)
+    service = FormationService(settings, again)
+    status = service.status(mid)
+    assert status["state"] == "interrupted"
+    assert status["outcome"] == "the service stopped while the run was running"
+    kinds = [e.kind for e in again.events(run.id)]
+    assert kinds == ["run_started", "run_running", "run_interrupted"]
+    assert again.interrupted_runs() == []
+    again.close()
+    # A third start finds nothing to mark again.
+    third = Store(settings.db)
+    FormationService(settings, third)
+    assert [e.kind for e in third.events(run.id)].count("run_interrupted") == 1
+    third.close()
