@@ -21,6 +21,7 @@ Service = Annotated[FormationService, Depends(get_service)]
 # Ids are SQLite integers: anything outside 1 … 2⁶³−1 cannot exist (422, not a server error).
 MissionId = Annotated[int, Path(ge=1, le=2**63 - 1)]
 LinkId = Annotated[int, Path(ge=1, le=2**63 - 1)]
+SystemId = Annotated[int, Path(ge=1, le=255, description="a vehicle's MAVLink system id")]
 ERRORS: dict[int | str, dict[str, Any]] = {
     404: {"model": ErrorBody},
     409: {"model": ErrorBody},

@@ -7,7 +7,7 @@ from typing import Any
 from fastapi import APIRouter, status
 
 from api.auth import link_allowed
-from api.deps import AUTH_ERRORS, COMMANDS, ERRORS, READ_ONLY, LinkId, Service
+from api.deps import AUTH_ERRORS, COMMANDS, ERRORS, READ_ONLY, LinkId, Service, SystemId
 from api.models import LinkRequest
 from gcs_ppf.service.errors import Forbidden
 from gcs_ppf.service.links import parse_link_url
@@ -29,7 +29,7 @@ async def add_link(body: LinkRequest, service: Service) -> dict[str, Any]:
             '(GCS_PPF_LINK_ALLOW=\'["HOST", "10.0.0.0/24"]\')',
             {"host": host},
         )
-    return await service.fleet.add_link(body.url)
+    return await service.fleet.add_link(body.url, allow_unsigned=body.allow_unsigned)
 
 
 @router.get("/links", dependencies=READ_ONLY)
@@ -45,6 +45,13 @@ async def list_links(service: Service) -> list[dict[str, Any]]:
 )
 async def delete_link(link_id: LinkId, service: Service) -> None:
     await service.fleet.remove_link(link_id)
+
+
+@router.post("/vehicles/{system_id}/signing", responses=ERRORS, dependencies=COMMANDS)
+async def setup_signing(system_id: SystemId, service: Service) -> dict[str, Any]:
+    """Install the service's MAVLink signing key on the vehicle (SETUP_SIGNING): from then
+    on it signs, and refuses unsigned commands.  The key itself is never answered."""
+    return await service.fleet.setup_signing(system_id)
 
 
 @router.get("/vehicles", dependencies=READ_ONLY)

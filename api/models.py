@@ -14,6 +14,11 @@ class LinkRequest(BaseModel):
     """A MAVLink connection in pymavlink's syntax."""
 
     url: str = Field(min_length=1, max_length=300, examples=["tcp:127.0.0.1:5760"])
+    allow_unsigned: bool | None = Field(
+        default=None,
+        description="with a signing key: accept unsigned frames on this link (a vehicle that "
+        "does not sign); unset: whether the URL is in the settings' unsigned_links",
+    )
 
 
 class MissionSummary(BaseModel):

@@ -50,7 +50,8 @@ STATIC_DIR = Path(__file__).parent / "static"
 MAX_FRAME_HZ = 20.0
 IDLE_FRAME_S = 0.5
 EVENTS_EVERY_S = 0.25  # the run's events are read from the store at most this often
-FINISHED = frozenset({"completed", "completed_unsafe", "aborted", "failed"})  # run states (API)
+# Run states (API) in which a run no longer flies.
+FINISHED = frozenset({"completed", "completed_unsafe", "aborted", "failed", "interrupted"})
 MOVING_M_S = 1.0  # below this ground speed the heading comes from the attitude, not velocity
 
 

@@ -63,6 +63,13 @@ def build_parser() -> argparse.ArgumentParser:
     serve.add_argument("--port", type=int, help="port of the API (default 8000)")
     serve.add_argument("--db", type=Path, help="SQLite file (default gcs_ppf.db)")
     serve.add_argument(
+        "--signing-key-file",
+        type=Path,
+        metavar="PATH",
+        help="MAVLink 2 signing key (64 hex digits or a passphrase) in a file; or set "
+        "GCS_PPF_SIGNING_KEY (there is no option for the key itself: ps would show it)",
+    )
+    serve.add_argument(
         "--token-file",
         type=Path,
         help="API tokens (`gcs-ppf token --file`); without any the API is open, on loopback only",
@@ -109,6 +116,7 @@ def serve_command(args: argparse.Namespace) -> int:
         "port": args.port,
         "db": args.db,
         "token_file": args.token_file,
+        "signing_key_file": args.signing_key_file,
     }
     try:
         settings = Settings(**{k: v for k, v in given.items() if v is not None})
@@ -116,7 +124,9 @@ def serve_command(args: argparse.Namespace) -> int:
     except ValidationError as exc:
         first = exc.errors()[0]
         field = ".".join(str(p) for p in first["loc"])
-        print(f"gcs-ppf: error: settings: {field}: {first['msg']}", file=sys.stderr)
+        where = f"{field}: " if field else ""  # a check of several fields names them itself
+        message = str(first["msg"]).removeprefix("Value error, ")
+        print(f"gcs-ppf: error: settings: {where}{message}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except (ExposureError, TokenFileError) as exc:
         print(f"gcs-ppf: error: {exc}", file=sys.stderr)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import os
 import sys
 import time
 from pathlib import Path
@@ -41,7 +42,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seed of noise and packet loss")
     p.add_argument("--tlog", type=Path, default=None, help="write DIR/vehicle<ID>.tlog")
     p.add_argument(
-        "--signing-key", default=None, help="MAVLink 2 signing key (64 hex) or passphrase"
+        "--signing-key",
+        default=None,
+        help="MAVLink 2 signing key (64 hex) or passphrase; ps shows it: prefer "
+        "--signing-key-file or the SITL_SIGNING_KEY environment variable",
+    )
+    p.add_argument(
+        "--signing-key-file",
+        type=Path,
+        default=None,
+        metavar="PATH",
+        help="a file holding the signing key (64 hex or a passphrase)",
     )
     p.add_argument(
         "--param",
@@ -74,6 +85,41 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+SIGNING_KEY_ENV = "SITL_SIGNING_KEY"
+
+
+def _signing_key(args: argparse.Namespace) -> bytes | None:
+    """The key of ``--signing-key``, ``--signing-key-file`` or ``SITL_SIGNING_KEY`` (one of
+    them at most), or None.  Raises ValueError naming the source, never quoting the key."""
+    given = [
+        name
+        for name, value in (
+            ("--signing-key", args.signing_key),
+            ("--signing-key-file", args.signing_key_file),
+            (SIGNING_KEY_ENV, os.environ.get(SIGNING_KEY_ENV)),
+        )
+        if value
+    ]
+    if len(given) > 1:
+        raise ValueError(f"signing key given twice ({' and '.join(given)}): give one")
+    if not given:
+        return None
+    if args.signing_key_file:
+        try:
+            text = Path(args.signing_key_file).read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            reason = getattr(exc, "strerror", None) or type(exc).__name__
+            raise ValueError(
+                f"--signing-key-file: cannot read {args.signing_key_file}: {reason}"
+            ) from None
+    else:
+        text = args.signing_key or os.environ[SIGNING_KEY_ENV]
+    try:
+        return signing_key(text)
+    except ValueError as exc:
+        raise ValueError(f"{given[0]}: {exc}") from None
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
@@ -81,6 +127,7 @@ def main(argv: list[str] | None = None) -> int:
         speedup = check_speedup(args.speedup)
         params = [parse_param_override(t) for t in args.param]
         faults = [parse_fault(t) for t in args.fault]
+        key = _signing_key(args)
         if not 1 <= args.base_port <= 65535 - 10 * (len(mission.vehicles) - 1):
             raise ValueError("--base-port: ports out of range for this many vehicles")
         sim = Simulation(
@@ -101,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
         speedup=speedup,
         out=args.out,
         seed=args.seed,
-        signing_key=signing_key(args.signing_key) if args.signing_key else None,
+        signing_key=key,
         tlog_dir=args.tlog,
         duration_s=args.duration,
     )

@@ -12,7 +12,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import functools
-import hashlib
 import math
 import random
 import signal
@@ -26,6 +25,7 @@ from typing import Any, BinaryIO
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from gcs_ppf.mavlink.codec import guard_stream_timestamps, signing_key_from_text
 from gcs_ppf.mavlink.enums import MAV_SEVERITY_WARNING
 from sitl.autopilot import Outbox
 from sitl.engine import Simulation
@@ -51,13 +51,12 @@ time in one burst while the starved service could not answer, 15 m into a keep-o
 def signing_key(text: str) -> bytes:
     """A 32-byte key: 64 hex digits as they are, anything else hashed with SHA-256 (as
     MAVProxy's ``signing setup PASSPHRASE`` does)."""
-    try:
-        raw = bytes.fromhex(text)
-        if len(raw) == 32:
-            return raw
-    except ValueError:
-        pass
-    return hashlib.sha256(text.encode("utf-8")).digest()
+    return signing_key_from_text(text)
+
+
+def signing_now() -> int:
+    """The MAVLink signing timestamp of now: 10 µs units since 2015-01-01 UTC."""
+    return max(0, int((time.time() - SIGNING_EPOCH_S) * 1e5))
 
 
 class Peer:
@@ -71,12 +70,22 @@ class Peer:
         self.mav.robust_parsing = True
         self.buffered: Callable[[], int] = lambda: 0
         self.close: Callable[[], None] = lambda: None
-        if link.key is not None:
-            self.mav.signing.secret_key = link.key
-            self.mav.signing.sign_outgoing = True
-            self.mav.signing.link_id = 0
-            self.mav.signing.timestamp = int((time.time() - SIGNING_EPOCH_S) * 1e5)
-            self.mav.signing.allow_unsigned_callback = lambda _mav, _msgid: False
+        # Each client is a link of its own, as each serial port or UDP/TCP connection is
+        # a MAVLink channel of ArduPilot's: its frames carry its own signing link id.
+        self.link_id = link.next_link_id()
+        guard_stream_timestamps(self.mav)
+        self.use_key(link.key)
+
+    def use_key(self, key: bytes | None, timestamp: int = 0) -> None:
+        """Sign with ``key`` from now on and refuse unsigned or wrongly signed frames
+        (None: signing off, everything accepted).  The timestamp goes on from the later of
+        the wall clock, ``timestamp`` and what it was (signing timestamps never go back)."""
+        signing = self.mav.signing
+        signing.secret_key = key
+        signing.sign_outgoing = key is not None
+        signing.link_id = self.link_id
+        signing.timestamp = max(signing.timestamp, signing_now(), timestamp)
+        signing.allow_unsigned_callback = None if key is None else lambda _mav, _msgid: False
 
     def pack(self, msg: Message) -> bytes:
         self.mav.srcSystem = self.link.sysid
@@ -123,7 +132,15 @@ class VehicleLink:
         self.peers: list[Peer] = []
         self.stats = LinkStats()
         self.signing_warned = False
+        self.refused_signature = 0
+        self._link_ids = 0
         self.loop = asyncio.get_event_loop()
+
+    def next_link_id(self) -> int:
+        """The signing link id of the next client (0, 1, …, wrapping at 256)."""
+        link_id = self._link_ids % 256
+        self._link_ids += 1
+        return link_id
 
     @property
     def sysid(self) -> int:
@@ -154,12 +171,17 @@ class VehicleLink:
     def _deliver(self, peer: Peer, msg: Any) -> None:
         if msg.get_type() == "BAD_DATA":
             self.stats.bad += 1
-            if "signature" in str(msg.reason) and not self.signing_warned:
-                self.signing_warned = True
-                text = statustext(MAV_SEVERITY_WARNING, "Bad or missing signature: message ignored")
-                self.send(Outbox(broadcast=[text]), None)
+            if "signature" in str(msg.reason):
+                self.refused_signature += 1
+                if not self.signing_warned:
+                    self.signing_warned = True
+                    text = "Bad or missing signature: message ignored"
+                    self.send(Outbox(broadcast=[statustext(MAV_SEVERITY_WARNING, text)]), None)
             return
         self.stats.rx_msgs += 1
+        if msg.get_type() == "SETUP_SIGNING":  # not in the tlog: it carries the key
+            self._setup_signing(msg)
+            return
         self._log(msg.get_msgbuf())
         try:
             out = self.sim.handle(self.index, msg, self.loop.time())
@@ -168,6 +190,23 @@ class VehicleLink:
             return
         if out is not None:
             self.send(out, peer)
+
+    def _setup_signing(self, msg: Any) -> None:
+        """SETUP_SIGNING as ArduPlane takes it (``GCS_MAVLINK::handle_setup_signing``): the
+        key (all zeros: signing off) and initial timestamp apply at once to every client of
+        the vehicle.  It arrives here only past the signature checks: with signing on, only a
+        client that signs with the current key can change it.  Not answered (ArduPlane sends
+        no acknowledgement); stderr says what changed, never the key."""
+        if msg.target_system not in (0, self.sysid):
+            return
+        key = bytes(msg.secret_key)
+        new = None if not any(key) else key
+        self.key = new
+        self.signing_warned = False
+        for peer in self.peers:
+            peer.use_key(new, int(msg.initial_timestamp))
+        state = "off" if new is None else "on, with the key received"
+        print(f"sitl: vehicle {self.sysid}: SETUP_SIGNING: signing {state}", file=sys.stderr)
 
     # ---- outbound ------------------------------------------------------------------------
     def send(self, out: Outbox, reply_to: Peer | None) -> None:

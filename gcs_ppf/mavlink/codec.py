@@ -13,6 +13,7 @@ pymavlink's ``decode`` still unpacks the payload and checks signatures.
 
 from __future__ import annotations
 
+import hashlib
 import struct
 from dataclasses import dataclass
 from typing import Any
@@ -41,6 +42,46 @@ def signing_timestamp(unix_s: float) -> int:
     return max(0, int((unix_s - SIGNING_EPOCH_UNIX_S) * 100_000))
 
 
+def signing_key_from_text(text: str) -> bytes:
+    """The 32-byte signing key that ``text`` names: 64 hex digits as they are, anything else
+    (a passphrase) hashed with SHA-256, as MAVProxy's ``signing setup PASSPHRASE`` does.
+
+    Raises ValueError for an empty text (surrounding whitespace is ignored)."""
+    text = text.strip()
+    if not text:
+        raise ValueError("signing key is empty")
+    if len(text) == 2 * SIGNING_KEY_LEN:
+        try:
+            return bytes.fromhex(text)
+        except ValueError:
+            pass
+    return hashlib.sha256(text.encode("utf-8")).digest()
+
+
+def guard_stream_timestamps(mav: Any) -> None:
+    """Make ``mav`` (a pymavlink ``MAVLink``) forget the timestamp of a frame whose signature
+    is wrong.  pymavlink records a stream's timestamp before it checks the signature
+    (``MAVLink.check_signature``), so one forged frame with a far-future timestamp would
+    make every genuine frame of that stream (link id, system, component) look like a replay,
+    and be refused, until the forger's timestamp is reached (the C library records it only
+    after the check)."""
+    check = mav.check_signature
+
+    def checked(msgbuf: bytearray, src_system: int, src_component: int) -> bool:
+        streams = mav.signing.stream_timestamps
+        stream = (msgbuf[-13], src_system, src_component)
+        before = streams.get(stream)
+        ok = bool(check(msgbuf, src_system, src_component))
+        if not ok:
+            if before is None:
+                streams.pop(stream, None)
+            else:
+                streams[stream] = before
+        return ok
+
+    mav.check_signature = checked
+
+
 @dataclass(frozen=True, slots=True)
 class CodecStats:
     """What ``Codec.parse`` has seen so far."""
@@ -56,6 +97,12 @@ class CodecStats:
     treated as noise: parsing resumed one byte after their start marker)."""
     rejected: int = 0
     """Frames with a good CRC that did not decode: bad or missing signature, bad payload."""
+    refused_unsigned: int = 0
+    """Of ``rejected``: unsigned frames refused because signing is on (and unsigned frames
+    are not accepted)."""
+    refused_bad_signature: int = 0
+    """Of ``rejected``: signed frames whose signature is wrong (another key) or whose
+    timestamp is not newer than the last of their stream (a replay)."""
     truncated: int = 0
     """Partial frames dropped at the end of a datagram."""
 
@@ -71,7 +118,9 @@ class Codec:
     ``signing_key`` (32 bytes) turns on MAVLink 2 signing: every encoded frame is signed with
     ``signing_link_id`` and a timestamp that starts at ``signing_timestamp`` (10 µs units since
     2015, see ``signing_timestamp()``) and grows by one per frame and with signed frames received;
-    incoming frames must then carry a valid signature unless ``accept_unsigned``.
+    incoming frames must then carry a valid signature unless ``accept_unsigned``.  The shell
+    keeps the timestamp near the wall clock with ``advance_signing_clock`` (the MAVLink
+    signing spec: monotonic, and a receiver refuses a new stream more than a minute behind).
     """
 
     def __init__(
@@ -94,6 +143,11 @@ class Codec:
         )
         self._buf = bytearray()
         self._stats = CodecStats()
+        self._frame_signed = False  # of the frame being decoded (see the callback below)
+        self._accept_unsigned = accept_unsigned and signing_key is not None
+        self.last_refused: tuple[int, int, int] | None = None
+        """(system id, component id, message id) of the last frame refused for its
+        signature (or for having none)."""
         if signing_key is not None:
             if len(signing_key) != SIGNING_KEY_LEN:
                 raise ValueError(
@@ -108,8 +162,12 @@ class Codec:
             signing.link_id = signing_link_id
             signing.timestamp = signing_timestamp
             signing.sign_outgoing = True
-            if accept_unsigned:
-                signing.allow_unsigned_callback = lambda _mav, _msg_id: True
+            guard_stream_timestamps(self._mav)
+            # pymavlink asks this callback of wrongly signed frames too: only frames that
+            # carry no signature at all are let through, and only with ``accept_unsigned``.
+            signing.allow_unsigned_callback = lambda _mav, _msg_id: (
+                accept_unsigned and not self._frame_signed
+            )
 
     # -- properties ------------------------------------------------------------------------
     @property
@@ -136,9 +194,22 @@ class Codec:
         return self._mav.signing.secret_key is not None
 
     @property
+    def accept_unsigned(self) -> bool:
+        """Signing is on and unsigned frames are accepted all the same."""
+        return self._accept_unsigned
+
+    @property
     def signing_timestamp(self) -> int:
         """The timestamp the next signed frame carries (10 µs units since 2015)."""
         return int(self._mav.signing.timestamp)
+
+    def advance_signing_clock(self, timestamp: int) -> None:
+        """Let the next signed frame carry at least ``timestamp`` (10 µs units since 2015, from
+        the wall clock: ``signing_timestamp(time.time())``); never moves it backwards, so
+        the frames' timestamps stay strictly increasing whatever the wall clock does."""
+        signing = self._mav.signing
+        if timestamp > signing.timestamp:
+            signing.timestamp = timestamp
 
     @property
     def stats(self) -> CodecStats:
@@ -172,7 +243,8 @@ class Codec:
         buf = self._buf
         buf += data
         out: list[MAVLinkMessage] = []
-        skipped = framing = unknown = rejected = 0
+        skipped = framing = unknown = rejected = unsigned = bad_sig = 0
+        signing = self._mav.signing.secret_key is not None
         i = 0
         n = len(buf)
         while i < n:
@@ -204,10 +276,18 @@ class Codec:
                 i += 1
                 continue
             i += length
+            signed = frame[0] == STX_V2 and bool(frame[2] & _IFLAG_SIGNED)
+            self._frame_signed = signed
             try:
                 out.append(self._mav.decode(frame))
-            except Exception:  # pymavlink raises MAVError, struct.error, ...: all mean "drop it"
+            except Exception as exc:  # MAVError, struct.error, ...: all mean "drop it"
                 rejected += 1
+                if signing and str(exc) == "Invalid signature":
+                    if signed:
+                        bad_sig += 1
+                    else:
+                        unsigned += 1
+                    self.last_refused = _frame_ids(frame)
         del buf[:i]
         s = self._stats
         self._stats = CodecStats(
@@ -216,6 +296,8 @@ class Codec:
             framing_errors=s.framing_errors + framing,
             unknown_messages=s.unknown_messages + unknown,
             rejected=s.rejected + rejected,
+            refused_unsigned=s.refused_unsigned + unsigned,
+            refused_bad_signature=s.refused_bad_signature + bad_sig,
             truncated=s.truncated,
         )
         return out
@@ -237,6 +319,8 @@ class Codec:
                 framing_errors=s.framing_errors,
                 unknown_messages=s.unknown_messages,
                 rejected=s.rejected,
+                refused_unsigned=s.refused_unsigned,
+                refused_bad_signature=s.refused_bad_signature,
                 truncated=s.truncated + 1,
             )
         return out
@@ -247,6 +331,13 @@ class Codec:
 
 
 _OK, _BAD, _UNKNOWN = 0, 1, 2
+
+
+def _frame_ids(frame: bytearray) -> tuple[int, int, int]:
+    """(system id, component id, message id) of a whole frame."""
+    if frame[0] == STX_V2:
+        return frame[5], frame[6], frame[7] | (frame[8] << 8) | (frame[9] << 16)
+    return frame[3], frame[4], frame[5]
 
 
 def _next_stx(buf: bytearray, start: int) -> int:

@@ -110,6 +110,23 @@ def gcs_heartbeat() -> MAVLinkMessage:
     )
 
 
+def setup_signing(
+    target_system: int, key: bytes, initial_timestamp: int, target_component: int = 1
+) -> MAVLinkMessage:
+    """SETUP_SIGNING: install ``key`` (32 bytes; all zeros turns signing off) on a vehicle,
+    with the signing timestamp it goes on from (10 µs units since 2015, ``codec.
+    signing_timestamp``).  ArduPilot stores it and signs on every link at once; it sends
+    no acknowledgement.  The frame carries the key in clear: send it on a link you trust."""
+    _target(target_system, target_component)
+    if len(key) != 32:
+        raise ValueError(f"key must be 32 bytes, got {len(key)}")
+    if not 0 <= initial_timestamp < 2**48:
+        raise ValueError(f"initial_timestamp must be 0 … 2⁴⁸−1, got {initial_timestamp}")
+    return mavlink2.MAVLink_setup_signing_message(
+        target_system, target_component, list(key), initial_timestamp
+    )
+
+
 def set_mode(
     target_system: int, mode: PlaneMode, *, target_component: int = AUTOPILOT_COMPONENT_ID
 ) -> MAVLinkMessage:

@@ -28,6 +28,7 @@ from gcs_ppf.guidance.online import VehicleState, state_from_velocity
 from gcs_ppf.guidance.vehicle_clock import VehicleClock
 from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import mode_name
+from gcs_ppf.mavlink.codec import signing_timestamp
 from gcs_ppf.mavlink.telemetry import AIRFRAME_PARAMS, VehicleTelemetry, apply
 from gcs_ppf.mission import Mission
 from gcs_ppf.service.errors import Conflict, NotFound, ServiceError
@@ -83,6 +84,10 @@ class Vehicle:
     """The link's last round trips (our seconds), from TIMESYNC."""
     param_asks: int = 0
     """How many times its airframe parameters not answered yet were asked for again."""
+    heard_on: dict[int, float] = field(default_factory=dict)
+    """Link id → when (our monotonic seconds) it was last heard there."""
+    duplicate_links: tuple[int, ...] = ()
+    """The links it is heard on at once, when more than one (``Fleet.duplicates``)."""
     boot_history: deque[tuple[float, int]] = field(
         default_factory=lambda: deque(maxlen=BOOT_HISTORY_KEPT)
     )
@@ -138,7 +143,13 @@ class Fleet:
                 entry.task.cancel()
 
     # Links -------------------------------------------------------------------------------
-    async def add_link(self, url: str) -> dict[str, Any]:
+    async def add_link(self, url: str, *, allow_unsigned: bool | None = None) -> dict[str, Any]:
+        """Open a link to ``url``.  With a signing key (``Settings.signing_key``) it signs
+        every frame it sends, as MAVLink link id ``id % 256``, and refuses unsigned or wrongly
+        signed frames unless ``allow_unsigned`` (default: ``url`` is one of the settings'
+        ``unsigned_links``)."""
+        if allow_unsigned is None:
+            allow_unsigned = url in self.settings.unsigned_links
         try:
             parse_link_url(url)
         except (ValueError, NotImplementedError) as exc:
@@ -160,11 +171,17 @@ class Fleet:
             on_message,
             source_system=self.settings.system_id,
             tlog_path=tlog,
+            signing_key=self.settings.signing_key_bytes,
+            signing_link_id=link_id % 256,
+            accept_unsigned=allow_unsigned,
         )
         entry = LinkEntry(link_id, url, link)
         entry.task = self._spawn(link.run())
         self._links[link_id] = entry
-        log.info("link %d: %s", link_id, url)
+        signing = "unsigned" if not link.codec.signing else "signed"
+        if link.codec.accept_unsigned:
+            signing += ", unsigned frames accepted"
+        log.info("link %d: %s (%s)", link_id, url, signing)
         return self._link_info(entry)
 
     def decoding_s(self) -> float:
@@ -186,11 +203,16 @@ class Fleet:
 
     def _link_info(self, entry: LinkEntry) -> dict[str, Any]:
         vehicles = sorted(v.system_id for v in self.by_id.values() if v.link_id == entry.id)
+        stats = entry.link.stats
         return {
             "id": entry.id,
             "url": entry.url,
             "connected": entry.link.connected,
             "vehicles": vehicles,
+            "signing": entry.link.codec.signing,
+            "allow_unsigned": entry.link.codec.accept_unsigned,
+            "refused_unsigned": stats.refused_unsigned,
+            "refused_bad_signature": stats.refused_bad_signature,
         }
 
     # Vehicles ----------------------------------------------------------------------------
@@ -209,7 +231,11 @@ class Fleet:
             self._spawn(self._request_streams(vehicle))
         else:
             vehicle.telemetry = apply(vehicle.telemetry, msg, now)
-            vehicle.link_id = link_id
+        vehicle.heard_on[link_id] = now
+        self._check_duplicate(vehicle, now)
+        if not vehicle.duplicate_links:
+            vehicle.link_id = link_id  # a vehicle that moved links is followed...
+        # ...but not one heard on two at once: commands stay on the link first heard.
         vehicle.last_heard_s = now
         boot_ms = getattr(msg, "time_boot_ms", None)
         if isinstance(boot_ms, int):
@@ -229,6 +255,45 @@ class Fleet:
         if msg.get_type() == "GLOBAL_POSITION_INT":
             self.telemetry_received_s = time.perf_counter()
             self.telemetry_event.set()
+
+    def _check_duplicate(self, vehicle: Vehicle, now: float) -> None:
+        """Note (and log, when it starts and ends) a system id heard on more than one link
+        within the lost-vehicle timeout (in the vehicle's seconds): two vehicles with one
+        id, or one vehicle on two links.  A run does not start with it (``duplicates``)."""
+        timeout = self.settings.vehicle_timeout_s
+        live = tuple(
+            sorted(
+                lid
+                for lid, t in vehicle.heard_on.items()
+                if lid in self._links and vehicle.clock.vehicle_seconds(now - t) <= timeout
+            )
+        )
+        links = live if len(live) > 1 else ()
+        if links == vehicle.duplicate_links:
+            return
+        if links:
+            log.warning(
+                "system id %d heard on links %s at once: two vehicles with one id, or one "
+                "vehicle on two links; commands stay on link %d, and no run starts with it",
+                vehicle.system_id,
+                ", ".join(map(str, links)),
+                vehicle.link_id,
+            )
+        else:
+            log.info("system id %d now heard on one link only", vehicle.system_id)
+        vehicle.duplicate_links = links
+
+    def duplicates(self, system_ids: list[int] | None = None) -> dict[int, tuple[int, ...]]:
+        """System id → the links it is heard on at once, for those heard on several (of
+        ``system_ids``, or all)."""
+        now = time.monotonic()
+        out = {}
+        for v in self.by_id.values():
+            if system_ids is None or v.system_id in system_ids:
+                self._check_duplicate(v, now)
+                if v.duplicate_links:
+                    out[v.system_id] = v.duplicate_links
+        return out
 
     async def _request_streams(self, vehicle: Vehicle) -> None:
         """Ask a new vehicle for the telemetry the planner needs, by SET_MESSAGE_INTERVAL
@@ -252,6 +317,31 @@ class Fleet:
             if missing_only and vehicle is not None and vehicle.telemetry.param(name) is not None:
                 continue
             await self.send(system_id, commands.param_request_read(system_id, name))
+
+    async def setup_signing(self, system_id: int) -> dict[str, Any]:
+        """Install the service's signing key on vehicle ``system_id`` by SETUP_SIGNING, on
+        the link it was last heard on: only ever at the operator's explicit request (the
+        frame carries the key).  Raises Conflict without a key or a connected link,
+        NotFound for a vehicle never heard."""
+        key = self.settings.signing_key_bytes
+        if key is None:
+            raise Conflict(
+                "signing: the service has no signing key (set GCS_PPF_SIGNING_KEY or "
+                "signing_key_file)"
+            )
+        vehicle = self.by_id.get(system_id)
+        if vehicle is None:
+            raise NotFound(f"vehicle {system_id} has not been heard")
+        entry = self._links.get(vehicle.link_id)
+        msg = commands.setup_signing(system_id, key, signing_timestamp(time.time()))
+        if entry is None or not await entry.link.send(msg):
+            raise Conflict(f"vehicle {system_id}: its link {vehicle.link_id} is not connected")
+        log.warning(
+            "vehicle %d: signing key sent by SETUP_SIGNING on link %d",
+            system_id,
+            vehicle.link_id,
+        )
+        return {"system_id": system_id, "link_id": vehicle.link_id, "sent": True}
 
     def telemetry(self, system_id: int) -> VehicleTelemetry | None:
         """What is known of vehicle ``system_id``, if it has been heard."""
@@ -326,6 +416,7 @@ class Fleet:
                     "mode": mode_name(t.custom_mode) if t.custom_mode is not None else None,
                     "armed": t.armed,
                     "lost": v.lost,
+                    "duplicate_links": list(v.duplicate_links),
                     "seconds_since_heard": round(now - v.last_heard_s, 3),
                     "round_trip_s": None if v.round_trip_s is None else round(v.round_trip_s, 3),
                     "position": {

@@ -200,6 +200,18 @@ async def losses(station: Station, run: Run) -> bool:
         elif vehicle is not None and not vehicle.lost and v.id in run.lost_ids:
             run.lost_ids.discard(v.id)  # heard again: planned for and watched again
             station.event(run, "vehicle_back", v.id)
+        if vehicle is not None and vehicle.duplicate_links != run.duplicates.get(v.id, ()):
+            if vehicle.duplicate_links:
+                run.duplicates[v.id] = vehicle.duplicate_links
+                station.event(
+                    run,
+                    "duplicate_system_id",
+                    v.id,
+                    links=list(vehicle.duplicate_links),
+                    commanded_link=vehicle.link_id,
+                )
+            else:
+                run.duplicates.pop(v.id, None)
     if run.mission.leader.id not in run.lost_ids:
         return False
     end(station, run, RunState.FAILED, "leader lost")

@@ -31,7 +31,13 @@ from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage, signing_timestamp
 log = logging.getLogger(__name__)
 
 _READ_SIZE = 65536
+_SETUP_SIGNING_ID = 256
+"""SETUP_SIGNING carries a signing key: never written to a tlog."""
 _TLOG_FLUSH_S = 1.0
+REFUSED_LOG_PERIOD_S = 10.0
+"""Frames refused for their signature are logged at the first, then at most this often..."""
+REFUSED_NEWS_LOG_PERIOD_S = 1.0
+"""...or this often when a new sender, or a kind of refusal not seen before, appears."""
 
 
 class LinkKind(enum.StrEnum):
@@ -124,6 +130,10 @@ class LinkStats:
     messages_out: int = 0
     parse_errors: int = 0
     """Frames dropped as bad (CRC, header, signature, truncated datagram)."""
+    refused_unsigned: int = 0
+    """Of ``parse_errors``: unsigned frames refused on a signing link."""
+    refused_bad_signature: int = 0
+    """Of ``parse_errors``: frames signed with another key, or replayed."""
     bytes_skipped: int = 0
     """Noise between frames."""
     dropped_out: int = 0
@@ -177,6 +187,7 @@ class MavlinkLink:
         send_timeout_s: float = 2.0,
         signing_key: bytes | None = None,
         signing_link_id: int = 0,
+        accept_unsigned: bool = False,
     ) -> None:
         self.url = parse_link_url(url)
         if not (0 < backoff_initial_s <= backoff_max_s and math.isfinite(backoff_max_s)):
@@ -191,7 +202,11 @@ class MavlinkLink:
             signing_key=signing_key,
             signing_link_id=signing_link_id,
             signing_timestamp=signing_timestamp(time.time()) if signing_key else 0,
+            accept_unsigned=accept_unsigned,
         )
+        self._refused_logged = (0, 0)  # (unsigned, bad signature) counts last logged
+        self._refused_logged_s = -math.inf
+        self._refused_logged_from: tuple[int, int, int] | None = None
         self._tlog_path = tlog_path
         self._tlog: IO[bytes] | None = None
         self._tlog_flushed_s = 0.0
@@ -225,7 +240,13 @@ class MavlinkLink:
     @property
     def stats(self) -> LinkStats:
         codec = self._codec.stats
-        return replace(self._stats, parse_errors=codec.errors, bytes_skipped=codec.bytes_skipped)
+        return replace(
+            self._stats,
+            parse_errors=codec.errors,
+            bytes_skipped=codec.bytes_skipped,
+            refused_unsigned=codec.refused_unsigned,
+            refused_bad_signature=codec.refused_bad_signature,
+        )
 
     @property
     def codec(self) -> Codec:
@@ -354,6 +375,7 @@ class MavlinkLink:
 
     def _received(self, messages: list[MAVLinkMessage], n_bytes: int) -> bool:
         """Log and deliver decoded messages; True if there were any."""
+        self._log_refused()
         self._stats = replace(
             self._stats,
             bytes_in=self._stats.bytes_in + n_bytes,
@@ -368,6 +390,40 @@ class MavlinkLink:
                 log.exception("link %s: on_message failed on %s", self.url, msg.get_type())
         return bool(messages)
 
+    def _log_refused(self) -> None:
+        """A warning when frames were refused for their signature: at the first, then at most
+        every ``REFUSED_LOG_PERIOD_S`` (``REFUSED_NEWS_LOG_PERIOD_S`` for a new sender or a
+        new kind of refusal), with the counts since the last one and who sent the last
+        (never anything of the key).  Called on every read and every send, so refusals
+        that no others follow are told too, with the next heartbeat at the latest."""
+        codec = self._codec.stats
+        counts = (codec.refused_unsigned, codec.refused_bad_signature)
+        if counts == self._refused_logged:
+            return
+        now = time.monotonic()
+        who = self._codec.last_refused
+        new_kind = any(c and not old for c, old in zip(counts, self._refused_logged, strict=True))
+        news = new_kind or who != self._refused_logged_from
+        wait = REFUSED_NEWS_LOG_PERIOD_S if news else REFUSED_LOG_PERIOD_S
+        if now - self._refused_logged_s < wait:
+            return
+        unsigned = counts[0] - self._refused_logged[0]
+        bad = counts[1] - self._refused_logged[1]
+        self._refused_logged, self._refused_logged_s = counts, now
+        self._refused_logged_from = who
+        sender = "" if who is None else f"; last from system {who[0]} component {who[1]}, "
+        sender += "" if who is None else f"message id {who[2]}"
+        log.warning(
+            "link %s: refused %d unsigned and %d wrongly signed or replayed frames "
+            "(%d and %d in all)%s",
+            self.url,
+            unsigned,
+            bad,
+            counts[0],
+            counts[1],
+            sender,
+        )
+
     # -- sending ---------------------------------------------------------------------------
     async def send(self, msg: MAVLinkMessage) -> bool:
         """Encode ``msg`` and hand it to the transport (True); False, and counted, if the link
@@ -376,9 +432,12 @@ class MavlinkLink:
         Raises ValueError if ``msg`` cannot be encoded.  A TCP peer that stops reading for
         ``send_timeout_s`` is treated as gone: the connection is dropped and remade.
         """
+        self._log_refused()  # refusals since the last read are told even if none follow
         if not self.connected:
             self._stats = replace(self._stats, dropped_out=self._stats.dropped_out + 1)
             return False
+        if self._codec.signing:
+            self._codec.advance_signing_clock(signing_timestamp(time.time()))
         frame = self._codec.encode(msg)
         writer = self._writer
         if writer is not None:
@@ -419,7 +478,7 @@ class MavlinkLink:
             self._tlog_flushed_s = time.monotonic()
 
     def _tlog_write(self, frame: bytes) -> None:
-        if self._tlog is None:
+        if self._tlog is None or _message_id(frame) == _SETUP_SIGNING_ID:
             return
         self._tlog.write(struct.pack(">Q", int(time.time() * 1e6)) + frame)
         now = time.monotonic()
@@ -431,3 +490,10 @@ class MavlinkLink:
         if self._tlog is not None:
             self._tlog.close()
             self._tlog = None
+
+
+def _message_id(frame: bytes) -> int:
+    """The message id of a whole MAVLink frame (1 or 2)."""
+    if frame[0] == 0xFD:
+        return frame[7] | (frame[8] << 8) | (frame[9] << 16)
+    return frame[5]

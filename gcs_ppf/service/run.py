@@ -44,9 +44,18 @@ class RunState(StrEnum):
     """Stopped by the operator; every vehicle loiters."""
     FAILED = "failed"
     """The leader was lost (or the run could not go on); every vehicle loiters."""
+    INTERRUPTED = "interrupted"
+    """The service stopped (a crash, ``kill -9``) while the run flew, and was started again:
+    the vehicles flew on their last commands (and their own GCS failsafe) meanwhile."""
 
 
-FINISHED = {RunState.COMPLETED, RunState.COMPLETED_UNSAFE, RunState.ABORTED, RunState.FAILED}
+FINISHED = {
+    RunState.COMPLETED,
+    RunState.COMPLETED_UNSAFE,
+    RunState.ABORTED,
+    RunState.FAILED,
+    RunState.INTERRUPTED,
+}
 
 
 @dataclass
@@ -79,6 +88,8 @@ class Run:
     the reported positions every tick, formed or broken, the run's formation figures."""
     abort: asyncio.Event = field(default_factory=asyncio.Event)
     lost_ids: set[int] = field(default_factory=set)
+    duplicates: dict[int, tuple[int, ...]] = field(default_factory=dict)
+    """Vehicle id → the links it was heard on at once (``duplicate_system_id`` told)."""
     commanded_speed: dict[int, float] = field(default_factory=dict)
     climb_trims: dict[int, slew.ClimbTrim] = field(default_factory=dict)
     """Each vehicle's climb trim (``gcs_ppf.guidance.slew.climb_trim``)."""

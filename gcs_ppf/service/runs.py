@@ -59,7 +59,10 @@ class FormationService:
             self._kernels_loaded,
         )
         for stale in store.interrupted_runs():  # a previous process stopped mid-flight
-            store.update_run(stale.id, RunState.FAILED, ended=True, outcome="service restarted")
+            outcome = f"the service stopped while the run was {stale.state}"
+            store.add_event(stale.id, "run_interrupted", detail={"outcome": outcome})
+            store.update_run(stale.id, RunState.INTERRUPTED, ended=True, outcome=outcome)
+            log.warning("run %d of mission %d: %s", stale.id, stale.mission_id, outcome)
 
     # Lifetime ----------------------------------------------------------------------------
     @contextlib.asynccontextmanager
@@ -173,6 +176,18 @@ class FormationService:
         missing = [i for i in ids if i not in self.fleet.by_id or self.fleet.by_id[i].lost]
         if missing:
             raise Conflict(f"vehicles not connected: {missing}", {"missing_ids": missing})
+        duplicates = self.fleet.duplicates(ids)
+        if duplicates:
+            said = "; ".join(
+                f"vehicle {vid} on links {', '.join(map(str, links))}"
+                for vid, links in sorted(duplicates.items())
+            )
+            raise Conflict(
+                f"system ids heard on more than one link at once ({said}): two vehicles "
+                "with one id, or one vehicle on two links; give each vehicle its own "
+                "SYSID_THISMAV or remove the extra link (DELETE /links/{id})",
+                {"duplicate_links": {str(k): list(v) for k, v in duplicates.items()}},
+            )
         record = self.store.add_run(mission_id, RunState.STARTING)
         orders = commanding.Orders(
             stored.mission, self.settings.guidance, self.settings.lookahead_s

@@ -7,9 +7,10 @@ import re
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field, PrivateAttr, SecretStr, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
+from gcs_ppf.mavlink.codec import signing_key_from_text
 from gcs_ppf.tokens import TokenEntry, load_token_file
 
 HOST = re.compile(r"[A-Za-z0-9_.:-]{1,253}")  # a name, an IPv4 or an IPv6 address
@@ -19,7 +20,9 @@ class Settings(BaseSettings):
     """How the ground-station service runs; every field can be set as ``GCS_PPF_<NAME>``
     (``GCS_PPF_LINKS='["tcp:127.0.0.1:5760"]'``)."""
 
-    model_config = SettingsConfigDict(env_prefix="GCS_PPF_", extra="forbid")
+    model_config = SettingsConfigDict(
+        env_prefix="GCS_PPF_", extra="forbid", hide_input_in_errors=True
+    )
 
     host: str = "127.0.0.1"
     port: int = Field(default=8000, ge=1, le=65535)
@@ -145,3 +148,48 @@ class Settings(BaseSettings):
         if str(self.db) == ":memory:":
             return None
         return self.db.with_name(self.db.stem + ".audit.jsonl")
+
+    signing_key: SecretStr | None = Field(
+        default=None,
+        description="MAVLink 2 signing key: 64 hex digits, or a passphrase hashed with SHA-256 "
+        "(as MAVProxy's `signing setup`); set GCS_PPF_SIGNING_KEY or signing_key_file, never "
+        "a command-line argument (ps shows those). With a key every frame sent is signed and "
+        "unsigned or wrongly signed frames are refused, except on unsigned_links",
+    )
+    signing_key_file: Path | None = Field(
+        default=None, description="a file holding the signing key (hex or passphrase)"
+    )
+    unsigned_links: list[str] = Field(
+        default_factory=list,
+        description="link URLs on which unsigned frames are accepted although signing is on "
+        "(vehicles that do not sign); wrongly signed frames are refused there too",
+    )
+    _signing_key: bytes | None = PrivateAttr(default=None)
+
+    @model_validator(mode="after")
+    def _load_signing_key(self) -> Settings:
+        if self.signing_key is not None and self.signing_key_file is not None:
+            raise ValueError("signing_key and signing_key_file: set one of them, not both")
+        text: str | None = None
+        if self.signing_key is not None:
+            text = self.signing_key.get_secret_value()
+        elif self.signing_key_file is not None:
+            try:
+                text = self.signing_key_file.read_text(encoding="utf-8")
+            except (OSError, UnicodeDecodeError) as exc:
+                reason = getattr(exc, "strerror", None) or type(exc).__name__
+                raise ValueError(
+                    f"signing_key_file: cannot read {self.signing_key_file}: {reason}"
+                ) from None
+        if text is not None:
+            try:
+                self._signing_key = signing_key_from_text(text)
+            except ValueError as exc:
+                field = "signing_key" if self.signing_key is not None else "signing_key_file"
+                raise ValueError(f"{field}: {exc}") from None
+        return self
+
+    @property
+    def signing_key_bytes(self) -> bytes | None:
+        """The 32-byte MAVLink signing key, or None: no signing."""
+        return self._signing_key

@@ -44,7 +44,7 @@ from gcs_ppf.tools.observer import (
 ROOT = Path(__file__).resolve().parents[2]  # the repository (gcs_ppf/tools/ → ../..)
 EXAMPLES = ROOT / "examples"
 DEFAULT_MISSIONS = ("paper_table3", "paper_table2", "scene_head_on", "scene_narrow_gap")
-FINISHED = ("completed", "completed_unsafe", "aborted", "failed")
+FINISHED = ("completed", "completed_unsafe", "aborted", "failed", "interrupted")
 AFTER_S = 30.0  # vehicle seconds watched after a run ends
 INJECTOR_SYSID = 203  # sends the run-time faults; neither a vehicle, the service nor the observer
 LOST_TIMEOUT_S = 5.0  # the service's default vehicle_timeout_s

@@ -18,7 +18,7 @@ from typing import Any
 
 from gcs_ppf.mission import Mission
 
-FINISHED = ("completed", "completed_unsafe", "aborted", "failed")
+FINISHED = ("completed", "completed_unsafe", "aborted", "failed", "interrupted")
 
 
 def http_json(method: str, url: str, body: Any = None, token: str | None = None) -> tuple[int, Any]:

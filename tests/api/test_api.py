@@ -122,3 +122,39 @@ def test_websocket_sends_a_snapshot(client: TestClient) -> None:
         snap = ws.receive_json()
     assert snap["vehicles"] == []
     assert "mission" in snap
+
+
+def test_links_say_whether_they_sign_and_setup_signing_needs_a_key(client: TestClient) -> None:
+    link = client.post("/links", json={"url": "tcp:127.0.0.1:9"}).json()
+    assert (link["signing"], link["allow_unsigned"]) == (False, False)
+    assert (link["refused_unsigned"], link["refused_bad_signature"]) == (0, 0)
+    r = client.post("/vehicles/1/signing")
+    assert r.status_code == 409
+    assert "no signing key" in r.json()["detail"]
+    assert client.post("/vehicles/0/signing").status_code == 422
+    assert client.post("/vehicles/256/signing").status_code == 422
+
+
+def test_signing_links_and_setup_signing_never_answer_the_key(tmp_path: Path) -> None:
+    passphrase = "api test passphrase"
+    settings = Settings(
+        db=tmp_path / "gcs.db",
+        tlog_dir=None,
+        signing_key=passphrase,
+        unsigned_links=["tcp:127.0.0.1:11"],
+    )
+    with TestClient(create_app(settings)) as c:
+        signed = c.post("/links", json={"url": "tcp:127.0.0.1:9"}).json()
+        assert (signed["signing"], signed["allow_unsigned"]) == (True, False)
+        lenient = c.post("/links", json={"url": "tcp:127.0.0.1:10", "allow_unsigned": True})
+        assert lenient.json()["allow_unsigned"] is True
+        listed = c.post("/links", json={"url": "tcp:127.0.0.1:11"}).json()
+        assert listed["allow_unsigned"] is True  # from the settings' unsigned_links
+        r = c.post("/vehicles/7/signing")
+        assert r.status_code == 404
+        assert "vehicle 7 has not been heard" in r.json()["detail"]
+        answers = [c.get(p).text for p in ("/links", "/vehicles", "/openapi.json")]
+    key_hex = settings.signing_key_bytes.hex() if settings.signing_key_bytes else ""
+    for text in answers:
+        assert passphrase not in text
+        assert key_hex not in text

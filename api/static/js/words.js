@@ -10,6 +10,7 @@ const WORDS = {
   run_completed_unsafe: (e) => `Run completed UNSAFELY: ${d(e).outcome || ""}`,
   run_aborted: (e) => `Run aborted: ${d(e).outcome || "by the operator"}`,
   run_failed: (e) => `Run FAILED: ${d(e).outcome || ""}`,
+  run_interrupted: (e) => `Run INTERRUPTED: ${d(e).outcome || "the service stopped"}`,
   formation_formed: () => "Formation formed: every wingman at its slot",
   formation_broken: () => "Formation broken",
   waypoint_reached: (e) => `Waypoint ${d(e).waypoint + 1} reached (${d(e).distance_m} m off): leg ${d(e).waypoint + 2} of ${d(e).legs}`,
@@ -19,6 +20,7 @@ const WORDS = {
   conflict_resolution_ended: (e) => `${v(e)}: conflict resolved`,
   local_minimum_escape: (e) => `${v(e)} escaping a local minimum (s2, pulls up)`,
   vehicle_lost: (e) => `${v(e)} LOST: silent for 5 s of its own time`,
+  duplicate_system_id: (e) => `${v(e)}: its system id heard on links ${(d(e).links || []).join(", ")} at once (commands on link ${d(e).commanded_link ?? "?"})`,
   vehicle_not_responding: (e) => `${v(e)} NOT RESPONDING (mode ${d(e).mode ?? "?"}, last answer ${d(e).last_ack ?? "none"})`,
   vehicle_responding: (e) => `${v(e)} responding again`,
   safety_violation: (e) => `${v(e)} inside the keep-out of ${d(e).keep_out === "teammate" ? "vehicle" : d(e).keep_out || ""} ${d(e).other ?? ""} by ${d(e).depth_m ?? "?"} m` +
@@ -37,6 +39,7 @@ const WORDS = {
 const LEVEL = {
   run_completed: "ok", formation_formed: "ok", vehicle_responding: "ok", waypoint_reached: "ok",
   run_completed_unsafe: "bad", run_aborted: "warn", run_failed: "bad", vehicle_lost: "bad",
+  run_interrupted: "bad", duplicate_system_id: "bad",
   vehicle_not_responding: "bad", safety_violation: "bad", takeoff_failed: "bad",
   formation_broken: "warn", avoidance_entered: "warn", conflict_resolution_began: "warn",
   local_minimum_escape: "warn", hold_not_clear: "warn", parameter_not_set: "warn",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import random
 
 import pytest
@@ -9,7 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
-from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage, signing_timestamp
+from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage, signing_key_from_text, signing_timestamp
 
 KEY = bytes(range(32))
 
@@ -194,3 +195,75 @@ def test_signing_timestamp_epoch() -> None:
     assert signing_timestamp(1_420_070_400.0) == 0
     assert signing_timestamp(1_420_070_401.0) == 100_000
     assert signing_timestamp(0.0) == 0
+
+
+def test_refusals_are_counted_by_kind_and_name_the_sender() -> None:
+    t0 = signing_timestamp(1_700_000_000.0)
+    gcs = Codec(signing_key=KEY, signing_timestamp=t0)
+    wrong_key = Codec(9, 1, signing_key=bytes(32), signing_timestamp=t0)
+    unsigned = Codec(8, 1)
+    assert gcs.parse(wrong_key.encode(_heartbeat()) + unsigned.encode(_heartbeat())) == []
+    s = gcs.stats
+    assert (s.refused_unsigned, s.refused_bad_signature, s.rejected) == (1, 1, 2)
+    assert gcs.last_refused == (8, 1, 0)  # system 8, component 1, HEARTBEAT
+    # Without a key nothing is refused for its signature, signed or not.
+    plain = Codec()
+    assert len(plain.parse(wrong_key.encode(_heartbeat()) + unsigned.encode(_heartbeat()))) == 2
+    assert plain.stats.refused_unsigned == plain.stats.refused_bad_signature == 0
+
+
+def test_a_link_that_accepts_unsigned_frames_still_refuses_wrongly_signed_ones() -> None:
+    t0 = signing_timestamp(1_700_000_000.0)
+    lenient = Codec(signing_key=KEY, signing_timestamp=t0, accept_unsigned=True)
+    assert lenient.accept_unsigned
+    assert len(lenient.parse(Codec(8, 1).encode(_heartbeat()))) == 1
+    forged = Codec(9, 1, signing_key=bytes(32), signing_timestamp=t0).encode(_heartbeat())
+    assert lenient.parse(forged) == []
+    assert lenient.stats.refused_bad_signature == 1
+    assert not Codec(accept_unsigned=True).accept_unsigned  # no key: nothing to accept
+
+
+def test_a_forged_frame_from_the_future_does_not_lock_out_the_genuine_stream() -> None:
+    """pymavlink alone records the forger's timestamp for the stream before checking the
+    signature; the vehicle's next genuine frames would then be refused as replays."""
+    t0 = signing_timestamp(1_700_000_000.0)
+    vehicle = Codec(1, 1, signing_key=KEY, signing_timestamp=t0)
+    forger = Codec(1, 1, signing_key=bytes(32), signing_timestamp=t0 + 10**9)
+    gcs = Codec(signing_key=KEY, signing_timestamp=t0)
+    assert len(gcs.parse(vehicle.encode(_heartbeat()))) == 1
+    assert gcs.parse(forger.encode(_heartbeat())) == []
+    assert len(gcs.parse(vehicle.encode(_heartbeat()))) == 1
+    # And a forger first on a stream leaves no trace of it either.
+    fresh = Codec(signing_key=KEY, signing_timestamp=t0)
+    assert fresh.parse(forger.encode(_heartbeat())) == []
+    assert len(fresh.parse(vehicle.encode(_heartbeat()))) == 1
+
+
+def test_the_signing_clock_follows_the_wall_clock_and_never_goes_back() -> None:
+    t0 = signing_timestamp(1_700_000_000.0)
+    codec = Codec(signing_key=KEY, signing_timestamp=t0)
+    codec.advance_signing_clock(t0 + 500_000)  # 5 s later
+    frame = codec.encode(_heartbeat())
+    stamp = int.from_bytes(frame[-12:-6], "little")
+    assert stamp == t0 + 500_000
+    codec.advance_signing_clock(t0)  # the wall clock stepped back
+    again = int.from_bytes(codec.encode(_heartbeat())[-12:-6], "little")
+    assert again == stamp + 1
+
+
+@pytest.mark.parametrize(
+    ("text", "key"),
+    [
+        ("00" * 31 + "ff", bytes(31) + b"\xff"),
+        ("  " + "ab" * 32 + "\n", bytes([0xAB]) * 32),
+        ("my secret passphrase", hashlib.sha256(b"my secret passphrase").digest()),
+        ("zz" * 32, hashlib.sha256(b"zz" * 32).digest()),  # not hex: a passphrase
+    ],
+)
+def test_signing_key_from_text(text: str, key: bytes) -> None:
+    assert signing_key_from_text(text) == key
+
+
+def test_an_empty_signing_key_is_an_error() -> None:
+    with pytest.raises(ValueError, match="empty"):
+        signing_key_from_text(" \n")

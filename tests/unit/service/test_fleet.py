@@ -149,3 +149,56 @@ def test_a_clock_not_measured_yet_is_timed_on_a_teammates() -> None:
     assert [v.system_id for v in silent_vehicles(fleet, 100.55, timeout_s=5.0)] == [3]
     fleet = [_heard(1, 100.45, rate=10.0), _heard(2, 100.45, rate=10.0), quiet]
     assert silent_vehicles(fleet, 100.45, timeout_s=5.0) == []
+
+
+def _two_links(tmp_path: Path) -> Recording:
+    fleet = Recording(tmp_path)
+
+    async def add() -> None:
+        await fleet.add_link("tcp:127.0.0.1:9")
+        await fleet.add_link("tcp:127.0.0.1:10")
+
+    asyncio.run(add())
+    for coro in fleet.spawned:  # the links' run(): not run here
+        coro.close()
+    fleet.spawned.clear()
+    return fleet
+
+
+def test_one_system_id_on_two_links_at_once_is_told_and_not_followed(
+    tmp_path: Path, caplog: Any
+) -> None:
+    fleet = _two_links(tmp_path)
+    heartbeat = mavlink2.MAVLink_heartbeat_message(1, 3, 0, 0, 3, 3)
+    fleet._on_message(1, _wire(heartbeat))
+    assert fleet.duplicates() == {}
+    with caplog.at_level("WARNING", logger="gcs_ppf.service.fleet"):
+        fleet._on_message(2, _wire(heartbeat))
+    assert fleet.duplicates() == {7: (1, 2)}
+    assert fleet.duplicates([8]) == {}
+    assert fleet.by_id[7].link_id == 1  # commands stay on the link first heard
+    assert "system id 7 heard on links 1, 2 at once" in caplog.text
+    assert fleet.vehicles()[0]["duplicate_links"] == [1, 2]
+    # Link 2 silent past the timeout: one link again, and a vehicle that then moves to
+    # link 2 (link 1 silent) is followed there.
+    fleet.by_id[7].heard_on[2] -= 60.0
+    fleet._on_message(1, _wire(heartbeat))
+    assert fleet.duplicates() == {}
+    fleet.by_id[7].heard_on[1] -= 60.0
+    fleet._on_message(2, _wire(heartbeat))
+    assert fleet.duplicates() == {}
+    assert fleet.by_id[7].link_id == 2
+    for coro in fleet.spawned:
+        coro.close()
+
+
+def test_a_removed_link_is_not_a_duplicate(tmp_path: Path) -> None:
+    fleet = _two_links(tmp_path)
+    heartbeat = mavlink2.MAVLink_heartbeat_message(1, 3, 0, 0, 3, 3)
+    fleet._on_message(1, _wire(heartbeat))
+    fleet._on_message(2, _wire(heartbeat))
+    assert fleet.duplicates() == {7: (1, 2)}
+    asyncio.run(fleet.remove_link(2))
+    assert fleet.duplicates() == {}
+    for coro in fleet.spawned:
+        coro.close()

@@ -9,6 +9,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import random
+import re
 import time
 from collections.abc import Callable, Coroutine
 from pathlib import Path
@@ -449,3 +450,70 @@ def test_signing_link_drops_unsigned_vehicle_frames_and_signs_its_own() -> None:
         await vehicle.stop()
 
     run(body())
+
+
+def test_refused_frames_are_logged_with_their_sender_and_never_the_key(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    key = bytes(range(100, 132))
+
+    async def body() -> None:
+        vehicle = FakeTcpVehicle()
+        await vehicle.start()
+        link = MavlinkLink(f"tcp:127.0.0.1:{vehicle.port}", Inbox(), signing_key=key)
+        with caplog.at_level("WARNING", logger="gcs_ppf.service.links"):
+            async with running(link):
+                await wait_until(lambda: link.stats.refused_unsigned >= 3)
+        await vehicle.stop()
+        assert link.stats.refused_bad_signature == 0
+
+    run(body())
+    refused = [r.getMessage() for r in caplog.records if "refused" in r.getMessage()]
+    assert len(refused) == 1  # the first at once, the next only after REFUSED_LOG_PERIOD_S
+    # (the first read may hold more than one of the vehicle's 20 Hz heartbeats)
+    assert re.search(r"refused [1-9]\d* unsigned and 0 wrongly signed", refused[0]), refused[0]
+    assert "last from system 1 component 1, message id 0" in refused[0]
+    assert key.hex() not in caplog.text
+
+
+def test_a_link_allowed_unsigned_frames_takes_them_and_signs_its_own() -> None:
+    async def body() -> None:
+        vehicle = FakeTcpVehicle()
+        await vehicle.start()
+        inbox = Inbox()
+        link = MavlinkLink(
+            f"tcp:127.0.0.1:{vehicle.port}", inbox, signing_key=bytes(32), accept_unsigned=True
+        )
+        async with running(link):
+            await wait_until(lambda: inbox.count("HEARTBEAT") >= 2)
+            assert await link.send(commands.gcs_heartbeat())
+            await wait_until(lambda: bool(vehicle.received))
+        assert link.stats.refused_unsigned == 0
+        assert vehicle.received[0].get_msgbuf()[2] & 0x01  # MAVLINK_IFLAG_SIGNED
+        await vehicle.stop()
+
+    run(body())
+
+
+def test_setup_signing_is_sent_but_never_written_to_the_tlog(tmp_path: Path) -> None:
+    key = bytes(range(7, 39))
+    tlog = tmp_path / "link.tlog"
+
+    async def body() -> None:
+        vehicle = FakeTcpVehicle()
+        await vehicle.start()
+        link = MavlinkLink(
+            f"tcp:127.0.0.1:{vehicle.port}", Inbox(), tlog_path=tlog, signing_key=key
+        )
+        async with running(link):
+            await wait_until(lambda: link.connected)
+            assert await link.send(mavlink2.MAVLink_setup_signing_message(1, 1, key, 5))
+            assert await link.send(commands.gcs_heartbeat())
+            await wait_until(lambda: len(vehicle.received) >= 2)
+        await vehicle.stop()
+        assert [m.get_type() for m in vehicle.received[:2]] == ["SETUP_SIGNING", "HEARTBEAT"]
+
+    run(body())
+    data = tlog.read_bytes()
+    assert key not in data
+    assert len(data) > 0  # the heartbeat is there

@@ -13,6 +13,7 @@ import pytest
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission
 from gcs_ppf.service import flight, launch, runs
+from gcs_ppf.service.errors import Conflict
 from gcs_ppf.service.fleet import Vehicle
 from gcs_ppf.service.run import Run
 from gcs_ppf.service.runs import FormationService
@@ -264,3 +265,56 @@ def test_a_start_that_fails_leaves_the_vehicles_on_the_ground_alone(
         reposition = commands.MAV_CMD_DO_REPOSITION
         holds = {vid for vid, m in sent if getattr(m, "command", None) == reposition}
         assert holds == {v.id for v in mission.vehicles} - {2}
+
+
+def test_a_start_with_a_system_id_heard_on_two_links_is_refused(tmp_path: Path) -> None:
+    mission = Mission.model_validate_json((EXAMPLES / "paper_table3.json").read_text())
+
+    async def scenario() -> None:
+        settings = Settings(db=tmp_path / "gcs.db", tlog_dir=None)
+        service = FormationService(settings, Store(settings.db))
+        async with service.running():
+            for v in mission.vehicles:
+                service.fleet.by_id[v.id] = Vehicle(
+                    v.id, 0, VehicleTelemetry(v.id, 1), last_heard_s=time.monotonic() + 60
+                )
+            first = await service.fleet.add_link("tcp:127.0.0.1:9")
+            second = await service.fleet.add_link("tcp:127.0.0.1:10")
+            now = time.monotonic()
+            service.fleet.by_id[3].heard_on = {first["id"]: now, second["id"]: now}
+            mid = service.create_mission(mission).id
+            with pytest.raises(Conflict) as refused:
+                await service.start(mid)
+            assert "vehicle 3 on links 1, 2" in refused.value.message
+            assert refused.value.detail == {"duplicate_links": {"3": [1, 2]}}
+            assert service.status(mid)["state"] == "pending"  # nothing started
+
+    asyncio.run(scenario())
+
+
+def test_a_run_left_flying_by_a_dead_service_is_interrupted_on_restart(tmp_path: Path) -> None:
+    """``kill -9`` mid-run leaves the run unended in the store; the next service marks it
+    ``interrupted`` (not ``failed``: nothing handed the vehicles their holds), with an
+    event, and keeps every event stored before."""
+    mission = Mission.model_validate_json((EXAMPLES / "paper_table3.json").read_text())
+    store = Store(tmp_path / "gcs.db")
+    mid = store.add_mission(mission).id
+    run = store.add_run(mid, runs.RunState.RUNNING)
+    store.add_event(run.id, "run_started")
+    store.add_event(run.id, "run_running", mission_time_s=1.5)
+    store.close()
+    settings = Settings(db=tmp_path / "gcs.db", tlog_dir=None)
+    again = Store(settings.db)
+    service = FormationService(settings, again)
+    status = service.status(mid)
+    assert status["state"] == "interrupted"
+    assert status["outcome"] == "the service stopped while the run was running"
+    kinds = [e.kind for e in again.events(run.id)]
+    assert kinds == ["run_started", "run_running", "run_interrupted"]
+    assert again.interrupted_runs() == []
+    again.close()
+    # A third start finds nothing to mark again.
+    third = Store(settings.db)
+    FormationService(settings, third)
+    assert [e.kind for e in third.events(run.id)].count("run_interrupted") == 1
+    third.close()
