@@ -193,10 +193,10 @@ def polygon_problem(points: Sequence[Vec2]) -> str | None:
     if len(set(ring)) != len(ring):
         return "repeated vertex"
     shape = Polygon(ring)
-    if shape.area <= 0.0:
-        return "zero area (collinear vertices)"
     if not shape.is_valid:
         return f"not a simple polygon ({explain_validity(shape)})"
+    if shape.area <= 0.0:
+        return "zero area (collinear vertices)"
     return None
 
 
@@ -443,6 +443,8 @@ def describe_validation_error(error: ValidationError) -> list[MissionError]:
         named, _, rest = msg.partition(": ")
         if rest and named.startswith(field) and " " not in named:
             field, msg = named, rest  # cross-field checks carry the field in the message
+        elif rest and field.startswith("zones[") and " " not in named:
+            field, msg = f"{field}.{named}", rest  # a zone's own checks: its field in it
         if e["type"] == "extra_forbidden":
             msg = "unknown key"
         out.append(MissionError(field or "mission", msg))

@@ -12,7 +12,14 @@ from hypothesis import given
 from hypothesis import strategies as st
 from pydantic import ValidationError
 
-from gcs_ppf.mission import Mission, MissionError, PolygonZone, load_mission, zone_clearance, zone_footprint
+from gcs_ppf.mission import (
+    Mission,
+    MissionError,
+    PolygonZone,
+    load_mission,
+    zone_clearance,
+    zone_footprint,
+)
 from gcs_ppf.planning.zones import zone_clearances, zone_distance, zones_of
 
 U_SHAPE = [(0, 0), (600, 0), (600, 600), (400, 600), (400, 200), (200, 200), (200, 600), (0, 600)]
