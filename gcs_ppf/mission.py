@@ -26,6 +26,7 @@ from pydantic import (
 )
 
 Vec3 = tuple[float, float, float]
+Vec2 = tuple[float, float]
 PositiveFloat = Annotated[float, Field(gt=0.0)]
 
 
@@ -108,6 +109,145 @@ class Obstacle(_Strict):
     velocity: Vec3 = (0.0, 0.0, 0.0)
 
 
+class _ZoneBase(_Strict):
+    """What every zone kind has: a height band and whether it keeps vehicles out or in."""
+
+    name: str | None = Field(default=None, max_length=200)
+    floor: float | None = None
+    """ICS z (m) of the zone's bottom; None: unbounded below (down to the ground)."""
+    ceiling: float | None = None
+    """ICS z (m) of its top; None: unbounded above (nothing flies over it)."""
+    inclusion: bool = False
+    """False (default): an exclusion zone (no-fly); True: vehicles stay inside it."""
+
+    @model_validator(mode="after")
+    def _band(self) -> _ZoneBase:
+        if self.floor is not None and self.ceiling is not None and self.floor >= self.ceiling:
+            raise ValueError("ceiling: must lie above floor")
+        return self
+
+
+class CylinderZone(_ZoneBase):
+    """A vertical cylinder: a circle (ICS ``center`` or ``center_latlon``) with a height band."""
+
+    kind: Literal["cylinder"]
+    center: Vec2 | None = None
+    """ICS (x, y) m of its axis."""
+    center_latlon: Vec2 | None = None
+    """(lat, lon) degrees of its axis, instead of ``center``."""
+    radius: PositiveFloat
+
+    @model_validator(mode="after")
+    def _one_center(self) -> CylinderZone:
+        if (self.center is None) == (self.center_latlon is None):
+            raise ValueError("center: give exactly one of center and center_latlon")
+        if self.center_latlon is not None:
+            _check_latlon(self.center_latlon, "center_latlon")
+        return self
+
+
+class PolygonZone(_ZoneBase):
+    """An extruded polygon: a simple polygon (convex or not; ICS ``vertices`` or
+    ``vertices_latlon``, either winding, not closed: the last vertex joins the first)
+    with a height band."""
+
+    kind: Literal["polygon"]
+    vertices: list[Vec2] | None = Field(default=None, min_length=3, max_length=10_000)
+    """ICS (x, y) m of its corners."""
+    vertices_latlon: list[Vec2] | None = Field(default=None, min_length=3, max_length=10_000)
+    """(lat, lon) degrees of its corners, instead of ``vertices``."""
+
+    @model_validator(mode="after")
+    def _simple(self) -> PolygonZone:
+        if (self.vertices is None) == (self.vertices_latlon is None):
+            raise ValueError("vertices: give exactly one of vertices and vertices_latlon")
+        field = "vertices" if self.vertices is not None else "vertices_latlon"
+        points = self.vertices if self.vertices is not None else self.vertices_latlon
+        assert points is not None
+        if field == "vertices_latlon":
+            for k, p in enumerate(points):
+                _check_latlon(p, f"vertices_latlon[{k}]")
+        problem = polygon_problem(points)
+        if problem is not None:
+            raise ValueError(f"{field}: {problem}")
+        return self
+
+
+Zone = Annotated[CylinderZone | PolygonZone, Field(discriminator="kind")]
+
+
+def _check_latlon(p: Vec2, field: str) -> None:
+    if not (-90.0 <= p[0] <= 90.0 and -180.0 <= p[1] <= 180.0):
+        raise ValueError(f"{field}: latitude must lie in [-90, 90] and longitude in [-180, 180]")
+
+
+def polygon_problem(points: Sequence[Vec2]) -> str | None:
+    """Why ``points`` (a ring, not closed) is not a simple polygon, or None (shapely's
+    validity: no self-intersection, no repeated or collinear-only rings, a non-zero area)."""
+    from shapely import Polygon
+    from shapely.validation import explain_validity
+
+    ring = list(points)
+    if len(ring) > 3 and ring[0] == ring[-1]:
+        ring = ring[:-1]  # a closed ring is taken as given once
+    if len(set(ring)) != len(ring):
+        return "repeated vertex"
+    shape = Polygon(ring)
+    if not shape.is_valid:
+        return f"not a simple polygon ({explain_validity(shape)})"
+    if shape.area <= 0.0:
+        return "zero area (collinear vertices)"
+    return None
+
+
+def zone_footprint(zone: CylinderZone | PolygonZone, origin: Origin) -> list[Vec2]:
+    """A polygon zone's corners in ICS metres (x east, y north), or a cylinder's centre
+    as the one point; lat/lon converted on WGS-84 about ``origin`` (pymap3d)."""
+    import pymap3d
+
+    if isinstance(zone, CylinderZone):
+        if zone.center is not None:
+            return [zone.center]
+        points = [zone.center_latlon] if zone.center_latlon is not None else []
+    else:
+        if zone.vertices is not None:
+            return list(zone.vertices)
+        points = list(zone.vertices_latlon or [])
+    out: list[Vec2] = []
+    for lat, lon in points:
+        e, n, _ = pymap3d.geodetic2enu(lat, lon, origin.alt, origin.lat, origin.lon, origin.alt)
+        out.append((float(e), float(n)))
+    return out
+
+
+def zone_clearance(
+    zone: CylinderZone | PolygonZone, footprint: Sequence[Vec2], point: Sequence[float]
+) -> float:
+    """Signed distance (m) from ``point`` (ICS) to the zone's surface, positive on its
+    free side (outside an exclusion zone, inside an inclusion zone); ``footprint`` is
+    ``zone_footprint``'s.  Computed by shapely, apart from the planner's compiled
+    ``gcs_ppf.planning.zones`` (which the tests check against it)."""
+    from shapely import Point, Polygon
+
+    x, y, z = float(point[0]), float(point[1]), float(point[2])
+    if isinstance(zone, CylinderZone):
+        cx, cy = footprint[0]
+        dh = math.hypot(x - cx, y - cy) - zone.radius
+    else:
+        shape, here = Polygon(footprint), Point(x, y)
+        dh = shape.exterior.distance(here)
+        if shape.contains(here):
+            dh = -dh
+    below = -math.inf if zone.floor is None else zone.floor - z
+    above = -math.inf if zone.ceiling is None else z - zone.ceiling
+    dz = max(below, above)
+    if dh > 0.0 or dz > 0.0:
+        d = math.hypot(max(dh, 0.0), max(dz, 0.0))
+    else:
+        d = max(dh, dz)
+    return -d if zone.inclusion else d
+
+
 class Waypoint(_Strict):
     """A point of the leader's route, reached when the leader passes within
     ``acceptance_radius`` of it or crosses the line through it square to the leg (as
@@ -142,6 +282,9 @@ class Mission(_Strict):
     ground under the vehicles' homes (see ``gcs_ppf.guidance.online``)."""
     vehicles: list[Vehicle] = Field(min_length=1, max_length=1000)
     obstacles: list[Obstacle] = Field(default_factory=list, max_length=10_000)
+    zones: list[Zone] = Field(default_factory=list, max_length=10_000)
+    """No-fly (exclusion) and stay-inside (inclusion) zones: vertical cylinders and
+    extruded polygons (``CylinderZone``, ``PolygonZone``); docs/zones.md."""
 
     @model_validator(mode="after")
     def _consistent(self) -> Mission:
@@ -200,6 +343,8 @@ def mission_problems(mission: Mission) -> list[str]:
                     f"(closer than radius + limits.safe_distance_obstacle)"
                 )
 
+    problems += _zone_problems(mission)
+
     if mission.ground is not None:
         for k, v in enumerate(mission.vehicles):
             if v.position[2] < mission.ground + lim.collision_radius:
@@ -244,6 +389,30 @@ def mission_problems(mission: Mission) -> list[str]:
     return problems
 
 
+def _zone_problems(mission: Mission) -> list[str]:
+    """Vehicles, the target and the route's waypoints on the free side of every zone."""
+    lim = mission.limits
+    problems: list[str] = []
+    for j, zone in enumerate(mission.zones):
+        footprint = zone_footprint(zone, mission.origin)
+        where = "outside" if zone.inclusion else "inside"
+        for k, v in enumerate(mission.vehicles):
+            if zone_clearance(zone, footprint, v.position) < lim.collision_radius:
+                problems.append(
+                    f"vehicles[{k}].position: {where} zones[{j}] (or closer to its surface "
+                    f"than collision_radius = {lim.collision_radius:g} m)"
+                )
+        if zone_clearance(zone, footprint, mission.target) < lim.target_accuracy:
+            problems.append(f"target: {where} zones[{j}] (or within target_accuracy of it)")
+        for w, wp in enumerate(mission.route):
+            if zone_clearance(zone, footprint, wp.position) < lim.safe_distance_obstacle:
+                problems.append(
+                    f"route[{w}].position: {where} zones[{j}] "
+                    f"(or closer to it than limits.safe_distance_obstacle)"
+                )
+    return problems
+
+
 class MissionError(ValueError):
     """A mission document that cannot be used; ``field`` names the offending field."""
 
@@ -253,9 +422,14 @@ class MissionError(ValueError):
         self.message = message
 
 
+ZONE_KINDS = ("cylinder", "polygon")
+
+
 def _field_path(loc: Sequence[int | str]) -> str:
     path = ""
-    for part in loc:
+    for k, part in enumerate(loc):
+        if k >= 2 and loc[k - 2] == "zones" and part in ZONE_KINDS:
+            continue  # the zone's kind (pydantic's tag of the union) is not a field
         path += f"[{part}]" if isinstance(part, int) else (f".{part}" if path else str(part))
     return path
 
@@ -269,6 +443,8 @@ def describe_validation_error(error: ValidationError) -> list[MissionError]:
         named, _, rest = msg.partition(": ")
         if rest and named.startswith(field) and " " not in named:
             field, msg = named, rest  # cross-field checks carry the field in the message
+        elif rest and field.startswith("zones[") and " " not in named:
+            field, msg = f"{field}.{named}", rest  # a zone's own checks: its field in it
         if e["type"] == "extra_forbidden":
             msg = "unknown key"
         out.append(MissionError(field or "mission", msg))

@@ -7,7 +7,9 @@ is calibrated to it (``gcs_ppf.guidance.vehicle_motion``).  A command is *recove
 from where the vehicle is at the end of ``hold_s`` (the lag of the telemetry, the link and
 the next tick), a turn to either side at the full bank through 180° (the way back is the
 way it came), rolled into from the bank it then has, keeps out of every keep-out: an
-obstacle's surface plus ``safe_distance_obstacle``, the ground plus the same, a teammate
+obstacle's surface plus ``safe_distance_obstacle``, a zone's (a cylinder's or a polygon's,
+``gcs_ppf.planning.zones``; outside an exclusion zone, inside an inclusion zone) the same,
+the ground plus the same, a teammate
 of higher priority (earlier in the order; the leader first) or one it is overtaking, plus
 ``safe_distance_uav``, with ``SLACK_S`` of flight to spare.
 Teammates are predicted on their own (assured) commands, through their hold and on
@@ -22,7 +24,7 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -40,6 +42,7 @@ from gcs_ppf.guidance.vehicle_motion import (
     wrap,
 )
 from gcs_ppf.planning.scene import FloatArray, IntArray, Obstacles
+from gcs_ppf.planning.zones import CYLINDER, Zones, no_zones
 
 #: Course offsets tried for an escape, nearest the command first (radians).
 ESCAPE_OFFSETS = tuple(
@@ -77,6 +80,9 @@ class KeepOut:
     ground_z_m: float | None
     safe_distance_obstacle: float
     safe_distance_uav: float
+    zones: Zones = field(default_factory=no_zones)
+    """Cylinders and polygons (exclusion and inclusion): kept out of by their surface plus
+    ``safe_distance_obstacle`` on their free side, as spheres are."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -93,7 +99,7 @@ class Escape:
 @dataclass(frozen=True, slots=True)
 class Verdict:
     """One vehicle's command after assurance: ``replaced`` when the planned one was not
-    recoverable (``reason``: obstacle, ground or teammate; ``margin_m``: how far the
+    recoverable (``reason``: obstacle, zone, ground or teammate; ``margin_m``: how far the
     planned one would have come inside, negative; ``chosen_margin_m``: the one sent)."""
 
     command: Command
@@ -112,6 +118,7 @@ REASONS = {
     prediction.OBSTACLE: "obstacle",
     prediction.GROUND: "ground",
     prediction.TEAMMATE: "teammate",
+    prediction.ZONE: "zone",
 }
 
 
@@ -149,8 +156,21 @@ def _score(
         near.pool,
         near.which,
         float(keep.safe_distance_uav),
+        *_zone_arrays(keep.zones),
     )
     return float(s), REASONS.get(reason)
+
+
+def _zone_arrays(zones: Zones) -> tuple[IntArray, FloatArray, IntArray, FloatArray]:
+    """The zones' arrays as ``prediction.score`` compiles them (contiguous int64 and
+    float64: one signature, no compiling in flight)."""
+    kind, geom, vstart, verts = zones.arrays
+    return (
+        np.ascontiguousarray(kind, dtype=np.int64),
+        _floats(geom),
+        np.ascontiguousarray(vstart, dtype=np.int64),
+        _floats(verts),
+    )
 
 
 def _floats(a: FloatArray) -> FloatArray:
@@ -487,12 +507,21 @@ def _escape(
     return best
 
 
+_WARM_UP_ZONES = Zones(
+    np.array([CYLINDER], dtype=np.int64),  # unbounded in height
+    np.array([[500.0, -800.0, 300.0, -math.inf, math.inf]]),
+    np.array([0, 0], dtype=np.int64),
+    np.zeros((0, 2)),
+)
+
+
 def warm_up() -> None:
     """Load the compiled prediction (numba's cache, or compile it) before any run, so that
     no tick pays for it."""
     m = Motion((0.0, 0.0, 100.0), 0.0, 25.0, 0.3, 5.0, 5.0)
     sphere = Obstacles(np.array([[500.0, 0.0, 100.0]]), np.array([100.0]), np.zeros((1, 3)))
     keep = KeepOut(sphere, 0.0, 25.0, 50.0)
+    assure([m], [Command(0.0, 100.0)], 1.0, replace(keep, zones=_WARM_UP_ZONES))
     assure([m, replace(m, pos_m=(0.0, 300.0, 100.0))], [Command(0.0, 100.0)] * 2, 1.0, keep)
     advance(m, Command(0.0, 100.0), 1.0)
     escape_s(m)

@@ -21,6 +21,7 @@ from gcs_ppf.planning.planner import STATE_NAMES, Trajectory, advance
 from gcs_ppf.planning.ppf.kernel import KernelLimits
 from gcs_ppf.planning.scene import FloatArray, Obstacles, Scene, scene_from_mission
 from gcs_ppf.planning.turns import formation_turn_limits
+from gcs_ppf.planning.zones import Zones, zone_clearances
 
 
 @dataclass(frozen=True)
@@ -435,9 +436,18 @@ def separations(positions: FloatArray) -> float | None:
     return float(gaps.min())
 
 
-def clearance(positions: FloatArray, obstacles: Obstacles) -> float | None:
-    """Smallest distance from the given positions to any obstacle surface."""
-    if obstacles.radius.shape[0] == 0 or positions.shape[0] == 0:
+def clearance(
+    positions: FloatArray, obstacles: Obstacles, zones: Zones | None = None
+) -> float | None:
+    """Smallest distance from the given positions to any obstacle surface, or any zone's
+    (``zones``: on its free side; negative inside an exclusion zone or outside an
+    inclusion zone); None: nothing to be clear of."""
+    if positions.shape[0] == 0:
         return None
-    d = np.linalg.norm(positions[:, None] - obstacles.center[None], axis=-1) - obstacles.radius
-    return float(d.min())
+    found: list[float] = []
+    if obstacles.radius.shape[0]:
+        d = np.linalg.norm(positions[:, None] - obstacles.center[None], axis=-1) - obstacles.radius
+        found.append(float(d.min()))
+    if zones is not None and len(zones):
+        found.append(float(zone_clearances(positions, zones).min()))
+    return min(found) if found else None

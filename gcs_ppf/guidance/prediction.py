@@ -23,6 +23,7 @@ from numba import njit
 from gcs_ppf.guidance.airframe import G_M_S2
 from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from gcs_ppf.planning.scene import FloatArray, IntArray
+from gcs_ppf.planning.zones import nearest_zone_clearance
 
 X, Y, Z, YAW, SPEED, TURN, CLIMB, SINK, TAU, YAW_RATE, ROLL_LAG, ROLL_RATE = range(12)
 VZ, CLIMB_LAG, HEIGHT_GAIN = 12, 13, 14
@@ -36,7 +37,7 @@ ROLLED_IN_RAD = math.radians(0.5)
 """An escape's bank this near full (rad) is flown on as a circle."""
 _LIFT = TURN_EFFICIENCY * G_M_S2
 
-NO_KEEP_OUT, OBSTACLE, GROUND, TEAMMATE = 0, 1, 2, 3
+NO_KEEP_OUT, OBSTACLE, GROUND, TEAMMATE, ZONE = 0, 1, 2, 3, 4
 """Which keep-out a margin is to (``margin``'s second result)."""
 
 
@@ -215,10 +216,16 @@ def margin(
     start: int,
     last: int,
     safe_uav: float,
+    zone_kind: IntArray,
+    zone_geom: FloatArray,
+    zone_vstart: IntArray,
+    zone_verts: FloatArray,
 ) -> tuple[float, int]:
     """How far ``path`` [k,3] (``STEP_S`` apart) stays outside every keep-out (m; negative:
-    inside), and which one is nearest (``OBSTACLE``, ``GROUND``, ``TEAMMATE``).  A sphere's
-    keep-out is its surface plus ``safe_obstacle``; the ground's (``ground_z``, NaN: none)
+    inside), and which one is nearest (``OBSTACLE``, ``GROUND``, ``TEAMMATE``, ``ZONE``).
+    A sphere's keep-out is its surface plus ``safe_obstacle``; a zone's (the arrays of
+    ``gcs_ppf.planning.zones``: cylinders and polygons, exclusion or inclusion) its surface
+    plus the same, on its free side; the ground's (``ground_z``, NaN: none)
     the same above it; a teammate's ``safe_uav`` around where it is at each instant: of the
     flights ``pool`` [P,L,3], those in rows ``which`` [n], ``path``'s instant i at their
     ``start + min(i, last)`` (the last instant held on).
@@ -242,6 +249,15 @@ def margin(
                 gap = min(gap, d)
         if gap - safe_obstacle < best:
             best, reason = gap - safe_obstacle, OBSTACLE
+    if zone_kind.shape[0]:
+        gap = math.inf
+        for i in range(path.shape[0]):
+            d, _ = nearest_zone_clearance(
+                path[i, 0], path[i, 1], path[i, 2], zone_kind, zone_geom, zone_vstart, zone_verts
+            )
+            gap = min(gap, d)
+        if gap - safe_obstacle < best:
+            best, reason = gap - safe_obstacle, ZONE
     if not math.isnan(ground_z):
         low = path[:, 2].min()
         if low - ground_z - safe_obstacle < best:
@@ -284,6 +300,10 @@ def score(
     pool: FloatArray,
     which: IntArray,
     safe_uav: float,
+    zone_kind: IntArray,
+    zone_geom: FloatArray,
+    zone_vstart: IntArray,
+    zone_verts: FloatArray,
 ) -> tuple[float, int]:
     """A command's margin: along its hold (the teammates along theirs: rows ``which`` of
     ``pool`` [P,L,3], their flights, ``vehicle_motion.Track``, the first ``hold_steps`` + 1
@@ -292,14 +312,30 @@ def score(
     the keep-out it is to."""
     path, end = fly_hold(m, course, z, hold_s)
     k = hold_steps(hold_s)
+    zk, zg, zs, zv = zone_kind, zone_geom, zone_vstart, zone_verts
     held, reason = margin(
-        path, centers, radii, safe_obstacle, ground_z, pool, which, 0, k, safe_uav
+        path, centers, radii, safe_obstacle, ground_z, pool, which, 0, k, safe_uav, zk, zg, zs, zv
     )
     escape, escape_reason = -math.inf, NO_KEEP_OUT
     after = pool.shape[1] - k - 1
     for side in (1.0, -1.0):
         arc = escape_arc(m, end, side)
-        e, r = margin(arc, centers, radii, safe_obstacle, ground_z, pool, which, k, after, safe_uav)
+        e, r = margin(
+            arc,
+            centers,
+            radii,
+            safe_obstacle,
+            ground_z,
+            pool,
+            which,
+            k,
+            after,
+            safe_uav,
+            zk,
+            zg,
+            zs,
+            zv,
+        )
         if e > escape:
             escape, escape_reason = e, r
     if escape < held:

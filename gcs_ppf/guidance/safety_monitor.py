@@ -1,5 +1,6 @@
 """The safety monitor: every vehicle's reported position checked against the keep-outs —
-obstacles, teammates, the ground — independently of the planner's state and predictions.
+obstacles, zones (cylinders and polygons, exclusion and inclusion), teammates, the ground —
+independently of the planner's state and predictions.
 
 Pure: positions in, violations out. The service feeds it the positions the vehicles report
 (GLOBAL_POSITION_INT converted to the ICS, not planned), each only carried to the instant of
@@ -16,14 +17,16 @@ from typing import Literal
 import numpy as np
 
 from gcs_ppf.planning.scene import FloatArray, Obstacles
+from gcs_ppf.planning.zones import Zones, zone_clearances
 
-Kind = Literal["obstacle", "teammate", "ground"]
+Kind = Literal["obstacle", "zone", "teammate", "ground"]
 
 
 @dataclass(frozen=True, slots=True)
 class Violation:
     """A keep-out entered: ``depth_m`` is how far inside the safe distance the vehicle is
-    (safe distance − clearance, > 0); ``other`` the obstacle's index or the teammate's id."""
+        (safe distance − clearance, > 0); ``other`` the obstacle's or the zone's index (in the
+    mission's ``obstacles`` / ``zones``) or the teammate's id."""
 
     kind: Kind
     vehicle_id: int
@@ -60,9 +63,12 @@ def violations(
     safe_distance_uav: float,
     safe_distance_obstacle: float,
     airborne: list[bool] | None = None,
+    zones: Zones | None = None,
 ) -> list[Violation]:
     """The keep-outs the vehicles at ``positions`` [N,3] (ICS) are inside now: an obstacle's
-    surface closer than ``safe_distance_obstacle``, a teammate closer than
+    surface closer than ``safe_distance_obstacle``, a zone's the same on its free side
+    (``zones``; inside an exclusion zone or outside an inclusion zone is deeper still), a
+    teammate closer than
     ``safe_distance_uav``, and — for vehicles that have been airborne (``airborne``, default
     all) — the ground closer than ``safe_distance_obstacle``."""
     out: list[Violation] = []
@@ -74,6 +80,10 @@ def violations(
         depth = safe_distance_obstacle - (gap - obstacles.radius[None])
         for i, j in zip(*np.nonzero(depth > 0.0), strict=True):
             out.append(Violation("obstacle", ids[i], int(j), float(depth[i, j])))
+    if zones is not None and len(zones):
+        depth = safe_distance_obstacle - zone_clearances(positions, zones)
+        for i, j in zip(*np.nonzero(depth > 0.0), strict=True):
+            out.append(Violation("zone", ids[i], int(j), float(depth[i, j])))
     if n > 1:
         gap = np.linalg.norm(positions[:, None] - positions[None], axis=-1)
         depth = safe_distance_uav - gap
@@ -108,6 +118,7 @@ class Monitor:
         ground_z_m: float | None,
         safe_distance_uav: float,
         safe_distance_obstacle: float,
+        zones: Zones | None = None,
     ) -> list[Violation]:
         """One sample of reported positions: the violations that have just begun."""
         if ground_z_m is not None:
@@ -121,6 +132,7 @@ class Monitor:
             safe_distance_uav,
             safe_distance_obstacle,
             [i in self.airborne for i in ids],
+            zones,
         )
         return self.update(now)
 

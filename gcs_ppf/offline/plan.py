@@ -54,6 +54,7 @@ def flight_context(mission: Mission, scene: Scene) -> FlightContext:
         target_accuracy=mission.limits.target_accuracy,
         collision_radius=mission.limits.collision_radius,
         ground=mission.ground,
+        zones=scene.zones,
     )
 
 

@@ -24,6 +24,8 @@ import numpy as np
 from numba import njit
 
 from gcs_ppf.planning.ppf.kernel import S1_FOLLOW, KernelLimits, influence_radius, move, slot_to_ics
+from gcs_ppf.planning.ppf.zone_repulsion import surface_influence_radius
+from gcs_ppf.planning.zones import INCLUSION, zone_distance, zone_lower_bound
 
 SPEED_GAIN = 1.0  # 1/s: wingman speed = leader speed + gain × distance to G_i
 
@@ -115,6 +117,37 @@ def apf_repulsion(
 
 
 @njit(cache=True, inline="always")
+def apf_zone_repulsion(
+    i: int,
+    fx: float,
+    fy: float,
+    fz: float,
+    pos: np.ndarray,
+    speed: np.ndarray,
+    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    lim: KernelLimits,
+) -> tuple[float, float, float, bool]:
+    """The field (fx, fy, fz) on vehicle i with Khatib's gradient from every zone added,
+    by the distance to its nearest surface point and along the normal there
+    (``gcs_ppf.planning.zones.zone_distance``; the reach from the surface as PPF's,
+    ``surface_influence_radius``); returns (the field, whether a zone repels)."""
+    kind, geom, vstart, verts = zones
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
+    reach = surface_influence_radius(speed[i], omega, lim.safe_distance_obstacle)
+    repelled = False
+    for k in range(kind.shape[0]):
+        if not kind[k] & INCLUSION and zone_lower_bound(k, px, py, pz, geom) >= reach:
+            continue
+        d, nx, ny, nz = zone_distance(k, px, py, pz, kind, geom, vstart, verts)
+        mag = khatib_repulsion(d, lim.safe_distance_obstacle, reach)
+        if mag > 0.0:
+            repelled = True
+            fx, fy, fz = fx + mag * nx, fy + mag * ny, fz + mag * nz
+    return fx, fy, fz, repelled
+
+
+@njit(cache=True, inline="always")
 def apf_motion(
     i: int,
     fx: float,
@@ -167,9 +200,11 @@ def apf_fleet_step(
     direction: np.ndarray,
     local_target: np.ndarray,
     next_motion: np.ndarray,
+    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> None:
     """Advance the fleet one step Δt in place by the classical APF method: the unit
-    attraction towards the target (the leader) or G_i (a wingman) plus the repulsions."""
+    attraction towards the target (the leader) or G_i (a wingman) plus the repulsions
+    (the zones' by ``apf_zone_repulsion``)."""
     apf_targets(pos, pitch, yaw, slot, direction, local_target)
     for i in range(pos.shape[0]):
         formed[i] = False
@@ -186,6 +221,8 @@ def apf_fleet_step(
         fx, fy, fz, avoiding[i] = apf_repulsion(
             i, fx, fy, fz, pos, speed, rank, active, obs_center, obs_radius, lim
         )
+        fx, fy, fz, by_zone = apf_zone_repulsion(i, fx, fy, fz, pos, speed, zones, lim)
+        avoiding[i] = avoiding[i] or by_zone
         next_motion[i, 0], next_motion[i, 1], next_motion[i, 2] = apf_motion(
             i, fx, fy, fz, dist, pitch, yaw, speed, lim, dt
         )

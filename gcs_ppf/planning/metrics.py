@@ -23,7 +23,7 @@ Smoothness (PPF against APF) is measured by
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 
 from gcs_ppf.planning.planner import Trajectory
 from gcs_ppf.planning.scene import FloatArray, Obstacles
+from gcs_ppf.planning.zones import Zones, no_zones, zone_clearances
 
 CONTACT_TOLERANCE_M = 1e-9
 
@@ -45,6 +46,7 @@ class FlightContext:
     target_accuracy: float
     collision_radius: float
     ground: float | None = None  # ICS z of the ground, None: free space
+    zones: Zones = field(default_factory=no_zones)  # cylinders and polygons: obstacles too
 
 
 def direction_vectors(pitch: FloatArray, yaw: FloatArray) -> FloatArray:
@@ -113,6 +115,13 @@ def safety(trajectory: Trajectory, context: FlightContext) -> Safety:
     else:
         obstacle_contacts_per_vehicle = np.zeros(n)
         clearance = np.full(n, np.inf)
+    z = len(context.zones)
+    if z:  # the distance to each zone's nearest surface point, free side positive
+        clear_z = zone_clearances(tr.pos.reshape(k * n, 3), context.zones).reshape(k, n * z)
+        obstacle_contacts_per_vehicle = obstacle_contacts_per_vehicle + _contacts(
+            clear_z, context.collision_radius
+        ).reshape(n, z).sum(axis=1)
+        clearance = np.minimum(clearance, clear_z.reshape(k, n, z).min(axis=(0, 2)))
     separation = gaps.min(axis=(0, 2)) if n > 1 else np.full(n, np.inf)
     if context.ground is not None:  # the ground is an obstacle too
         height = tr.pos[:, :, 2] - context.ground  # [K,N]
@@ -277,7 +286,7 @@ def compute_metrics(
     }
     flight = float(t[-1] - t[0])
     wall = planning_wall_time_s
-    has_obstacles = context.obstacles.radius.shape[0] > 0
+    has_obstacles = context.obstacles.radius.shape[0] > 0 or len(context.zones) > 0
     return {
         "reached": bool(reached),
         "flight_time_s": float(t[-1]) if reached else None,

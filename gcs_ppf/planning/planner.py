@@ -172,6 +172,7 @@ def advance(
             _MATE_SEARCH[mates],
             radius,
             finish,
+            scene.zones.arrays,
         )
         t_s, times = t0 + elapsed, t0 + rec_t[:records]
     else:
@@ -205,6 +206,7 @@ def advance(
             _MATE_SEARCH[mates],
             radius,
             finish,
+            scene.zones.arrays,
         )
         elapsed, times = t_s - t0, rec_t[:records]
     trajectory = Trajectory(
@@ -218,5 +220,11 @@ def advance(
         avoiding=rec_avoiding[:records],
         formed=rec_formed[:records],
     )
-    after = Scene(fleet=fleet, obstacles=obstacles, target=scene.target, limits=scene.limits)
+    after = Scene(
+        fleet=fleet,
+        obstacles=obstacles,
+        target=scene.target,
+        limits=scene.limits,
+        zones=scene.zones,
+    )
     return Advance(after, trajectory, bool(arrived), int(steps), float(elapsed), float(t_s))

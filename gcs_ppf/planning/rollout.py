@@ -246,6 +246,7 @@ def run_steps(
     trig: np.ndarray,
     goal_radius: float,
     finish: np.ndarray,
+    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> tuple[int, int, float, bool]:
     """Steps ``first`` to ``last`` − 1 of ``run_fleet`` (of ``n_steps``) with the neighbour
     lists as they are, recording and stopping at the leader's arrival as ``run_fleet``
@@ -284,6 +285,7 @@ def run_steps(
                 mate_start,
                 mates,
                 trig,
+                zones,
             )
         else:
             apf_fleet_step(
@@ -306,6 +308,7 @@ def run_steps(
                 direction,
                 local_target,
                 next_motion,
+                zones,
             )
         s = leader_arrival_fraction(prev_pos[0], pos[0], target, goal_radius)
         if s < 0.0:
@@ -381,6 +384,7 @@ def run_fleet(
     mate_search: int,
     goal_radius: float,
     finish: np.ndarray,
+    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> tuple[int, int, float, bool]:
     """Run up to ``n_steps`` steps in place, stopping when the leader reaches the target:
     within ``goal_radius`` of it, or across its finish line (``finish``, the normal of the
@@ -488,6 +492,7 @@ def run_fleet(
             trig,
             goal_radius,
             finish,
+            zones,
         )
     return step, records, elapsed, arrived
 
@@ -523,6 +528,7 @@ def run_chunks(
     mate_search: int,
     goal_radius: float,
     finish: np.ndarray,
+    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> tuple[int, int, float, bool]:
     """``run_fleet`` ``chunk_steps`` steps at a time, exactly as that many calls of it one
     after the other: each chunk records from its own start (``record_every``), its record
@@ -560,6 +566,7 @@ def run_chunks(
             mate_search,
             goal_radius,
             finish,
+            zones,
         )
         for r in range(records, records + written):
             rec_t[r] = t + rec_t[r]

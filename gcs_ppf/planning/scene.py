@@ -8,7 +8,7 @@ rank and is ignored by them (the leader has rank 0 unless a mission says otherwi
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from gcs_ppf.mission import Limits, Mission, Vehicle
 from gcs_ppf.planning.ppf.kernel import KernelLimits
 from gcs_ppf.planning.turns import formation_turn_limits
+from gcs_ppf.planning.zones import Zones, no_zones, zones_from_mission
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -77,12 +78,14 @@ class Obstacles:
 
 @dataclass(frozen=True)
 class Scene:
-    """Everything the planner needs: fleet, obstacles, leader target and limits."""
+    """Everything the planner needs: fleet, obstacles, leader target and limits, and the
+    zones (static cylinders and polygons, ``gcs_ppf.planning.zones``; none by default)."""
 
     fleet: Fleet
     obstacles: Obstacles
     target: FloatArray
     limits: KernelLimits
+    zones: Zones = field(default_factory=no_zones)
 
 
 def kernel_limits(limits: Limits, ground: float | None = None) -> KernelLimits:
@@ -142,4 +145,5 @@ def scene_from_mission(mission: Mission) -> Scene:
         obstacles=obstacles_from_mission(mission),
         target=np.array(mission.target, dtype=float),
         limits=limits,
+        zones=zones_from_mission(mission),
     )

@@ -317,7 +317,9 @@ async def tick(station: Station, run: Run) -> bool:
         positions = together[[at[i] for i in sorted(active)]].reshape(-1, 3)
         obstacles = obstacles_from_mission(mission).at(run.mission_time_s)
         run.min_separation_m = min_of(run.min_separation_m, separations(positions))
-        run.min_clearance_m = min_of(run.min_clearance_m, clearance(positions, obstacles))
+        run.min_clearance_m = min_of(
+            run.min_clearance_m, clearance(positions, obstacles, run.zones)
+        )
 
         leader_pos = np.array(reported[leader_id])
         previous, run.leader_pos = run.leader_pos, leader_pos
@@ -453,6 +455,7 @@ async def plan_and_command(
             mission.ground if mission.ground is not None else ground,
             lim.safe_distance_obstacle,
             lim.safe_distance_uav,
+            run.zones,
         )
         starvation_s = settings.starvation_allowance_s * station.fleet.clock_rate()
         hold_s = lag.hold_s(

@@ -118,7 +118,11 @@ async def fly_holds(
             obstacles = obedience.with_obstacles(obstacles, traffic)
         lim = mission.limits
         keep = assurance.KeepOut(
-            obstacles, ground(run, located), lim.safe_distance_obstacle, lim.safe_distance_uav
+            obstacles,
+            ground(run, located),
+            lim.safe_distance_obstacle,
+            lim.safe_distance_uav,
+            run.zones,
         )
         starvation = settings.starvation_allowance_s * fleet.clock_rate()
         hold_s = lag.hold_s(

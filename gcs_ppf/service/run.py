@@ -17,6 +17,7 @@ from gcs_ppf.guidance.online import Guidance
 from gcs_ppf.guidance.speed_reference import SpeedPlan
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.route import Leg, legs
+from gcs_ppf.planning.zones import Zones, zones_from_mission
 from gcs_ppf.service import commanding
 from gcs_ppf.service.store import StoredRun
 from gcs_ppf.service.tick_phases import TickPhases
@@ -120,6 +121,15 @@ class Run:
     """``Fleet.decoding_s`` at the last tick (the decoding since is the next tick's)."""
     tick_rate: TickRate | None = None
     """Whether the ticks keep their period (``service.tick_rate``), from the first tick."""
+    _zones: tuple[Mission, Zones] | None = field(default=None, repr=False)
+
+    @property
+    def zones(self) -> Zones:
+        """The mission's zones as the planner's arrays (``gcs_ppf.planning.zones``), made
+        once per mission document (a mission replaced mid-run gets its own)."""
+        if self._zones is None or self._zones[0] is not self.mission:
+            self._zones = (self.mission, zones_from_mission(self.mission))
+        return self._zones[1]
 
     def __post_init__(self) -> None:
         self.formation = FormationWatch(self.mission.limits.target_accuracy)

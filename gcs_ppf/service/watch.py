@@ -44,6 +44,7 @@ def watch_safety(
         ground_z_m,
         lim.safe_distance_uav,
         lim.safe_distance_obstacle,
+        run.zones,
     )
     late = {"after_end_s": round(after_end_s, 1)} if after_end_s else {}
     for v in began:

@@ -104,6 +104,7 @@ from gcs_ppf.planning.ppf.steering import (
     steer,
     trend_matrix,
 )
+from gcs_ppf.planning.ppf.zone_repulsion import zone_repulsion
 
 __all__ = [
     "AVOIDANCE_TURN_ANGLE",
@@ -284,6 +285,7 @@ def fleet_step(
     mate_start: np.ndarray,
     mates: np.ndarray,
     trig: np.ndarray,
+    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> None:
     """Advance the fleet one step Δt in place: the paper's algorithm (Eq. 3–24).
 
@@ -298,7 +300,8 @@ def fleet_step(
     (``attitude_trig``) and of its new attitude on return; its last columns are scratch
     (the velocities, and who gives way back: ``yielding_back``).
     Every vehicle decides from the fleet's state at the start of the step (``rank`` through
-    the teammate lists).  Obstacles are moved at the end of the step.
+    the teammate lists).  Obstacles are moved at the end of the step.  ``zones`` (the
+    arrays of ``gcs_ppf.planning.zones``) repel as obstacles do (``zone_repulsion``).
     """
     unit_velocities(speed, trig, direction)  # Eq. 5
     wait_speed = formation_targets(pos, slot, active, trig, direction, lim, local_target, formed)
@@ -358,6 +361,8 @@ def fleet_step(
             lim,
             dt,
         )
+        zx, zy, zz = zone_repulsion(i, pos, speed, direction, zones, lim, dt)
+        ox, oy, oz = ox + zx, oy + zy, oz + zz
         rx, ry, rz, mate, hold_course = teammate_conflicts(
             i,
             ox,

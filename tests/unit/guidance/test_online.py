@@ -20,7 +20,8 @@ from gcs_ppf.guidance.online import (
 )
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.planner import advance
-from gcs_ppf.planning.scene import obstacles_from_mission
+from gcs_ppf.planning.scene import Obstacles, obstacles_from_mission
+from gcs_ppf.planning.zones import zones_from_mission
 
 
 def test_state_from_ned_velocity() -> None:
@@ -112,6 +113,28 @@ def test_separation_and_clearance(table3: Mission) -> None:
     assert separations(pos[:1]) is None
     obstacles = obstacles_from_mission(table3)
     assert clearance(np.array([[3000.0, 3000.0, 500.0]]), obstacles) == pytest.approx(50.0)
+
+
+def no_obstacles() -> Obstacles:
+    return Obstacles(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
+
+
+def test_clearance_counts_the_zones_too_and_the_scene_keeps_them(table3: Mission) -> None:
+    doc = table3.model_dump()
+    doc["zones"] = [{"kind": "cylinder", "center": [4000.0, 1000.0], "radius": 200.0}]
+    mission = Mission.model_validate(doc)
+    zones = zones_from_mission(mission)
+    obstacles = obstacles_from_mission(mission)
+    near_zone = np.array([[4000.0, 1230.0, 300.0]])  # 30 m from the cylinder's wall
+    assert clearance(near_zone, obstacles, zones) == pytest.approx(30.0)
+    spheres_only = clearance(near_zone, obstacles)
+    assert spheres_only is not None
+    assert spheres_only > 1000.0  # the spheres alone are far
+    assert clearance(near_zone, no_obstacles(), zones) == pytest.approx(30.0)
+    assert clearance(near_zone, no_obstacles()) is None
+    states = _states_at_start(mission)
+    scene = scene_now(mission, states, {v.id for v in mission.vehicles}, obstacles)
+    assert scene.zones.arrays[1].tolist() == zones.arrays[1].tolist()
 
 
 def test_the_ground_is_the_missions_or_else_under_the_vehicles_homes(table3: Mission) -> None:

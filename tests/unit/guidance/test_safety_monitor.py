@@ -8,7 +8,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as hs
 
 from gcs_ppf.guidance.safety_monitor import MAX_ALIGN_S, Monitor, aligned, violations
+from gcs_ppf.mission import CylinderZone, Mission, PolygonZone
 from gcs_ppf.planning.scene import Obstacles
+from gcs_ppf.planning.zones import Zones, zones_of
 
 
 def spheres(*centres_radii: tuple[float, float, float, float]) -> Obstacles:
@@ -103,3 +105,69 @@ def test_reports_of_different_moments_are_carried_to_the_newest() -> None:
     far = aligned(positions, velocities, np.array([5.0, 0.0]))
     assert far[0] == pytest.approx([20.0 - 100.0 * MAX_ALIGN_S, 0.0, 100.0])
     assert aligned(positions, velocities, np.zeros(2)) == pytest.approx(positions)
+
+
+def _zones() -> Zones:
+    m = Mission.model_validate(
+        {
+            "target": [0.0, 0.0, 300.0],
+            "vehicles": [{"id": 1, "role": "leader", "position": [0.0, 0.0, 300.0]}],
+        }
+    )
+    return zones_of(
+        [
+            CylinderZone(kind="cylinder", center=(1000.0, 0.0), radius=100.0, ceiling=200.0),
+            PolygonZone(  # a U opening west: its pocket is free
+                kind="polygon",
+                vertices=[
+                    (0, 2000),
+                    (600, 2000),
+                    (600, 2600),
+                    (0, 2600),
+                    (0, 2400),
+                    (400, 2400),
+                    (400, 2200),
+                    (0, 2200),
+                ],
+            ),
+            PolygonZone(
+                kind="polygon",
+                vertices=[(-5000, -5000), (5000, -5000), (5000, 5000), (-5000, 5000)],
+                inclusion=True,
+            ),
+        ],
+        m,
+    )
+
+
+def test_zones_entered_are_violations_with_their_index_and_depth() -> None:
+    pos = np.array(
+        [
+            [1000.0, 110.0, 150.0],  # 10 m outside the cylinder's wall, under its ceiling
+            [1000.0, 0.0, 215.0],  # 15 m over its ceiling
+            [1000.0, 0.0, 400.0],  # 200 m over it: clear
+            [200.0, 2300.0, 300.0],  # in the U's pocket, 100 m from its walls: clear
+            [500.0, 2300.0, 300.0],  # inside the U's solid end, 100 m deep
+            [4990.0, 0.0, 300.0],  # 10 m inside the inclusion zone's edge
+            [5100.0, 0.0, 300.0],  # 100 m outside it
+        ]
+    )
+    found = violations(list(range(1, 8)), pos, spheres(), None, 50.0, 25.0, zones=_zones())
+    got = {(v.vehicle_id, v.other): v.depth_m for v in found}
+    assert {v.kind for v in found} == {"zone"}
+    assert got == pytest.approx({(1, 0): 15.0, (2, 0): 10.0, (5, 1): 125.0, (6, 2): 15.0,
+                                 (7, 2): 125.0})  # fmt: skip
+
+
+def test_the_monitor_reports_a_zone_entered_once_while_inside() -> None:
+    mon = Monitor()
+    inside = np.array([[1000.0, 50.0, 150.0]])
+    assert (
+        mon.watch([1], np.array([[0.0, 0.0, 300.0]]), spheres(), None, 50.0, 25.0, _zones()) == []
+    )
+    [began] = mon.watch([1], inside, spheres(), None, 50.0, 25.0, _zones())
+    assert (began.kind, began.vehicle_id, began.other) == ("zone", 1, 0)
+    assert began.depth_m == pytest.approx(75.0)
+    assert mon.watch([1], inside, spheres(), None, 50.0, 25.0, _zones()) == []
+    assert mon.count == 1
+    assert mon.deepest_m["zone"] == pytest.approx(75.0)
