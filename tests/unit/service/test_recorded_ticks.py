@@ -5,8 +5,8 @@ the same messages in the same order, the same events and the same state after, t
 
 Recorded before the tick was made to scale (issue 29), so that making it faster cannot
 change what it decides.  A change of the planner itself re-plans the recorded results from
-the recorded inputs (the great-circle slide moved 8 of them by at most 1.1e-13 m; the
-verdicts and commands replayed unchanged)."""
+the recorded inputs (crossing_point's guard on a teammate moved 5 of them by at most
+1.1e-13 m, rounding; the verdicts and commands replayed unchanged)."""
 
 from __future__ import annotations
 
