@@ -32,7 +32,6 @@ AVOIDANCE_TURN_ANGLE = math.pi / 2  # a moving obstacle is out-turned in a quart
 MAX_FOLLOW_PITCH = math.pi / 4  # steepest flight path target following asks for
 TAN_MAX_FOLLOW_PITCH = math.tan(MAX_FOLLOW_PITCH)
 MAX_AVOID_PITCH = math.pi / 3  # steepest flight path any wanted direction may have
-GREAT_CIRCLE_PITCH = math.pi / 6  # from here yawing alone turns the path at ≤ 0.87 ω
 INFLUENCE_STEPS = 3.0  # steps of travel added to the influence radius (discrete turning)
 SIDEWAYS_EPS = 1e-9  # |F_v^y| below this fraction of |F_v| counts as 0 in Eq. 19 (round-off)
 CONFLICT_HORIZON_TURNS = 1.0  # teammate conflicts are looked for this many quarter turns ahead

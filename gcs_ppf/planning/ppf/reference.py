@@ -18,10 +18,8 @@ from gcs_ppf.planning.ppf.kernel import (
     AVOIDANCE_TURN_ANGLE,
     CONFLICT_HORIZON_TURNS,
     EPSILON_1,
-    GREAT_CIRCLE_PITCH,
     INFLUENCE_STEPS,
     LOCAL_MINIMUM_ANGLE,
-    MAX_AVOID_PITCH,
     MAX_FOLLOW_PITCH,
     S1_FOLLOW,
     S2_LOCAL_MINIMUM,
@@ -332,11 +330,10 @@ def _wanted_direction(
     r: Repulsion,
     lim: KernelLimits,
     dt: float,
-) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray, FloatArray, BoolArray]:
+) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray, FloatArray]:
     """Eq. 16–18 into the VCS, Eq. 20 (s2), the slide along static obstacles and the
     flight-path and ground limits.  Returns (F_v [N,3], the wanted ICS direction d [N,3],
-    the sine of the lowest flight-path angle allowed, s2, F_v^x before any change, whether
-    each slides off a static obstacle it closes on)."""
+    the sine of the lowest flight-path angle allowed, s2, F_v^x before any change)."""
     cp, sp, cy, sy = a.cp, a.sp, a.cy, a.sy
     n = pos.shape[0]
     repelled = (r.rep != 0).any(1)
@@ -397,14 +394,13 @@ def _wanted_direction(
     fv = np.stack(
         [cp * bx + sp * d[:, 2], -sy * d[:, 0] + cy * d[:, 1], -sp * bx + cp * d[:, 2]], 1
     )
-    return fv, d, lowest, s2, along_field, closing_in
+    return fv, d, lowest, s2, along_field
 
 
 def _turn_trends(
     fv: FloatArray,
     d: FloatArray,
     lowest: FloatArray,
-    sliding: BoolArray,
     pitch: FloatArray,
     yaw: FloatArray,
     a: Attitude,
@@ -415,9 +411,7 @@ def _turn_trends(
 ) -> tuple[FloatArray, FloatArray]:
     """Eq. 19 (erratum 2), saturated: the pitch and yaw entries of the trend matrix, the
     yaw never turning further towards a repelling obstacle when the other sense does not
-    (the kernel's ``away_from_obstacles``); ``yaw_rate`` [N] each vehicle's ω_ψ.  A vehicle
-    ``sliding`` off a static obstacle it closes on turns along the great circle towards
-    F_v (the kernel's ``great_circle_trend``)."""
+    (the kernel's ``away_from_obstacles``); ``yaw_rate`` [N] each vehicle's ω_ψ."""
     fvx, fvy, fvz = fv.T
     elevation = np.arctan2(fvz, np.hypot(fvx, fvy))
     behind = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1])) - pitch
@@ -429,23 +423,6 @@ def _turn_trends(
     azimuth = np.where((fvx < 0) & (azimuth == 0.0), math.pi, azimuth)
     f_pitch = np.clip(elevation / (lim.max_pitch_rate * dt), -1, 1)
     f_yaw = np.clip(azimuth / (yaw_rate * dt), -1, 1)
-    # Sliding: straight towards F_v, k = min(angle/Δt, ω_θ/|u_z|, ω_ψ cos θ/|u_y|).
-    across = np.hypot(fvy, fvz)
-    steepness = np.abs(pitch)
-    great = sliding & (steepness >= GREAT_CIRCLE_PITCH) & (steepness <= MAX_AVOID_PITCH)
-    great &= (lowest <= -1.0) & (across > 0)
-    if great.any() and not airframe_limited(lim):
-        with np.errstate(divide="ignore", invalid="ignore"):
-            uy, uz, c = fvy / across, fvz / across, np.cos(pitch)
-            k = np.minimum.reduce(
-                [
-                    np.arctan2(across, fvx) / dt,
-                    lim.max_pitch_rate / np.abs(uz),
-                    yaw_rate * c / np.abs(uy),
-                ]
-            )
-            f_pitch = np.where(great, k * uz / lim.max_pitch_rate, f_pitch)
-            f_yaw = np.where(great, k * uy / (c * yaw_rate), f_yaw)
     o = r.obstacles
     now = (a.u * o).sum(1)
     th = pitch + f_pitch * lim.max_pitch_rate * dt
@@ -572,7 +549,7 @@ def reference_step(
     follow = _follow(pos, aim, speed, a, lim)
     r = _repulsion(pos, speed, a, follow, rank, active, f.formed, obstacles, lim, dt)
     field = _field(follow, a, r)
-    fv, d, lowest, s2, along_field, sliding = _wanted_direction(field, pos, speed, a, r, lim, dt)
+    fv, d, lowest, s2, along_field = _wanted_direction(field, pos, speed, a, r, lim, dt)
     state = np.where(s2, S2_LOCAL_MINIMUM, S1_FOLLOW).astype(np.int64)
     yaw_rate = np.full(pos.shape[0], lim.max_yaw_rate)
     if not (r.rep[0] != 0).any():  # the leader following its target (``leader_limits``)
@@ -587,7 +564,7 @@ def reference_step(
             float(target[1]),
         )
         yaw_rate[0] = leader_limits(lim, inside).max_yaw_rate
-    f_pitch, f_yaw = _turn_trends(fv, d, lowest, sliding, pitch, yaw, a, r, lim, dt, yaw_rate)
+    f_pitch, f_yaw = _turn_trends(fv, d, lowest, pitch, yaw, a, r, lim, dt, yaw_rate)
     held_turn = bool(active[0]) and lim.leader_turn_rate < math.inf
     leader_turn = float(f_yaw[0] * yaw_rate[0]) if held_turn else 0.0
     f_speed = _speed_trend(along_field, pos, aim, speed, a, f, r, state, lim, dt, leader_turn)

@@ -5,7 +5,6 @@ matrix (Eq. 16–20 of the paper), with the choices where the paper is silent.
 * ``slide_along_obstacles`` Eq. 19's wanted direction around static obstacles
 * ``flight_path_limited``   the wanted direction within the flight-path and ground limits
 * ``trend_matrix``          Eq. 19: pitch and yaw entries of f (erratum 2)
-* ``great_circle_trend``    the same, turning straight towards F_v (sliding off obstacles)
 * ``steer``                 all of the above in order, with ``away_from_obstacles``
 """
 
@@ -17,10 +16,8 @@ from numba import njit
 
 from gcs_ppf.planning.ppf.primitives import (
     EPSILON_1,
-    GREAT_CIRCLE_PITCH,
     INFLUENCE_STEPS,
     LOCAL_MINIMUM_ANGLE,
-    MAX_AVOID_PITCH,
     MAX_FOLLOW_PITCH,
     S1_FOLLOW,
     S2_LOCAL_MINIMUM,
@@ -121,31 +118,6 @@ def saturated_trend(y: float, x: float, max_rate: float, dt: float) -> float:
 
 
 @njit(cache=True, inline="always")
-def great_circle_trend(
-    fvx: float, fvy: float, fvz: float, pitch: float, lim: KernelLimits, dt: float
-) -> tuple[float, float]:
-    """The pitch and yaw entries of f that turn the velocity straight towards F_v (VCS),
-    along the great circle through both, as fast as ω_θ and ω_ψ allow.
-
-    Pitching at ω_θ turns the path at ω_θ along z_v; yawing at ω_ψ turns it at ω_ψ·cos θ
-    along y_v.  The turn towards (F_v^y, F_v^z) goes at k = min(ω_θ/|u_z|, ω_ψ·cos θ/|u_y|)
-    (u the unit of that pair), no more than the angle left in a step; Eq. 19's signs taken
-    each alone turn both axes at full rate, off that circle.
-    """
-    across = math.sqrt(fvy * fvy + fvz * fvz)
-    if across == 0.0:
-        return 0.0, 0.0
-    uy, uz = fvy / across, fvz / across
-    c = math.cos(pitch)
-    k = math.atan2(across, fvx) / dt
-    if uz != 0.0:
-        k = min(k, lim.max_pitch_rate / abs(uz))
-    if uy != 0.0:
-        k = min(k, lim.max_yaw_rate * c / abs(uy))
-    return k * uz / lim.max_pitch_rate, k * uy / (c * lim.max_yaw_rate)
-
-
-@njit(cache=True, inline="always")
 def trend_matrix(
     fvx: float,
     fvy: float,
@@ -155,7 +127,6 @@ def trend_matrix(
     dz: float,
     pitch: float,
     lowest: float,
-    sliding: bool,
     lim: KernelLimits,
     dt: float,
 ) -> tuple[float, float]:
@@ -171,20 +142,7 @@ def trend_matrix(
     Near the ground too: while the vehicle yaws, F_v^z is not the flight-path angle still
     to climb, and the ground's limit is on the flight-path angle.  So are an airframe's
     limits (a leader climbing at 20° while it turned kept pitching up to 45° on F_v^z).
-
-    A vehicle sliding off a static obstacle it closes on (``sliding``: F_v lies in the
-    plane of its velocity and the repulsion, never behind) turns along the great circle
-    towards F_v (``great_circle_trend``), the turn Eq. 10–11's influence radius is drawn
-    for, when its path is steeper than ``GREAT_CIRCLE_PITCH`` (yawing alone turns it at
-    ω·cos θ) but not than ``MAX_AVOID_PITCH``, away from the ground, not airframe limited.
-    Aimed at the wanted elevation instead, a wingman diving at 45° on a sphere whose
-    tangent lay at its own elevation only yawed, at ω·cos θ, and came within 17.7 m of
-    it (safe distance 25 m).
     """
-    steepness = abs(pitch)
-    great = sliding and GREAT_CIRCLE_PITCH <= steepness <= MAX_AVOID_PITCH and lowest <= -1.0
-    if great and not airframe_limited(lim):
-        return great_circle_trend(fvx, fvy, fvz, pitch, lim, dt)
     wanted = math.sqrt(fvx * fvx + fvy * fvy + fvz * fvz)
     sideways = abs(fvy) > SIDEWAYS_EPS * wanted
     steep = fvx < 0.0 or abs(pitch) > MAX_FOLLOW_PITCH or lowest > -1.0 or airframe_limited(lim)
@@ -241,6 +199,6 @@ def steer(
     fvx, fvy, fvz, dx, dy, dz, lowest = flight_path_limited(
         fvx, fvy, fvz, rx, ry, rz, tangent, z, speed, cp, sp, cy, sy, lim, dt
     )
-    f_pitch, f_yaw = trend_matrix(fvx, fvy, fvz, dx, dy, dz, pitch, lowest, tangent, lim, dt)
+    f_pitch, f_yaw = trend_matrix(fvx, fvy, fvz, dx, dy, dz, pitch, lowest, lim, dt)
     f_yaw = away_from_obstacles(pitch, yaw, f_pitch, f_yaw, ox, oy, oz, lim, dt)
     return f_pitch, f_yaw, along_field, s

@@ -7,14 +7,8 @@ import math
 from hypothesis import given
 from hypothesis import strategies as st
 
-from gcs_ppf.planning.ppf.primitives import (
-    MAX_FOLLOW_PITCH,
-    KernelLimits,
-    follow_direction,
-    to_vcs,
-    trend,
-)
-from gcs_ppf.planning.ppf.steering import saturated_trend, trend_matrix
+from gcs_ppf.planning.ppf.primitives import MAX_FOLLOW_PITCH, follow_direction, trend
+from gcs_ppf.planning.ppf.steering import saturated_trend
 
 components = st.floats(-1e4, 1e4, allow_nan=False, allow_subnormal=False)
 # Offsets in metres: zero, or at least a micrometre (squares of 1e-160 underflow to 0).
@@ -55,42 +49,3 @@ def test_follow_direction_is_the_clamped_unit_direction(
     expected = (math.cos(elevation) * hx, math.cos(elevation) * hy, math.sin(elevation))
     for got, want in zip((fx, fy, fz), expected, strict=True):
         assert math.isclose(got, want, rel_tol=1e-12, abs_tol=1e-12)
-
-
-PAPER = KernelLimits(40.0, 250.0, 10.0, 10.0, 0.5, 0.5, 10.0, 50.0, 25.0, -math.inf)
-
-
-def _path_after(pitch: float, f_pitch: float, f_yaw: float, dt: float) -> tuple[float, ...]:
-    """The flight direction (ICS) one step after heading east at ``pitch`` (Eq. 2–5)."""
-    theta = pitch + f_pitch * PAPER.max_pitch_rate * dt
-    psi = f_yaw * PAPER.max_yaw_rate * dt
-    return (math.cos(theta) * math.cos(psi), math.cos(theta) * math.sin(psi), math.sin(theta))
-
-
-def _angle(a: tuple[float, ...], b: tuple[float, ...]) -> float:
-    dot = sum(x * y for x, y in zip(a, b, strict=True))
-    norm = math.sqrt(sum(x * x for x in a) * sum(y * y for y in b))
-    return math.acos(max(-1.0, min(1.0, dot / norm)))
-
-
-@given(st.floats(math.radians(46.0), math.radians(59.0)), st.floats(0.2, 1.2), st.booleans())
-def test_sliding_steep_turns_faster_towards_the_wanted_direction(
-    steepness: float, azimuth: float, diving: bool
-) -> None:
-    """A vehicle steeper than MAX_FOLLOW_PITCH sliding off an obstacle, wanting a direction
-    at its own elevation but ``azimuth`` round (84105 of the 100,000-scene sweep): turning
-    along the great circle closes the angle faster than Eq. 19 aimed at the wanted
-    elevation, which only yaws, and never past it."""
-    pitch = -steepness if diving else steepness
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    wanted = (cp * math.cos(azimuth), cp * math.sin(azimuth), sp)
-    fv = to_vcs(*wanted, cp, sp, 1.0, 0.0)
-    dt = 0.1
-    now = _angle((cp, 0.0, sp), wanted)
-    sliding = trend_matrix(*fv, *wanted, pitch, -1.0, True, PAPER, dt)
-    elevation = trend_matrix(*fv, *wanted, pitch, -1.0, False, PAPER, dt)  # Eq. 19's
-    assert abs(elevation[0]) < 1e-9  # yaw alone
-    after = _angle(_path_after(pitch, *sliding, dt), wanted)
-    assert after < _angle(_path_after(pitch, *elevation, dt), wanted)
-    assert after < now
-    assert max(abs(sliding[0]), abs(sliding[1])) <= 1.0 + 1e-12
