@@ -15,11 +15,13 @@ from pydantic import BaseModel
 
 from gcs_ppf.cli import build_parser
 from gcs_ppf.mission import (
+    CylinderZone,
     Limits,
     Mission,
     Obstacle,
     Origin,
     PlannerSettings,
+    PolygonZone,
     Vehicle,
     Waypoint,
     load_mission_file,
@@ -36,7 +38,7 @@ SHELL_OPERATORS = {">", ">>", "2>", "|", "&&", ";"}
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```", re.MULTILINE | re.DOTALL)
 
 # Each model's fields are listed as table rows (| `field` | …) in the section with this heading.
-MISSION_SECTIONS: dict[str, type[BaseModel]] = {
+MISSION_SECTIONS: dict[str, type[BaseModel] | tuple[type[BaseModel], ...]] = {
     "## The document": Mission,
     "## `origin`": Origin,
     "## `limits`": Limits,
@@ -44,6 +46,7 @@ MISSION_SECTIONS: dict[str, type[BaseModel]] = {
     "## `route[]`": Waypoint,
     "## `vehicles[]`": Vehicle,
     "## `obstacles[]`": Obstacle,
+    "## `zones[]`": (CylinderZone, PolygonZone),  # a table for each kind
 }
 
 
@@ -131,9 +134,10 @@ def test_the_mission_reference_lists_every_field() -> None:
         start = text.index(heading)
         later = [text.index(h) for h in headings[k + 1 :] if text.index(h) > start]
         section = text[start : min(later, default=len(text))]
-        model = MISSION_SECTIONS[heading]
+        models = MISSION_SECTIONS[heading]
         missing += [
             f"{model.__name__}.{name}"
+            for model in (models if isinstance(models, tuple) else (models,))
             for name in model.model_fields
             if f"| `{name}` |" not in section
         ]

@@ -29,6 +29,7 @@ from gcs_ppf.mission import Mission
 from gcs_ppf.offline.plan import PlanRun
 from gcs_ppf.planning.metrics import local_target_points
 from gcs_ppf.planning.scene import FloatArray
+from gcs_ppf.planning.zones import INCLUSION, POLYGON, Zones, zone_clearances
 
 RGBA = tuple[float, float, float, float]
 Draw = Callable[[Path], None]
@@ -153,6 +154,35 @@ def _sphere(ax: object, centre: FloatArray, radius: float) -> None:
     ax.plot_wireframe(x, y, z, color="grey", alpha=0.25, linewidth=0.5)  # type: ignore[attr-defined]
 
 
+def _zone_outline(zones: Zones, k: int) -> FloatArray:
+    """Zone k's footprint as a closed ring [M, 2] (a circle as a 48-gon)."""
+    if zones.kind[k] & POLYGON:
+        ring = zones.verts[zones.vstart[k] : zones.vstart[k + 1]]
+    else:
+        a = np.linspace(0.0, 2.0 * np.pi, 48, endpoint=False)
+        cx, cy, r = zones.geom[k, :3]
+        ring = np.column_stack([cx + r * np.cos(a), cy + r * np.sin(a)])
+    return np.vstack([ring, ring[:1]])
+
+
+def _zone(ax: object, zones: Zones, k: int, z_span: tuple[float, float]) -> None:
+    """Zone k as a wireframe prism: its footprint at the floor and the ceiling (an
+    unbounded one drawn at the edge of the paths' heights) joined by vertical edges;
+    an exclusion zone grey, an inclusion zone green and dashed."""
+    ring = _zone_outline(zones, k)
+    floor, ceiling = zones.geom[k, 3], zones.geom[k, 4]
+    lo = floor if np.isfinite(floor) else z_span[0]
+    hi = ceiling if np.isfinite(ceiling) else z_span[1]
+    inclusion = bool(zones.kind[k] & INCLUSION)
+    style = {"color": "green" if inclusion else "grey", "alpha": 0.5, "lw": 0.7}
+    style["ls"] = "--" if inclusion else "-"
+    for z in (lo, hi):
+        ax.plot(ring[:, 0], ring[:, 1], np.full(len(ring), z), **style)  # type: ignore[attr-defined]
+    step = max(1, (len(ring) - 1) // 12)
+    for x, y in ring[:-1:step]:
+        ax.plot([x, x], [y, y], [lo, hi], **style)  # type: ignore[attr-defined]
+
+
 def paths_3d(run: PlanRun, path: Path) -> None:
     """Figs. 5a / 10: 3-D paths, start (circle) and target (triangle), obstacles."""
     tr = run.trajectory
@@ -162,6 +192,9 @@ def paths_3d(run: PlanRun, path: Path) -> None:
     ax = fig.add_subplot(projection="3d")
     for j in range(run.scene.obstacles.radius.shape[0]):
         _sphere(ax, run.scene.obstacles.center[j], float(run.scene.obstacles.radius[j]))
+    z_span = (float(tr.pos[..., 2].min()), float(tr.pos[..., 2].max()))
+    for k in range(len(run.scene.zones)):
+        _zone(ax, run.scene.zones, k, z_span)
     for i in range(n):
         p = tr.pos[:, i]
         ax.plot(
@@ -311,8 +344,9 @@ def min_vehicle_distance(run: PlanRun, path: Path, safe: float) -> None:
     _save(fig, path)
 
 
-def min_obstacle_distance(run: PlanRun, path: Path, safe: float) -> None:
-    """Fig. 13: each vehicle's distance to the nearest obstacle surface."""
+def obstacle_clearance(run: PlanRun) -> FloatArray:
+    """[K, N]: each vehicle's distance to the nearest obstacle or zone surface (a zone's
+    free side positive, as metrics' ``min_obstacle_clearance_m`` counts it)."""
     tr = run.trajectory
     obs = run.scene.obstacles
     clear = np.full(tr.speed.shape, np.inf)
@@ -320,8 +354,17 @@ def min_obstacle_distance(run: PlanRun, path: Path, safe: float) -> None:
         centre = obs.center[j][None] + tr.t[:, None] * obs.velocity[j][None]
         gap = np.linalg.norm(tr.pos - centre[:, None], axis=-1) - obs.radius[j]
         clear = np.minimum(clear, gap)
+    if len(run.scene.zones):
+        k, n = tr.speed.shape
+        to_zones = zone_clearances(tr.pos.reshape(k * n, 3), run.scene.zones)
+        clear = np.minimum(clear, to_zones.min(axis=1).reshape(k, n))
+    return clear
+
+
+def min_obstacle_distance(run: PlanRun, path: Path, safe: float) -> None:
+    """Fig. 13: each vehicle's distance to the nearest obstacle or zone surface."""
     fig, ax = plt.subplots(figsize=(9, 4.5), layout="constrained")
-    style = _plot_fleet(ax, run, tr.t, clear)
+    style = _plot_fleet(ax, run, run.trajectory.t, obstacle_clearance(run))
     _limit_line(ax, safe, f"safe distance {safe:g} m")
     ax.set_yscale("log")
     ax.set_xlabel("t (s)")
@@ -402,7 +445,7 @@ def plan_figures(
             lambda p: min_vehicle_distance(run, p, lim.safe_distance_uav),
         ),
     ]
-    if mission.obstacles:
+    if mission.obstacles or mission.zones:
         jobs.append(
             (
                 "fig13_min_obstacle_distance.png",
