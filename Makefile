@@ -13,7 +13,7 @@ LOCK   := requirements-lock.txt
 UV_VERSION   := 0.13.9
 LOCK_UPGRADE ?= --upgrade
 
-.PHONY: install run plan sitl test lint bench sitl-bench clean lock chromium web-bench compose-check
+.PHONY: install run plan sitl test lint bench sitl-bench clean lock chromium web-bench compose-check campaign-check
 
 # Exactly the locked set (pip refuses anything unpinned or with another hash), then gcs-ppf
 # itself on top, editable, without dependencies, built by the locked setuptools; pip check
@@ -71,6 +71,11 @@ test: lint
 
 bench: install
 	$(PY) -m gcs_ppf.offline.benchmark
+
+# The reduced closed-loop campaign (Table 3 at x10 and on a lossy link, observer-checked):
+# four flights, too slow for `make test`.
+campaign-check: install
+	$(VENV)/bin/pytest -m campaign tests/integration/test_campaign.py
 
 # The operator's page with 50 vehicles at 10 Hz in headless chromium: fps and JS heap
 # (WEB_BENCH="--minutes 1" for a short run).

@@ -1,5 +1,6 @@
-"""A reduced closed-loop campaign for CI: Table 3 flown end to end at x10 and on a lossy,
-late link at x5 (``gcs_ppf.tools.campaign``), judged by the independent observer."""
+"""A reduced closed-loop campaign: Table 3 flown end to end at x10 and on a lossy, late
+link at x5 (``gcs_ppf.tools.campaign``), judged by the independent observer. Four flights
+(about 95 s here): ``make campaign-check``, not ``make test``."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ RUNS = 2
 
 
 @pytest.mark.integration
+@pytest.mark.campaign
 def test_reduced_campaign_table3_has_no_violation_and_completes(tmp_path: Path) -> None:
     """(a) x10 and (c) x5 with 300 ms of latency and 20 % loss, RUNS runs each: every run
     completes, and the observer sees no separation under safe_distance_uav and no
