@@ -37,6 +37,7 @@ from tests.checks import wait_for
 from tests.conftest import EXAMPLES
 
 SPEEDUP = 10
+WATCH_AFTER_S = 5.0  # vehicle seconds the observer keeps listening after a run ends
 MISSION = EXAMPLES / "paper_table3.json"
 
 
@@ -82,6 +83,14 @@ def fly(tmp_path: Path, mission_doc: dict[str, Any], *, sitl_extra: Sequence[str
             if during is not None:
                 during(api, mid)
             final = wait_for(lambda: _finished(api, mid), 120, "the mission to finish")
+            # The observer hears the vehicles a little after the service did: keep listening
+            # until it has WATCH_AFTER_S of vehicle time past the end (check_safety's window).
+            end_v = max(listener.latest_boot_ms().values()) / 1000.0
+            wait_for(
+                lambda: max(listener.latest_boot_ms().values()) / 1000.0 >= end_v + WATCH_AFTER_S,
+                30,
+                "the observer to hear the run's end",
+            )
             if after is not None:
                 after(api, mid)
     return Flight(mission, api, mid, final, tracks_enu(listener, mission), serve, env,
