@@ -68,33 +68,60 @@ def fly(tmp_path: Path, mission_doc: dict[str, Any], *, sitl_extra: Sequence[str
     api = f"http://127.0.0.1:{api_port}"
     serve = [sys.executable, "-m", "gcs_ppf.cli", "serve", "--port", str(api_port),
              "--db", str(tmp_path / "gcs.db")]  # fmt: skip
-    links = [arg for p in ports.values() for arg in ("--link", f"tcp:127.0.0.1:{p}")]
     env = {"GCS_PPF_TLOG_DIR": str(tmp_path / "tlogs"), **(env_extra or {})}
     sitl = [sys.executable, "-m", "sitl", str(path), "--speedup", str(SPEEDUP),
             "--base-port", str(base), *sitl_extra]  # fmt: skip
-    with process(sitl, tmp_path / "sitl.log"), process(serve + links, tmp_path / "gcs.log", env):
-        wait_for(lambda: _vehicle_count(api) == len(ports), 60, "vehicles discovered")
-        with Observer(ports) as listener:
-            status, created = http("POST", f"{api}/missions", mission_doc)
-            assert status == 201
-            mid = created["id"]
-            status, started = http("POST", f"{api}/missions/{mid}/start")
-            assert status == 202, started
-            if during is not None:
-                during(api, mid)
-            final = wait_for(lambda: _finished(api, mid), 120, "the mission to finish")
-            # The observer hears the vehicles a little after the service did: keep listening
-            # until it has WATCH_AFTER_S of vehicle time past the end (check_safety's window).
-            end_v = max(listener.latest_boot_ms().values()) / 1000.0
-            wait_for(
-                lambda: max(listener.latest_boot_ms().values()) / 1000.0 >= end_v + WATCH_AFTER_S,
-                30,
-                "the observer to hear the run's end",
+    # The service first, then the SITL, then the links (as ../shared/tools/fly_check.py
+    # does): the SITL's faults are scheduled on its clock from its start, and a service slow
+    # to start on a busy machine (5 s with a CPU burner per core) found a vehicle dead.
+    with process(serve, tmp_path / "gcs.log", env):
+        wait_for(lambda: _up(api), 60, "the service")
+        with process(sitl, tmp_path / "sitl.log"):
+            wait_for(lambda: "sitl ready" in _text(tmp_path / "sitl.log"), 60, "the SITL")
+            for port in ports.values():
+                status, body = http("POST", f"{api}/links", {"url": f"tcp:127.0.0.1:{port}"})
+                assert status == 201, body
+            mid, final, tracks, clocks = _fly_started(
+                api, mission, mission_doc, ports, during, after
             )
-            if after is not None:
-                after(api, mid)
-    return Flight(mission, api, mid, final, tracks_enu(listener, mission), serve, env,
-                  listener.clocks())  # fmt: skip
+    return Flight(mission, api, mid, final, tracks, serve, env, clocks)
+
+
+def _fly_started(
+    api: str,
+    mission: Mission,
+    mission_doc: dict[str, Any],
+    ports: dict[int, int],
+    during: Callable[[str, int], None] | None,
+    after: Callable[[str, int], None] | None,
+) -> tuple[int, dict[str, Any], dict[int, Any], dict[int, Any]]:
+    """With the vehicles on links: the mission uploaded, started and flown to its end, the
+    observer listening. Returns (mission id, final status, observer tracks, clocks)."""
+    wait_for(lambda: _vehicle_count(api) == len(ports), 60, "vehicles discovered")
+    with Observer(ports) as listener:
+        status, created = http("POST", f"{api}/missions", mission_doc)
+        assert status == 201
+        mid = created["id"]
+        status, started = http("POST", f"{api}/missions/{mid}/start")
+        assert status == 202, started
+        if during is not None:
+            during(api, mid)
+        final = wait_for(lambda: _finished(api, mid), 120, "the mission to finish")
+        # The observer hears the vehicles a little after the service did: keep listening
+        # until it has WATCH_AFTER_S of vehicle time past the end (check_safety's window).
+        end_v = max(listener.latest_boot_ms().values()) / 1000.0
+        wait_for(
+            lambda: max(listener.latest_boot_ms().values()) / 1000.0 >= end_v + WATCH_AFTER_S,
+            30,
+            "the observer to hear the run's end",
+        )
+        if after is not None:
+            after(api, mid)
+    return mid, final, tracks_enu(listener, mission), listener.clocks()
+
+
+def _text(path: Path) -> str:
+    return path.read_text(errors="replace") if path.exists() else ""
 
 
 def check_safety(flight: Flight, exclude: Sequence[int] = ()) -> tuple[float, float, float]:
