@@ -2,6 +2,8 @@
 VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
+KERNELS := $(VENV)/.kernels-stamp
+SOURCES := $(shell find gcs_ppf -name '*.py')
 OUT    := out/paper_table3
 SPEEDUP ?= 1
 
@@ -17,17 +19,22 @@ LOCK_UPGRADE ?= --upgrade
 
 # Exactly the locked set (pip refuses anything unpinned or with another hash), then gcs-ppf
 # itself on top, editable, without dependencies, built by the locked setuptools; pip check
-# fails if a runtime dependency in pyproject.toml is one the lock does not satisfy. Then the
-# compiled kernels are built into numba's cache, so that no first run waits minutes for them.
+# fails if a runtime dependency in pyproject.toml is one the lock does not satisfy.
 $(STAMP): pyproject.toml $(LOCK)
 	python3 -m venv $(VENV)
 	$(PY) -m pip install --quiet --require-hashes -r $(LOCK)
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	$(PY) -m pip check
-	$(PY) -m gcs_ppf.service.kernels
 	touch $(STAMP)
 
-install: $(STAMP) chromium
+# The compiled kernels built into numba's cache, again whenever a source file changed (a
+# pull): otherwise the first run after it waited minutes for them, its vehicles flying on
+# their last commands meanwhile. Seconds when the cache is still good.
+$(KERNELS): $(STAMP) $(SOURCES)
+	$(PY) -m gcs_ppf.service.kernels
+	touch $(KERNELS)
+
+install: $(STAMP) $(KERNELS) chromium
 
 # Debian's chromium and chromium-driver for the operator's page tests (tests/web, skipped
 # without them), with apt-get when either is missing (root, or sudo); otherwise nothing.

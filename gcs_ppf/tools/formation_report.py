@@ -1,12 +1,13 @@
 """The formation each campaign run flew, as its independent observer saw it.
 
-``python -m gcs_ppf.tools.formation_report CAMPAIGN_DIR [--plans]`` reads a campaign's
+``python -m gcs_ppf.tools.formation_report CAMPAIGN_DIR [--axes]`` reads a campaign's
 ``runs.jsonl`` and each run's ``observer.json`` (the pymavlink observer's samples on the
 vehicles' own clock; nothing from the service) and prints, per mission and condition, how
 long the formation took to form after the run started, the share of the flight after that
 in formation (every wingman within the target accuracy of its slot at once, Eq. 6), the
 worst wingman's RMS and 95th-percentile slot error while formed, the longest hold, and the
-flight time.
+flight time; with ``--axes``, each wingman's RMS slot error along the leader's flight-path
+axes (forward, left, up) after first forming: which loop misses the slot.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from numpy.typing import NDArray
 from gcs_ppf.geodesy import geodetic_to_enu
 from gcs_ppf.mission import Mission
 from gcs_ppf.tools.campaign import AFTER_S, EXAMPLES, mission_path
-from gcs_ppf.tools.observer import held_s, slot_distances
+from gcs_ppf.tools.observer import held_s, slot_distances, slot_errors
 
 STEP_S = 0.1
 FloatArray = NDArray[np.float64]
@@ -143,17 +144,56 @@ def report(records: list[dict[str, Any]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def run_axes(rec: dict[str, Any], after_s: float = AFTER_S) -> dict[int, FloatArray] | None:
+    """Each wingman's RMS slot error [3] (forward, left, up; m) in one campaign record,
+    from the first moment in formation to the end (the whole flight if it never formed)."""
+    mission = record_mission(rec)
+    start, end = rec["window_s"][0], rec["window_s"][1] - after_s
+    tracks = observed_tracks(Path(rec["dir"]) / "observer.json", mission)
+    ids = [mission.leader.id, *(w.id for w in mission.wingmen)]
+    if not mission.wingmen or end <= start or any(len(tracks.get(v, ())) == 0 for v in ids):
+        return None
+    t = np.arange(start, end, STEP_S)
+    errors = slot_errors(mission, {v: tracks[v] for v in ids}, t)
+    worst = np.max(np.stack([np.linalg.norm(e, axis=1) for e in errors.values()]), axis=0)
+    formed = worst <= mission.limits.target_accuracy
+    first = int(np.argmax(formed)) if formed.any() else 0
+    return {vid: np.sqrt(np.mean(e[first:] ** 2, axis=0)) for vid, e in errors.items()}
+
+
+def axes_report(records: list[dict[str, Any]]) -> str:
+    """One line per (mission, condition, wingman): the median over the runs of its RMS
+    slot error forward / left / up after first forming (``run_axes``)."""
+    groups: dict[tuple[str, str], list[dict[int, FloatArray]]] = {}
+    for rec in records:
+        axes = run_axes(rec)
+        if axes is not None:
+            groups.setdefault((rec["mission"], rec["condition"]), []).append(axes)
+    lines = [f"{'mission':<14}{'cond':>5}{'wingman':>8}{'runs':>5}  rms m forward / left / up"]
+    for (name, cond), runs in sorted(groups.items()):
+        for vid in sorted(runs[0]):
+            rms = np.median(np.stack([r[vid] for r in runs if vid in r]), axis=0)
+            cells = " / ".join(f"{x:.1f}" for x in rms)
+            lines.append(f"{name:<14}{cond:>5}{vid:>8}{len(runs):>5}  {cells}")
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m gcs_ppf.tools.formation_report", description=__doc__.split("\n\n")[0]
     )
     parser.add_argument("campaign", type=Path, help="a campaign's --out directory")
+    parser.add_argument(
+        "--axes", action="store_true", help="each wingman's slot error forward / left / up"
+    )
     args = parser.parse_args(argv)
     files = sorted(args.campaign.rglob("runs.jsonl"))
     if not files:
         parser.error(f"no runs.jsonl under {args.campaign}")
     records = [json.loads(line) for f in files for line in f.read_text().splitlines() if line]
     print(report(records), end="")
+    if args.axes:
+        print(axes_report(records), end="")
     return 0
 
 

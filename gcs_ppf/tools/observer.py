@@ -21,7 +21,6 @@ import numpy as np
 from numpy.typing import NDArray
 from pymavlink import mavutil
 
-from gcs_ppf.frames import local_target_point
 from gcs_ppf.geodesy import geodetic_to_enu
 from gcs_ppf.mission import Mission
 
@@ -283,11 +282,14 @@ HEADING_WINDOW_S = 1.0
 """The leader's flight-path attitude is taken over this window of its track (s)."""
 
 
-def slot_distances(
+def slot_errors(
     mission: Mission, tracks: dict[int, FloatArray], t: FloatArray
 ) -> dict[int, FloatArray]:
-    """Each wingman's distance to its local target point (Eq. 6, the leader's flight-path
-    attitude from its track) at the times ``t``, from the observer's tracks."""
+    """Each wingman's position less its local target point (Eq. 6) at the times ``t``
+    [K], from the observer's tracks, in the leader's flight-path frame: [K,3] forward,
+    left, up (m), the axes of the slot itself (G − P₀ = s_x·forward + s_y·left + s_z·up).
+    Forward errors are the speed loop's, left the course's, up the climb's (and the
+    leader's flight-path angle's: a slot d behind swings d·Δθ)."""
     ids = sorted(tracks)
     pos = resample(tracks, t)
     lead = ids.index(mission.leader.id)
@@ -297,18 +299,25 @@ def slot_distances(
     vel = (resample(tracks, t + half)[:, lead] - resample(tracks, t - half)[:, lead]) / (2 * half)
     pitch = np.arctan2(vel[:, 2], np.hypot(vel[:, 0], vel[:, 1]))
     yaw = np.arctan2(vel[:, 1], vel[:, 0])
-    offsets = {}
+    cp, sp, cy, sy = np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    forward = np.stack([cp * cy, cp * sy, sp], axis=1)
+    left = np.stack([-sy, cy, np.zeros_like(cy)], axis=1)
+    up = np.stack([-sp * cy, -sp * sy, cp], axis=1)
+    errors = {}
     for w in mission.wingmen:
         assert w.slot is not None
-        slot = np.array(w.slot)
-        points = np.array(
-            [
-                local_target_point(pos[k, lead], float(pitch[k]), float(yaw[k]), slot)
-                for k in range(len(t))
-            ]
-        )
-        offsets[w.id] = np.linalg.norm(points - pos[:, ids.index(w.id)], axis=1)
-    return offsets
+        rel = pos[:, ids.index(w.id)] - pos[:, lead]
+        local = np.stack([(rel * axis).sum(axis=1) for axis in (forward, left, up)], axis=1)
+        errors[w.id] = local - np.array(w.slot)
+    return errors
+
+
+def slot_distances(
+    mission: Mission, tracks: dict[int, FloatArray], t: FloatArray
+) -> dict[int, FloatArray]:
+    """Each wingman's distance to its local target point (Eq. 6, the leader's flight-path
+    attitude from its track) at the times ``t``, from the observer's tracks."""
+    return {vid: np.linalg.norm(e, axis=1) for vid, e in slot_errors(mission, tracks, t).items()}
 
 
 def formation_offsets(

@@ -12,7 +12,7 @@ import pytest
 from gcs_ppf.geodesy import enu_to_geodetic_many
 from gcs_ppf.mission import Mission, load_mission_file
 from gcs_ppf.tools.campaign import ROOT
-from gcs_ppf.tools.formation_report import formation_flown, observed_tracks, report
+from gcs_ppf.tools.formation_report import axes_report, formation_flown, observed_tracks, report
 
 
 def _line_east(t: np.ndarray, offset: tuple[float, float, float]) -> np.ndarray:
@@ -76,3 +76,28 @@ def test_a_campaign_directory_is_reported_from_the_observers_samples(tmp_path: P
     row = table.splitlines()[1].split()
     assert row[:4] == [mission.name, "f", "1", "1"]
     assert row[4].split("/")[1] == "15.0"  # formed 15 s after the run's start
+
+
+def test_the_axes_say_which_way_a_wingman_misses_its_slot(tmp_path: Path) -> None:
+    """The first wingman 4 m behind and 6 m right of its slot all the way (formed: 7.2 m):
+    its RMS error after forming is (4, 6, 0) forward / left / up, the others' none."""
+    path = ROOT / "examples" / "paper_table3.json"
+    mission = load_mission_file(path)
+    t = np.arange(0.0, 40.0, 0.1)
+    tracks = _flown(mission, t, np.full_like(t, -6.0))
+    first = mission.wingmen[0].id
+    tracks[first][:, 1] -= 4.0
+    raw: dict[str, object] = {"end_wall": 0.0}
+    for vid, track in tracks.items():
+        lat, lon, alt = enu_to_geodetic_many(track[:, 1:4], mission.origin)
+        rows = np.column_stack([np.zeros_like(t), np.round(1000 * t), lat, lon, alt, track[:, 4]])
+        raw[str(vid)] = {"pos": rows.tolist()}
+    (tmp_path / "observer.json").write_text(json.dumps(raw))
+    rec = {"mission": mission.name, "mission_file": str(path), "condition": "f",
+           "dir": str(tmp_path), "window_s": [5.0, 70.0]}  # fmt: skip
+    cells = {
+        int(line.split()[2]): line.split()[-5:] for line in axes_report([rec]).splitlines()[1:]
+    }
+    assert [float(x) for x in cells[first][::2]] == pytest.approx([4.0, 6.0, 0.0], abs=0.2)
+    for w in mission.wingmen[1:]:
+        assert [float(x) for x in cells[w.id][::2]] == pytest.approx([0.0, 0.0, 0.0], abs=0.2)

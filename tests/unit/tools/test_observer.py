@@ -18,6 +18,8 @@ from gcs_ppf.tools.observer import (
     judge,
     longest_formed_s,
     observed_at,
+    slot_distances,
+    slot_errors,
 )
 
 Track = np.ndarray
@@ -122,3 +124,29 @@ def test_a_port_block_is_free_at_every_instances_ports_below_the_ephemeral_range
             for o in PORT_OFFSETS:
                 with socket.socket() as s:
                     s.bind(("127.0.0.1", base + k + o))
+
+
+def climbing(t: np.ndarray, angle_rad: float, yaw_rad: float, v: float = 100.0) -> Track:
+    """[K,5] a leader climbing straight at ``angle_rad`` on the course ``yaw_rad``."""
+    u = np.array([np.cos(angle_rad) * np.cos(yaw_rad), np.cos(angle_rad) * np.sin(yaw_rad),
+                  np.sin(angle_rad)])  # fmt: skip
+    p = np.array([0.0, 0.0, 300.0]) + v * t[:, None] * u
+    return np.column_stack([t, p, p[:, 2]])
+
+
+def test_slot_errors_are_in_the_leaders_flight_path_frame() -> None:
+    """A wingman 5 m ahead of, 3 m left of and 20 m above its slot behind a leader climbing
+    at 35° on a course of 40°: (5, 3, 20), whose length is the slot distance Eq. 6 gives."""
+    t = np.arange(0.0, 10.0, 0.1)
+    m = mission([])
+    angle, course = np.radians(35.0), np.radians(40.0)
+    leader = climbing(t, angle, course)
+    slot = np.array(m.vehicles[1].slot) + np.array([5.0, 3.0, 20.0])
+    wing = np.array(
+        [local_target_point(leader[k, 1:4], angle, course, slot) for k in range(len(t))]
+    )
+    tracks = {1: leader, 2: np.column_stack([t, wing, wing[:, 2]])}
+    inner = np.arange(1.0, 9.0, 0.5)
+    errors = slot_errors(m, tracks, inner)[2]
+    assert np.allclose(errors, [5.0, 3.0, 20.0], atol=1e-6)
+    assert np.allclose(slot_distances(m, tracks, inner)[2], np.sqrt(25 + 9 + 400), atol=1e-6)
