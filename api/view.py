@@ -5,7 +5,8 @@
 * ``WS /ws/view?mission_id=N`` sends *view frames*: the telemetry snapshot in the mission's
   ICS (positions converted here with ``gcs_ppf.geodesy``, never in the browser), each
   wingman's local target point (Eq. 6, from the leader's flight-path attitude), the
-  obstacles where they are now with their keep-out and influence radii, and the run's events
+  obstacles where they are now with their keep-out and influence radii, the zones'
+  footprints in the ICS (``zone_view``), and the run's events
   as they are stored.  At most ``MAX_FRAME_HZ`` frames a second (a SITL at 10x publishes
   100 a second), and one every ``IDLE_FRAME_S`` when nothing flies, so the vehicle list
   stays current between runs.  The run shown is the active one, else the requested
@@ -40,7 +41,7 @@ from api.deps import AUTH_ERRORS
 from gcs_ppf.frames import local_target_point
 from gcs_ppf.geodesy import heading_ned_to_yaw
 from gcs_ppf.guidance.online import state_from_velocity
-from gcs_ppf.mission import Limits, Mission, Obstacle
+from gcs_ppf.mission import CylinderZone, Limits, Mission, Obstacle, PolygonZone, zone_footprint
 from gcs_ppf.planning.ppf.primitives import influence_radius
 from gcs_ppf.service.errors import NotFound
 from gcs_ppf.service.fleet import Vehicle
@@ -53,6 +54,25 @@ EVENTS_EVERY_S = 0.25  # the run's events are read from the store at most this o
 # Run states (API) in which a run no longer flies.
 FINISHED = frozenset({"completed", "completed_unsafe", "aborted", "failed", "interrupted"})
 MOVING_M_S = 1.0  # below this ground speed the heading comes from the attitude, not velocity
+
+
+def zone_view(zone: CylinderZone | PolygonZone, mission: Mission) -> dict[str, Any]:
+    """A zone as the page draws it: its footprint in the mission's ICS (a cylinder's
+    ``center_m`` and ``radius_m``, a polygon's ``vertices_m``; lat/lon converted here),
+    its height band (``floor_m`` / ``ceiling_m``, None: unbounded), whether vehicles stay
+    inside (``inclusion``), and its keep-out distance (``safe_distance_obstacle``)."""
+    footprint = [[round(float(c), 2) for c in p] for p in zone_footprint(zone, mission.origin)]
+    view: dict[str, Any] = {
+        "name": zone.name,
+        "kind": zone.kind,
+        "inclusion": zone.inclusion,
+        "floor_m": zone.floor,
+        "ceiling_m": zone.ceiling,
+        "keep_out_m": mission.limits.safe_distance_obstacle,
+    }
+    if isinstance(zone, CylinderZone):
+        return {**view, "center_m": footprint[0], "radius_m": zone.radius}
+    return {**view, "vertices_m": footprint}
 
 
 def obstacle_view(obstacle: Obstacle, limits: Limits, mission_time_s: float) -> dict[str, Any]:
@@ -165,6 +185,7 @@ def frame(
         "obstacles": [obstacle_view(o, mission.limits, t) for o in mission.obstacles]
         if mission
         else [],
+        "zones": [zone_view(z, mission) for z in mission.zones] if mission else [],
         "vehicles": with_formation(vehicles, mission, status),
         "events": events,
     }

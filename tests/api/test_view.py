@@ -9,6 +9,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
@@ -150,3 +151,36 @@ def test_each_wingmans_local_target_point_turns_with_the_leader() -> None:
     east = vehicle_view(row(1), (1000.0, 2000.0, 300.0), (0.0, 100.0, 0.0))
     views = {v["id"]: v for v in with_formation([east, wingman], mission, None)}
     assert views[2]["local_target_m"] == pytest.approx([1000.0 + slot[0], 2000.0 + slot[1], 300.0])
+
+
+def test_the_view_frame_carries_the_zones_in_the_ics(client: TestClient) -> None:
+    """Table 3's zones example, one polygon given in lat/lon instead: the page gets every
+    footprint in metres (the lat/lon one converted back to within a few cm), the band and
+    the kind, and none for a mission without zones."""
+    from gcs_ppf.geodesy import enu_to_geodetic
+
+    doc = json.loads((EXAMPLES / "paper_table3_zones.json").read_text())
+    hexagon = doc["zones"][1]
+    origin = Mission.model_validate(doc).origin
+    hexagon["vertices_latlon"] = [
+        list(enu_to_geodetic(x, y, 0.0, origin)[:2]) for x, y in hexagon.pop("vertices")
+    ]
+    mid = client.post("/missions", json=doc).json()["id"]
+    with client.websocket_connect(f"/ws/view?mission_id={mid}") as ws:
+        zones = ws.receive_json()["zones"]
+    assert [z["name"] for z in zones] == ["tower", "hexagon", "restricted L", "dome"]
+    tower, hexagon_view, ell, _ = zones
+    assert tower["center_m"] == [3000.0, 3000.0]
+    assert tower["radius_m"] == 350.0
+    assert tower["floor_m"] is None
+    assert tower["ceiling_m"] == 450.0
+    assert tower["inclusion"] is False
+    assert tower["kind"] == "cylinder"
+    expected = [[4150.0, 4500.0], [3825.0, 5062.9], [3175.0, 5062.9], [2850.0, 4500.0],
+                [3175.0, 3937.1], [3825.0, 3937.1]]  # fmt: skip
+    assert np.allclose(hexagon_view["vertices_m"], expected, atol=0.05)
+    assert ell["vertices_m"][0] == [4500.0, 3900.0]
+    assert ell["floor_m"] == -200.0
+    mid = client.post("/missions", json=table3()).json()["id"]
+    with client.websocket_connect(f"/ws/view?mission_id={mid}") as ws:
+        assert ws.receive_json()["zones"] == []

@@ -85,6 +85,32 @@ def test_a_file_that_is_not_json_is_named_and_nothing_is_sent(page: Page) -> Non
 
 
 @pytest.mark.integration
+def test_zones_are_drawn_in_both_views_those_in_lat_lon_as_the_service_converts_them(
+    page: Page,
+) -> None:
+    """Table 3's zones example with its hexagon given in lat/lon: stored, the page draws
+    all four (the hexagon from the service's frames, in metres), with no script error."""
+    from gcs_ppf.geodesy import enu_to_geodetic
+    from gcs_ppf.mission import Mission
+
+    doc = json.loads((ROOT / "examples" / "paper_table3_zones.json").read_text())
+    origin = Mission.model_validate(doc).origin
+    hexagon = doc["zones"][1]
+    hexagon["vertices_latlon"] = [
+        list(enu_to_geodetic(x, y, 0.0, origin)[:2]) for x, y in hexagon.pop("vertices")
+    ]
+    page.upload("zones.json", json.dumps(doc))
+    wait_for(lambda: "stored as mission #1" in page.text("load-message"), 10, "the mission")
+    names = "window.gcs.{}.scene.zones.map((z) => z.name)"
+    want = ["tower", "hexagon", "restricted L", "dome"]
+    wait_for(lambda: page.js(names.format("top")) == want, 10, "the zones on the map")
+    assert page.js(names.format("side")) == want
+    corner = page.js("window.gcs.top.scene.zones[1].vertices_m[0]")
+    assert corner == pytest.approx([4150.0, 4500.0], abs=0.05)
+    assert page.js("window.gcs.top.scene.zones[0].ceiling_m") == 450.0
+
+
+@pytest.mark.integration
 def test_the_apis_field_errors_are_shown_next_to_the_fields(page: Page) -> None:
     doc = table3()
     doc["limits"]["v_min"] = -3

@@ -53,6 +53,28 @@ function withGeometry(o, limits) {
   };
 }
 
+/** A mission document's zones in ICS metres, as the service's frames give them (zones
+ * given in lat/lon only come drawn from the service, which converts them). */
+function docZones(doc, limits) {
+  const point = (p) => Array.isArray(p) && p.length === 2 && p.every(Number.isFinite);
+  const height = (h) => (Number.isFinite(h) ? h : null);
+  return (Array.isArray(doc && doc.zones) ? doc.zones : []).flatMap((z) => {
+    if (!z || typeof z !== "object") return [];
+    const band = {
+      name: typeof z.name === "string" ? z.name : null, kind: z.kind, inclusion: z.inclusion === true,
+      floor_m: height(z.floor), ceiling_m: height(z.ceiling),
+      keep_out_m: limits ? limits.safe_distance_obstacle : null,
+    };
+    if (z.kind === "cylinder" && point(z.center) && Number.isFinite(z.radius) && z.radius > 0) {
+      return [{ ...band, center_m: z.center, radius_m: z.radius }];
+    }
+    if (z.kind === "polygon" && Array.isArray(z.vertices) && z.vertices.length >= 3 && z.vertices.every(point)) {
+      return [{ ...band, vertices_m: z.vertices }];
+    }
+    return [];
+  });
+}
+
 function missionOf(id) {
   if (id === null || id === undefined) return null;
   if (id === state.storedId && state.doc) return state.doc;
@@ -82,8 +104,10 @@ function buildScene() {
     ? doc.vehicles.filter((v) => Array.isArray(v.position) && v.position.every(Number.isFinite))
         .map((v) => ({ id: v.id, role: v.role, pos: v.position, yaw: Number(v.yaw) || 0 }))
     : [];
+  const served = f && Array.isArray(f.zones) && f.mission_id === (own ? state.storedId : f.mission_id) && !(own && state.missionDirty);
   return {
     obstacles,
+    zones: served ? f.zones : (own ? docZones(doc, limits) : []),
     target_m: own ? (Array.isArray(doc.target) && doc.target.every(Number.isFinite) ? doc.target : null) : f && f.target_m,
     route: validRoute(own ? doc.route : f && f.route),
     leg: run && run.leg ? run.leg.index : null,
@@ -436,7 +460,7 @@ async function store() {
     state.missionDirty = state.obstaclesDirty = false;
     state.missions.set(m.id, m.mission);
     renderMission();
-    message(`Valid: stored as mission #${m.id} "${m.name}" (${m.vehicle_ids.length} vehicles, ${m.mission.obstacles.length} obstacles).`, "ok");
+    message(`Valid: stored as mission #${m.id} "${m.name}" (${m.vehicle_ids.length} vehicles, ${m.mission.obstacles.length} obstacles${(m.mission.zones || []).length ? `, ${m.mission.zones.length} zones` : ""}).`, "ok");
     stream.view(m.id);
     return true;
   } catch (err) {
@@ -830,6 +854,7 @@ function replayScene() {
       g.center_m = o.center.map((c, k) => c + r.t * (o.velocity ? o.velocity[k] : 0));
       return g;
     }),
+    zones: docZones(r.mission, lim),
     target_m: r.mission.target,
     route: validRoute(r.mission.route),
     leg: null,
@@ -998,4 +1023,4 @@ refreshLinks();
 requestAnimationFrame(draw);
 
 // Read-only handles for the browser tests and the benchmark.
-window.gcs = { state, perf, influenceRadius, top };
+window.gcs = { state, perf, influenceRadius, top, side };

@@ -54,7 +54,7 @@ function colours() {
   return {
     fg: c("--fg"), muted: c("--muted"), grid: c("--grid"), map: c("--map"), bad: c("--bad"),
     warn: c("--warn"), ok: c("--ok"), s1: c("--s1"), s2: c("--s2"), s3: c("--s3"),
-    lost: c("--lost"), obstacle: c("--obstacle"), keepout: c("--keepout"),
+    lost: c("--lost"), obstacle: c("--obstacle"), keepout: c("--keepout"), inclusion: c("--inclusion"),
     influence: c("--influence"), plan: c("--plan"), target: c("--target"), accent: c("--accent"),
     font: c("--font"), mono: c("--mono"),
     // Marks and text on the canvases grow with the page's font (larger on a 4K screen).
@@ -73,6 +73,36 @@ export function vehicleColour(col, v) {
 /** Whether rectangle r ({x, y, w, h}) overlaps any of `rects`. */
 function overlaps(rects, r) {
   return rects.some((p) => r.x < p.x + p.w && p.x < r.x + r.w && r.y < p.y + p.h && p.y < r.y + r.h);
+}
+
+/** Every corner of the zones' footprints (a circle's bounding square's). */
+function zoneOutline(zones) {
+  return (zones || []).flatMap((z) => {
+    if (z.vertices_m) return z.vertices_m;
+    const [x, y] = z.center_m, r = z.radius_m;
+    return [[x - r, y - r], [x + r, y + r]];
+  });
+}
+
+function zoneCentre(z) {
+  if (!z.vertices_m) return z.center_m;
+  const n = z.vertices_m.length;
+  return [0, 1].map((k) => z.vertices_m.reduce((a, p) => a + p[k], 0) / n);
+}
+
+/** A zone's extent along the side view's line, [lowest, highest]. */
+function zoneAlong(z, along) {
+  if (!z.vertices_m) {
+    const u = along(z.center_m[0], z.center_m[1]);
+    return [u - z.radius_m, u + z.radius_m];
+  }
+  const us = z.vertices_m.map((p) => along(p[0], p[1]));
+  return [Math.min(...us), Math.max(...us)];
+}
+
+function zoneBand(z) {
+  const h = (v) => (v === null || v === undefined ? "∞" : `${Math.round(v)}`);
+  return `${z.floor_m === null || z.floor_m === undefined ? "ground" : h(z.floor_m)}–${h(z.ceiling_m)} m`;
 }
 
 function fitCanvas(canvas) {
@@ -142,6 +172,7 @@ export class TopView {
       x1 = Math.max(x1, x + r); y1 = Math.max(y1, y + r);
     };
     for (const o of s.obstacles || []) add(o.center_m[0], o.center_m[1], o.keep_out_m || o.radius_m);
+    for (const p of zoneOutline(s.zones)) add(p[0], p[1]);
     if (s.target_m) add(s.target_m[0], s.target_m[1], 100);
     for (const w of s.route || []) add(w.position[0], w.position[1], w.acceptance_radius || 100);
     for (const v of s.starts || []) add(v.pos[0], v.pos[1], 100);
@@ -295,6 +326,39 @@ export class TopView {
         ctx.fillText(`r ${Math.round(o.radius_m)}, z ${Math.round(o.center_m[2])}`, x, y + 11 * dpr);
       }
     });
+
+    // Zones: the footprint (exclusion filled as an obstacle, inclusion a dashed green line).
+    for (const z of s.zones || []) {
+      ctx.beginPath();
+      if (z.vertices_m) {
+        z.vertices_m.forEach((p, j) => {
+          const [x, y] = this.toScreen(p[0], p[1]);
+          if (j) ctx.lineTo(x, y);
+          else ctx.moveTo(x, y);
+        });
+        ctx.closePath();
+      } else {
+        const [x, y] = this.toScreen(z.center_m[0], z.center_m[1]);
+        ctx.arc(x, y, z.radius_m * k, 0, 2 * Math.PI);
+      }
+      ctx.lineWidth = 1.5 * dpr;
+      if (z.inclusion) {
+        ctx.setLineDash([6 * dpr, 4 * dpr]);
+        ctx.strokeStyle = col.inclusion;
+      } else {
+        ctx.fillStyle = col.obstacle;
+        ctx.fill();
+        ctx.strokeStyle = col.muted;
+      }
+      ctx.stroke();
+      ctx.setLineDash([]);
+      const [cx, cy] = zoneCentre(z);
+      const [x, y] = this.toScreen(cx, cy);
+      ctx.fillStyle = col.fg;
+      ctx.font = font(11);
+      ctx.textAlign = "center";
+      ctx.fillText(`${z.name || z.kind} ${zoneBand(z)}`, x, y);
+    }
 
     // The planned paths (preview), thin.
     ctx.lineWidth = 1.5 * dpr;
@@ -601,6 +665,10 @@ export class SideView {
       z0 = Math.min(z0, z - r); z1 = Math.max(z1, z + r);
     };
     for (const o of s.obstacles || []) add(along(o.center_m[0], o.center_m[1]), o.center_m[2], o.radius_m);
+    for (const z of s.zones || []) {
+      const [lo, hi] = zoneAlong(z, along);
+      for (const h of [z.floor_m, z.ceiling_m]) if (h !== null && h !== undefined) { add(lo, h); add(hi, h); }
+    }
     if (s.target_m) add(along(s.target_m[0], s.target_m[1]), s.target_m[2]);
     for (const v of s.starts || []) add(along(v.pos[0], v.pos[1]), v.pos[2]);
     for (const v of s.vehicles || []) if (v.pos_m) add(along(v.pos_m[0], v.pos_m[1]), v.pos_m[2]);
@@ -632,6 +700,20 @@ export class SideView {
       ctx.beginPath();
       ctx.moveTo(left, Z(s.ground)); ctx.lineTo(c.width - pad, Z(s.ground));
       ctx.stroke();
+    }
+    for (const z of s.zones || []) { // its extent along the line, floor to ceiling
+      const [lo, hi] = zoneAlong(z, along);
+      const top = z.ceiling_m === null || z.ceiling_m === undefined ? pad : Z(z.ceiling_m);
+      const bottom = z.floor_m === null || z.floor_m === undefined ? c.height - pad : Z(z.floor_m);
+      if (z.inclusion) {
+        ctx.setLineDash([6 * dpr, 4 * dpr]);
+        ctx.strokeStyle = col.inclusion;
+        ctx.strokeRect(X(lo), top, X(hi) - X(lo), bottom - top);
+        ctx.setLineDash([]);
+      } else {
+        ctx.fillStyle = col.obstacle;
+        ctx.fillRect(X(lo), top, X(hi) - X(lo), bottom - top);
+      }
     }
     for (const o of s.obstacles || []) {
       const u = along(o.center_m[0], o.center_m[1]);

@@ -34,6 +34,18 @@ def _flown(mission: Mission, t: np.ndarray, off_m: np.ndarray) -> dict[int, np.n
     return tracks
 
 
+def _write_observer(
+    where: Path, mission: Mission, t: np.ndarray, tracks: dict[int, np.ndarray]
+) -> None:
+    """``observer.json`` as the campaign stores it (wall, boot ms, lat, lon, alt, height)."""
+    raw: dict[str, object] = {"end_wall": 0.0}
+    for vid, track in tracks.items():
+        lat, lon, alt = enu_to_geodetic_many(track[:, 1:4], mission.origin)
+        rows = np.column_stack([np.zeros_like(t), np.round(1000 * t), lat, lon, alt, track[:, 4]])
+        raw[str(vid)] = {"pos": rows.tolist()}
+    (where / "observer.json").write_text(json.dumps(raw))
+
+
 def test_the_formation_forms_when_the_last_wingman_reaches_its_slot() -> None:
     """Off by 30 m until 20 s, on its slot after, but 15 m off for 5 s from 30 s: formed
     15 s into a run from 5 s, in formation 10 of the 15 s after it, the longest hold 10 s,
@@ -60,12 +72,7 @@ def test_a_campaign_directory_is_reported_from_the_observers_samples(tmp_path: P
     mission = load_mission_file(path)
     t = np.arange(0.0, 40.0, 0.1)
     tracks = _flown(mission, t, np.where(t < 20.0, 30.0, 0.0))
-    raw: dict[str, object] = {"end_wall": 0.0}
-    for vid, track in tracks.items():
-        lat, lon, alt = enu_to_geodetic_many(track[:, 1:4], mission.origin)
-        rows = np.column_stack([np.zeros_like(t), np.round(1000 * t), lat, lon, alt, track[:, 4]])
-        raw[str(vid)] = {"pos": rows.tolist()}
-    (tmp_path / "observer.json").write_text(json.dumps(raw))
+    _write_observer(tmp_path, mission, t, tracks)
     back = observed_tracks(tmp_path / "observer.json", mission)
     assert np.allclose(
         back[mission.leader.id][:, 1:4], tracks[mission.leader.id][:, 1:4], atol=0.05
@@ -87,12 +94,7 @@ def test_the_axes_say_which_way_a_wingman_misses_its_slot(tmp_path: Path) -> Non
     tracks = _flown(mission, t, np.full_like(t, -6.0))
     first = mission.wingmen[0].id
     tracks[first][:, 1] -= 4.0
-    raw: dict[str, object] = {"end_wall": 0.0}
-    for vid, track in tracks.items():
-        lat, lon, alt = enu_to_geodetic_many(track[:, 1:4], mission.origin)
-        rows = np.column_stack([np.zeros_like(t), np.round(1000 * t), lat, lon, alt, track[:, 4]])
-        raw[str(vid)] = {"pos": rows.tolist()}
-    (tmp_path / "observer.json").write_text(json.dumps(raw))
+    _write_observer(tmp_path, mission, t, tracks)
     rec = {"mission": mission.name, "mission_file": str(path), "condition": "f",
            "dir": str(tmp_path), "window_s": [5.0, 70.0]}  # fmt: skip
     cells = {
