@@ -4,15 +4,16 @@ and their status and events."""
 from __future__ import annotations
 
 import asyncio
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
-from fastapi import APIRouter, status
+from fastapi import APIRouter, Body, status
 
 from api.deps import AUTH_ERRORS, COMMANDS, ERRORS, READ_ONLY, MissionId, Service
 from api.models import MissionDetail, MissionSummary, mission_detail, mission_summary
 from gcs_ppf.mission import Mission, Obstacle
-from gcs_ppf.service.errors import TooLarge
+from gcs_ppf.service.errors import TooLarge, Unprocessable
 from gcs_ppf.service.settings import Settings
+from gcs_ppf.zone_import import ZoneImportError, zones_from_document
 
 if TYPE_CHECKING:
     from gcs_ppf.offline.plan import PlanRun
@@ -90,6 +91,20 @@ async def put_obstacles(
 ) -> MissionDetail:
     check_size(service.settings, None, len(obstacles))
     return mission_detail(service.replace_obstacles(mission_id, obstacles))
+
+
+@router.post("/missions/{mission_id}/zones", responses=ERRORS, dependencies=COMMANDS)
+async def post_zones(
+    mission_id: MissionId, document: Annotated[dict[str, Any], Body()], service: Service
+) -> MissionDetail:
+    """The zones of a GeoJSON document or a QGroundControl ``.plan`` (the file's JSON as
+    the body) added to the mission's (``gcs_ppf.zone_import``): 422 naming the feature and
+    the field of the first that cannot be read, and nothing added."""
+    try:
+        zones = zones_from_document(document)
+    except ZoneImportError as exc:
+        raise Unprocessable(f"zones: {exc}; nothing imported") from None
+    return mission_detail(service.add_zones(mission_id, zones))
 
 
 @router.post(

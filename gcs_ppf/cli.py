@@ -1,5 +1,5 @@
 """The `gcs-ppf` command line: plan (``gcs_ppf.offline.command``), sweep
-(``gcs_ppf.offline.sweep.command``), serve, token, demo, arduplane-sitl."""
+(``gcs_ppf.offline.sweep.command``), serve, token, zones import, demo, arduplane-sitl."""
 
 from __future__ import annotations
 
@@ -91,6 +91,16 @@ def build_parser() -> argparse.ArgumentParser:
         help="add its entry to this token file (created, mode 0600) for --token-file; "
         "without it the entry is printed for GCS_PPF_TOKENS",
     )
+    zones = sub.add_parser("zones", help="no-fly zones from operators' files")
+    zones_sub = zones.add_subparsers(dest="zones_command", required=True)
+    zimport = zones_sub.add_parser(
+        "import",
+        help="zones from GeoJSON or a QGroundControl .plan: printed as the mission's zones[], "
+        "or added to --mission and written to --out",
+    )
+    zimport.add_argument("file", type=Path, help="GeoJSON (.geojson, .json) or .plan")
+    zimport.add_argument("--mission", type=Path, help="a mission document to add them to")
+    zimport.add_argument("--out", type=Path, help="where that mission goes (with --mission)")
     ap = sub.add_parser("arduplane-sitl", help="start real ArduPlane SITL, one per vehicle")
     ap.add_argument("mission", type=Path, help="mission document (JSON)")
     ap.add_argument("--binary", type=Path, required=True, help="build/sitl/bin/arduplane")
@@ -169,6 +179,41 @@ def token_command(args: argparse.Namespace) -> int:
     return 0
 
 
+def zones_import_command(file: Path, mission_file: Path | None, out: Path | None) -> int:
+    """``gcs-ppf zones import``: the file's zones as JSON on stdout, or added to a mission
+    document written to ``out`` (validated whole: its zones must fit its scene)."""
+    import json
+
+    from gcs_ppf.mission import Mission
+    from gcs_ppf.zone_import import ZoneImportError, import_zones
+
+    if (mission_file is None) != (out is None):
+        print("gcs-ppf: error: --mission and --out go together", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    try:
+        zones = import_zones(file.read_text(), str(file))
+    except (OSError, UnicodeDecodeError) as exc:
+        print(f"gcs-ppf: error: cannot read {file}: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except ZoneImportError as exc:
+        print(f"gcs-ppf: error: {exc}; nothing imported", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    found = [z.model_dump(exclude_none=True) for z in zones]
+    if mission_file is None or out is None:
+        print(json.dumps(found, indent=2))
+        return 0
+    try:
+        doc = json.loads(mission_file.read_text())
+        doc["zones"] = [*doc.get("zones", []), *found]
+        mission = Mission.model_validate(doc)
+    except (OSError, ValueError, TypeError, AttributeError) as exc:
+        print(f"gcs-ppf: error: {mission_file} with the zones of {file}: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    out.write_text(mission.model_dump_json(indent=2, exclude_none=True) + "\n")
+    print(f"{len(found)} zones of {file} added to {mission_file}: {out}", file=sys.stderr)
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(
         level=logging.INFO,
@@ -185,6 +230,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return serve_command(args)
     if args.command == "token":
         return token_command(args)
+    if args.command == "zones":
+        return zones_import_command(args.file, args.mission, args.out)
     if args.command == "arduplane-sitl":
         from gcs_ppf.tools.arduplane_sitl import arduplane_sitl_command
 

@@ -90,6 +90,8 @@ LAYERS = (
         ),
         frozenset({"matplotlib", "api", "sitl"}),
     ),
+    # zones from operators' files (GeoJSON, QGroundControl .plan): parsing only, pure
+    Layer("imports", ("gcs_ppf.zone_import",), (*CONTRACTS, "gcs_ppf.zone_import"), IO),
     Layer("tools", ("gcs_ppf.tools",), (*CONTRACTS, "gcs_ppf.tools"), frozenset({"api", "sitl"})),
     Layer("package", ("gcs_ppf",), (), frozenset()),  # gcs_ppf/__init__.py: numba's cache dir
     Layer("cli", ("gcs_ppf.cli",), ("gcs_ppf", "api"), frozenset({"sitl"})),
@@ -103,6 +105,7 @@ LAYERS = (
             "gcs_ppf.service",
             "gcs_ppf.offline",
             "gcs_ppf.tokens",
+            "gcs_ppf.zone_import",
             "api",
         ),
         frozenset(),

@@ -28,5 +28,11 @@ class Forbidden(ServiceError):
     status = 403
 
 
+class Unprocessable(ServiceError):
+    """A document that cannot be read as asked (the message names the field)."""
+
+    status = 422
+
+
 class TooLarge(ServiceError):
     status = 413

@@ -22,7 +22,7 @@ import logging
 from collections.abc import AsyncIterator
 from typing import Any
 
-from gcs_ppf.mission import Mission, Obstacle
+from gcs_ppf.mission import CylinderZone, Mission, Obstacle, PolygonZone
 from gcs_ppf.service import commanding, ending, flight
 from gcs_ppf.service.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.service.fleet import Fleet
@@ -146,9 +146,19 @@ class FormationService:
 
     def replace_obstacles(self, mission_id: int, obstacles: list[Obstacle]) -> StoredMission:
         """New obstacle set; a running mission uses it from its next tick on."""
+        return self._revise(mission_id, obstacles=[o.model_dump() for o in obstacles])
+
+    def add_zones(self, mission_id: int, zones: list[CylinderZone | PolygonZone]) -> StoredMission:
+        """Zones added to the mission's; a running mission keeps out of them from its next
+        tick on.  A set that does not fit the mission (a start inside one) adds none."""
+        kept = [z.model_dump() for z in self.mission(mission_id).mission.zones]
+        return self._revise(mission_id, zones=[*kept, *(z.model_dump() for z in zones)])
+
+    def _revise(self, mission_id: int, **fields: Any) -> StoredMission:
+        """The stored mission with ``fields`` of its document replaced, validated whole."""
         stored = self.mission(mission_id)
         doc = stored.mission.model_dump()
-        doc["obstacles"] = [o.model_dump() for o in obstacles]
+        doc.update(fields)
         try:
             mission = Mission.model_validate(doc)
         except ValueError as exc:

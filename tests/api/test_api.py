@@ -107,6 +107,42 @@ def test_obstacles_replaced_or_rejected_whole(client: TestClient) -> None:
     assert len(ok.json()["mission"]["obstacles"]) == 1
 
 
+def test_zones_imported_from_geojson_or_a_plan_or_refused_whole(client: TestClient) -> None:
+    """POST …/zones takes the file's JSON: the zones are added; a file with one bad feature,
+    or zones the mission cannot have (over a vehicle's start), adds none."""
+    mid = client.post("/missions", json=table3()).json()["id"]
+    plan = {"fileType": "Plan", "geoFence": {"polygons": [], "circles": [
+        {"circle": {"center": [47.43, 8.58], "radius": 300}, "inclusion": False}]}}  # fmt: skip
+    ok = client.post(f"/missions/{mid}/zones", json=plan)
+    assert ok.status_code == 200
+    assert [z["kind"] for z in ok.json()["mission"]["zones"]] == ["cylinder"]
+    point = {"type": "Point", "coordinates": [8.57, 47.42]}
+    features = [{"type": "Feature", "geometry": point, "properties": {"radius": 100}},
+                {"type": "Feature", "geometry": point, "properties": {}}]  # fmt: skip
+    bad = client.post(
+        f"/missions/{mid}/zones", json={"type": "FeatureCollection", "features": features}
+    )
+    assert bad.status_code == 422
+    assert "features[1].properties.radius" in bad.json()["detail"]
+    assert "nothing imported" in bad.json()["detail"]
+    start = {"type": "Point", "coordinates": [8.565469, 47.415727]}  # vehicle 1's start
+    over = client.post(f"/missions/{mid}/zones", json={"type": "Feature", "geometry": start,
+                                                        "properties": {"radius": 300}})  # fmt: skip
+    assert over.status_code == 400
+    assert len(client.get(f"/missions/{mid}").json()["mission"]["zones"]) == 1
+    assert client.post("/missions/999/zones", json=plan).status_code == 404
+
+
+def test_a_body_that_is_not_utf8_is_a_422_and_stores_nothing(client: TestClient) -> None:
+    """FastAPI answers an undecodable body 400, undocumented (schemathesis found it)."""
+    r = client.post(
+        "/missions", content=b"\xff\x53\xfe", headers={"Content-Type": "application/json"}
+    )
+    assert r.status_code == 422
+    assert r.json()["detail"][0]["loc"] == ["body"]
+    assert client.get("/missions").json() == []
+
+
 def test_links_validate_their_url(client: TestClient) -> None:
     assert client.post("/links", json={"url": "carrier-pigeon:1"}).status_code == 400
     r = client.post("/links", json={"url": "tcp:127.0.0.1:9"})
