@@ -101,6 +101,11 @@ def build_parser() -> argparse.ArgumentParser:
     zimport.add_argument("file", type=Path, help="GeoJSON (.geojson, .json) or .plan")
     zimport.add_argument("--mission", type=Path, help="a mission document to add them to")
     zimport.add_argument("--out", type=Path, help="where that mission goes (with --mission)")
+    zimport.add_argument(
+        "--route",
+        action="store_true",
+        help="a .plan's waypoints as the leader's route and target too (with --mission)",
+    )
     ap = sub.add_parser("arduplane-sitl", help="start real ArduPlane SITL, one per vehicle")
     ap.add_argument("mission", type=Path, help="mission document (JSON)")
     ap.add_argument("--binary", type=Path, required=True, help="build/sitl/bin/arduplane")
@@ -179,25 +184,31 @@ def token_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def zones_import_command(file: Path, mission_file: Path | None, out: Path | None) -> int:
+def zones_import_command(
+    file: Path, mission_file: Path | None, out: Path | None, route: bool = False
+) -> int:
     """``gcs-ppf zones import``: the file's zones as JSON on stdout, or added to a mission
-    document written to ``out`` (validated whole: its zones must fit its scene)."""
+    document written to ``out`` (validated whole: its zones must fit its scene); with
+    ``route``, a ``.plan``'s waypoints become its route and target as well."""
     import json
 
     from gcs_ppf.mission import Mission
+    from gcs_ppf.plan_route import RouteImportError, route_from_plan
     from gcs_ppf.zone_import import ZoneImportError, import_zones
 
-    if (mission_file is None) != (out is None):
-        print("gcs-ppf: error: --mission and --out go together", file=sys.stderr)
+    def refuse(message: str) -> int:
+        print(f"gcs-ppf: error: {message}", file=sys.stderr)
         return EXIT_BAD_INPUT
+
+    if (mission_file is None) != (out is None) or (route and mission_file is None):
+        return refuse("--mission and --out go together (and --route needs them)")
     try:
-        zones = import_zones(file.read_text(), str(file))
+        text = file.read_text()
+        zones = import_zones(text, str(file), required=not route)
     except (OSError, UnicodeDecodeError) as exc:
-        print(f"gcs-ppf: error: cannot read {file}: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+        return refuse(f"cannot read {file}: {exc}")
     except ZoneImportError as exc:
-        print(f"gcs-ppf: error: {exc}; nothing imported", file=sys.stderr)
-        return EXIT_BAD_INPUT
+        return refuse(f"{exc}; nothing imported")
     found = [z.model_dump(exclude_none=True) for z in zones]
     if mission_file is None or out is None:
         print(json.dumps(found, indent=2))
@@ -205,12 +216,21 @@ def zones_import_command(file: Path, mission_file: Path | None, out: Path | None
     try:
         doc = json.loads(mission_file.read_text())
         doc["zones"] = [*doc.get("zones", []), *found]
+        said = f"{len(found)} zones"
+        if route:
+            flown = route_from_plan(json.loads(text), Mission.model_validate(doc).origin)
+            doc["route"] = [w.model_dump() for w in flown.route]
+            doc["target"] = list(flown.target)
+            left = ", ".join(f"items[{k}] (MAV_CMD {c})" for k, c in flown.left_out)
+            said += f" and a route of {len(flown.route) + 1} waypoints"
+            said += f" (left out: {left})" if left else ""
         mission = Mission.model_validate(doc)
+    except RouteImportError as exc:
+        return refuse(f"{file}: {exc}; nothing imported")
     except (OSError, ValueError, TypeError, AttributeError) as exc:
-        print(f"gcs-ppf: error: {mission_file} with the zones of {file}: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+        return refuse(f"{mission_file} with what {file} holds: {exc}")
     out.write_text(mission.model_dump_json(indent=2, exclude_none=True) + "\n")
-    print(f"{len(found)} zones of {file} added to {mission_file}: {out}", file=sys.stderr)
+    print(f"{said} of {file} added to {mission_file}: {out}", file=sys.stderr)
     return 0
 
 
@@ -231,7 +251,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command == "token":
         return token_command(args)
     if args.command == "zones":
-        return zones_import_command(args.file, args.mission, args.out)
+        return zones_import_command(args.file, args.mission, args.out, args.route)
     if args.command == "arduplane-sitl":
         from gcs_ppf.tools.arduplane_sitl import arduplane_sitl_command
 

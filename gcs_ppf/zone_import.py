@@ -165,19 +165,19 @@ def zones_from_plan(doc: Any) -> list[Zone]:
     return zones
 
 
-def zones_from_document(doc: Any) -> list[Zone]:
+def zones_from_document(doc: Any, required: bool = True) -> list[Zone]:
     """The zones of a parsed GeoJSON or QGroundControl ``.plan`` document (told apart by
-    its ``fileType``); at least one, or a ``ZoneImportError``."""
+    its ``fileType``): at least one when ``required``, or a ``ZoneImportError``."""
     if isinstance(doc, dict) and doc.get("fileType") == "Plan":
         zones = zones_from_plan(doc)
     else:
         zones = zones_from_geojson(doc)
-    if not zones:
+    if not zones and required:
         raise ZoneImportError("no zones in it")
     return zones
 
 
-def import_zones(text: str, source: str = "the file") -> list[Zone]:
+def import_zones(text: str, source: str = "the file", required: bool = True) -> list[Zone]:
     """The zones of a GeoJSON or ``.plan`` text, or a ``ZoneImportError`` naming
     ``source``, the feature and the field."""
     try:
@@ -187,6 +187,6 @@ def import_zones(text: str, source: str = "the file") -> list[Zone]:
             f"{source} is not JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})"
         ) from None
     try:
-        return zones_from_document(doc)
+        return zones_from_document(doc, required)
     except ZoneImportError as exc:
         raise ZoneImportError(f"{source}: {exc}") from None

@@ -91,7 +91,12 @@ LAYERS = (
         frozenset({"matplotlib", "api", "sitl"}),
     ),
     # zones from operators' files (GeoJSON, QGroundControl .plan): parsing only, pure
-    Layer("imports", ("gcs_ppf.zone_import",), (*CONTRACTS, "gcs_ppf.zone_import"), IO),
+    Layer(
+        "imports",
+        ("gcs_ppf.zone_import", "gcs_ppf.plan_route"),
+        (*CONTRACTS, "gcs_ppf.zone_import", "gcs_ppf.plan_route"),
+        IO,
+    ),
     Layer("tools", ("gcs_ppf.tools",), (*CONTRACTS, "gcs_ppf.tools"), frozenset({"api", "sitl"})),
     Layer("package", ("gcs_ppf",), (), frozenset()),  # gcs_ppf/__init__.py: numba's cache dir
     Layer("cli", ("gcs_ppf.cli",), ("gcs_ppf", "api"), frozenset({"sitl"})),

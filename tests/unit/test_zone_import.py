@@ -1,9 +1,10 @@
-"""Zones from operators' files: GeoJSON and QGroundControl .plan (gcs_ppf.zone_import), and
-``gcs-ppf zones import``."""
+"""Zones from operators' files: GeoJSON and QGroundControl .plan (gcs_ppf.zone_import), a
+.plan's waypoints as the leader's route (gcs_ppf.plan_route), and ``gcs-ppf zones import``."""
 
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +14,7 @@ import pytest
 from gcs_ppf.cli import main
 from gcs_ppf.geodesy import enu_to_geodetic
 from gcs_ppf.mission import CylinderZone, Mission, PolygonZone, load_mission_file
+from gcs_ppf.plan_route import RouteImportError, route_from_plan
 from gcs_ppf.planning.zones import zones_from_mission
 from gcs_ppf.zone_import import ZoneImportError, import_zones
 from tests.conftest import EXAMPLES
@@ -164,5 +166,78 @@ def test_the_command_adds_the_zones_to_a_mission_or_writes_nothing(
     over.write_text(collection(feature({"type": "Point", "coordinates": lonlat(start[0], start[1])},
                                        radius=300)))  # fmt: skip
     assert main(["zones", "import", str(over), "--mission", args[4], "--out", str(never)]) == 2
-    assert "with the zones of" in capsys.readouterr().err
+    assert "with what" in capsys.readouterr().err
     assert not never.exists()
+
+
+def item(
+    command: int,
+    x: float = 0.0,
+    y: float = 0.0,
+    z: float = 0.0,
+    radius: float = 0.0,
+    frame: int = 3,
+) -> dict[str, Any]:
+    """A .plan SimpleItem at ICS (x, y, z) of Table 3's origin, its altitude above a home at
+    the origin's altitude (frame 3) or above mean sea level (frame 0)."""
+    lat, lon, alt = enu_to_geodetic(x, y, z, TABLE3.origin)
+    alt = alt - TABLE3.origin.alt if frame == 3 else alt
+    params = [0, radius, 0, None, lat, lon, alt]
+    return {"type": "SimpleItem", "command": command, "frame": frame, "params": params}
+
+
+def plan(*items: dict[str, Any]) -> dict[str, Any]:
+    home = [TABLE3.origin.lat, TABLE3.origin.lon, TABLE3.origin.alt]
+    mission = {"items": list(items), "plannedHomePosition": home, "version": 2}
+    return {"fileType": "Plan", "version": 1, "mission": mission}
+
+
+def test_a_plans_waypoints_are_the_route_and_the_last_the_target() -> None:
+    """Takeoff, three waypoints (one above mean sea level, one with its own radius) and a
+    speed change: the route is the first two, the target the third, in the ICS."""
+    msl = item(16, 6000, 2000, 400, radius=60, frame=0)
+    doc = plan(item(22, z=50), item(16, 3000, 2000, 300), item(178), msl, item(16, 6000, 7000, 300))
+    flown = route_from_plan(doc, TABLE3.origin)
+    assert [w.position for w in flown.route] == [
+        pytest.approx((3000, 2000, 300), abs=0.01),
+        pytest.approx((6000, 2000, 400), abs=0.01),
+    ]
+    assert [w.acceptance_radius for w in flown.route] == [100.0, 60.0]
+    assert flown.target == pytest.approx((6000, 7000, 300), abs=0.01)
+    assert flown.left_out == [(0, 22), (2, 178)]
+
+
+@pytest.mark.parametrize(
+    ("items", "named"),
+    [
+        ([item(22)], "mission.items: no waypoint"),
+        ([item(16, 10, 10, 300, frame=10)], "mission.items[0].frame: 10"),
+        ([item(16), {"type": "ComplexItem", "complexItemType": "survey"}],
+         "mission.items[1].type: 'ComplexItem'"),
+        ([{**item(16), "params": [0, 0, 0, None, "north", 8.5, 100]}],
+         "mission.items[0].params[4]: a number expected"),
+    ],
+)  # fmt: skip
+def test_a_route_that_cannot_be_read_names_the_item(
+    items: list[dict[str, Any]], named: str
+) -> None:
+    with pytest.raises(RouteImportError, match=re.escape(named)):
+        route_from_plan(plan(*items), TABLE3.origin)
+
+
+def test_the_command_takes_a_plans_route_into_the_mission(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    file = tmp_path / "route.plan"
+    doc = plan(item(22, z=50), item(16, 4000, 1000, 300), item(16, 6000, 7000, 300))
+    file.write_text(json.dumps(doc))
+    out = tmp_path / "table3-route.json"
+    args = ["zones", "import", str(file), "--mission", str(EXAMPLES / "paper_table3.json")]
+    assert main([*args, "--out", str(out), "--route"]) == 0
+    assert "a route of 2 waypoints (left out: items[0] (MAV_CMD 22))" in capsys.readouterr().err
+    mission = Mission.model_validate_json(out.read_text())
+    assert len(mission.route) == 1
+    assert mission.route[0].position == pytest.approx((4000, 1000, 300), abs=0.01)
+    assert mission.target == pytest.approx((6000, 7000, 300), abs=0.01)
+    assert mission.zones == []
+    assert main(["zones", "import", str(file), "--route"]) == 2  # --route needs --mission
