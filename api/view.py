@@ -59,8 +59,8 @@ MOVING_M_S = 1.0  # below this ground speed the heading comes from the attitude,
 def zone_view(zone: CylinderZone | PolygonZone, mission: Mission) -> dict[str, Any]:
     """A zone as the page draws it: its footprint in the mission's ICS (a cylinder's
     ``center_m`` and ``radius_m``, a polygon's ``vertices_m``; lat/lon converted here),
-    its height band (``floor_m`` / ``ceiling_m``, None: unbounded), whether vehicles stay
-    inside (``inclusion``), and its keep-out distance (``safe_distance_obstacle``)."""
+    its height band (``floor_m`` / ``ceiling_m``, None: unbounded) and whether vehicles
+    stay inside (``inclusion``)."""
     footprint = [[round(float(c), 2) for c in p] for p in zone_footprint(zone, mission.origin)]
     view: dict[str, Any] = {
         "name": zone.name,
@@ -68,7 +68,6 @@ def zone_view(zone: CylinderZone | PolygonZone, mission: Mission) -> dict[str, A
         "inclusion": zone.inclusion,
         "floor_m": zone.floor,
         "ceiling_m": zone.ceiling,
-        "keep_out_m": mission.limits.safe_distance_obstacle,
     }
     if isinstance(zone, CylinderZone):
         return {**view, "center_m": footprint[0], "radius_m": zone.radius}

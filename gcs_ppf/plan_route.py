@@ -49,10 +49,9 @@ def route_from_plan(doc: Any, origin: Origin) -> PlanRoute:
     if not isinstance(doc, dict) or doc.get("fileType") != "Plan":
         raise RouteImportError('fileType: not a QGroundControl plan (fileType "Plan")')
     mission = doc.get("mission")
-    items = mission.get("items") if isinstance(mission, dict) else None
-    if not isinstance(items, list):
+    if not isinstance(mission, dict) or not isinstance(mission.get("items"), list):
         raise RouteImportError("mission.items: a list of mission items expected")
-    home = mission.get("plannedHomePosition") if isinstance(mission, dict) else None
+    items, home = mission["items"], mission.get("plannedHomePosition")
     points: list[Waypoint] = []
     left_out: list[tuple[int, int]] = []
     for k, item in enumerate(items):

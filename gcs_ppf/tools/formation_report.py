@@ -42,16 +42,27 @@ class FormationFlown:
     flown_s: float
 
 
+def _formation_tracks(
+    mission: Mission, tracks: dict[int, FloatArray], start_s: float, end_s: float
+) -> dict[int, FloatArray] | None:
+    """The leader's and the wingmen's tracks, or None when there is no formation to judge
+    over [start_s, end_s] (a lone leader, an empty window, a vehicle never heard)."""
+    ids = [mission.leader.id, *(w.id for w in mission.wingmen)]
+    if not mission.wingmen or end_s <= start_s or any(len(tracks.get(v, ())) == 0 for v in ids):
+        return None
+    return {v: tracks[v] for v in ids}
+
+
 def formation_flown(
     mission: Mission, tracks: dict[int, FloatArray], start_s: float, end_s: float
 ) -> FormationFlown | None:
     """The formation over [start_s, end_s] of vehicle time (None for a lone leader or a
     vehicle never heard)."""
-    ids = [mission.leader.id, *(w.id for w in mission.wingmen)]
-    if not mission.wingmen or end_s <= start_s or any(len(tracks.get(v, ())) == 0 for v in ids):
+    flown_tracks = _formation_tracks(mission, tracks, start_s, end_s)
+    if flown_tracks is None:
         return None
     t = np.arange(start_s, end_s, STEP_S)
-    offsets = slot_distances(mission, {v: tracks[v] for v in ids}, t)
+    offsets = slot_distances(mission, flown_tracks, t)
     worst = np.max(np.stack(list(offsets.values())), axis=0)
     accuracy = mission.limits.target_accuracy
     formed = worst <= accuracy
@@ -100,10 +111,16 @@ def record_mission(rec: dict[str, Any]) -> Mission:
 
 def run_formation(rec: dict[str, Any], after_s: float = AFTER_S) -> FormationFlown | None:
     """The formation of one campaign record (its observer's window less the watch after it)."""
+    return formation_flown(*_observed(rec, after_s))
+
+
+def _observed(
+    rec: dict[str, Any], after_s: float
+) -> tuple[Mission, dict[int, FloatArray], float, float]:
+    """A campaign record's mission, observed tracks and window (less the watch after it)."""
     mission = record_mission(rec)
     start, end = rec["window_s"][0], rec["window_s"][1] - after_s
-    tracks = observed_tracks(Path(rec["dir"]) / "observer.json", mission)
-    return formation_flown(mission, tracks, start, end)
+    return mission, observed_tracks(Path(rec["dir"]) / "observer.json", mission), start, end
 
 
 def _median(values: list[float]) -> float | None:
@@ -147,14 +164,11 @@ def report(records: list[dict[str, Any]]) -> str:
 def run_axes(rec: dict[str, Any], after_s: float = AFTER_S) -> dict[int, FloatArray] | None:
     """Each wingman's RMS slot error [3] (forward, left, up; m) in one campaign record,
     from the first moment in formation to the end (the whole flight if it never formed)."""
-    mission = record_mission(rec)
-    start, end = rec["window_s"][0], rec["window_s"][1] - after_s
-    tracks = observed_tracks(Path(rec["dir"]) / "observer.json", mission)
-    ids = [mission.leader.id, *(w.id for w in mission.wingmen)]
-    if not mission.wingmen or end <= start or any(len(tracks.get(v, ())) == 0 for v in ids):
+    mission, tracks, start, end = _observed(rec, after_s)
+    flown_tracks = _formation_tracks(mission, tracks, start, end)
+    if flown_tracks is None:
         return None
-    t = np.arange(start, end, STEP_S)
-    errors = slot_errors(mission, {v: tracks[v] for v in ids}, t)
+    errors = slot_errors(mission, flown_tracks, np.arange(start, end, STEP_S))
     worst = np.max(np.stack([np.linalg.norm(e, axis=1) for e in errors.values()]), axis=0)
     formed = worst <= mission.limits.target_accuracy
     first = int(np.argmax(formed)) if formed.any() else 0

@@ -55,7 +55,7 @@ function withGeometry(o, limits) {
 
 /** A mission document's zones in ICS metres, as the service's frames give them (zones
  * given in lat/lon only come drawn from the service, which converts them). */
-function docZones(doc, limits) {
+function docZones(doc) {
   const point = (p) => Array.isArray(p) && p.length === 2 && p.every(Number.isFinite);
   const height = (h) => (Number.isFinite(h) ? h : null);
   return (Array.isArray(doc && doc.zones) ? doc.zones : []).flatMap((z) => {
@@ -63,7 +63,6 @@ function docZones(doc, limits) {
     const band = {
       name: typeof z.name === "string" ? z.name : null, kind: z.kind, inclusion: z.inclusion === true,
       floor_m: height(z.floor), ceiling_m: height(z.ceiling),
-      keep_out_m: limits ? limits.safe_distance_obstacle : null,
     };
     if (z.kind === "cylinder" && point(z.center) && Number.isFinite(z.radius) && z.radius > 0) {
       return [{ ...band, center_m: z.center, radius_m: z.radius }];
@@ -104,10 +103,10 @@ function buildScene() {
     ? doc.vehicles.filter((v) => Array.isArray(v.position) && v.position.every(Number.isFinite))
         .map((v) => ({ id: v.id, role: v.role, pos: v.position, yaw: Number(v.yaw) || 0 }))
     : [];
-  const served = f && Array.isArray(f.zones) && f.mission_id === (own ? state.storedId : f.mission_id) && !(own && state.missionDirty);
+  const served = f && Array.isArray(f.zones) && (!own || (f.mission_id === state.storedId && !state.missionDirty));
   return {
     obstacles,
-    zones: served ? f.zones : (own ? docZones(doc, limits) : []),
+    zones: served ? f.zones : (own ? docZones(doc) : []),
     target_m: own ? (Array.isArray(doc.target) && doc.target.every(Number.isFinite) ? doc.target : null) : f && f.target_m,
     route: validRoute(own ? doc.route : f && f.route),
     leg: run && run.leg ? run.leg.index : null,
@@ -854,7 +853,7 @@ function replayScene() {
       g.center_m = o.center.map((c, k) => c + r.t * (o.velocity ? o.velocity[k] : 0));
       return g;
     }),
-    zones: docZones(r.mission, lim),
+    zones: docZones(r.mission),
     target_m: r.mission.target,
     route: validRoute(r.mission.route),
     leg: null,
