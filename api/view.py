@@ -126,10 +126,26 @@ def with_formation(
 ) -> list[dict[str, Any]]:
     """Each vehicle's role in ``mission``, its PPF state, avoidance and slot distance from
     the run's ``status``, and each wingman's local target point (Eq. 6) from the leader's
-    position and flight-path attitude (None while the leader has none)."""
-    per_vehicle = {p["id"]: p for p in (status or {}).get("vehicles", [])}
+    position and flight-path attitude (None while the leader has none).  A run whose leader
+    was lost flies another leader and other slots (``planning.succession``): the run's
+    ``leader_id`` and ``slots`` are shown, not the document's."""
+    run = status or {}
+    per_vehicle = {p["id"]: p for p in run.get("vehicles", [])}
     roles = {v.id: v for v in mission.vehicles} if mission else {}
-    leader = next((v for v in vehicles if mission and v["id"] == mission.leader.id), None)
+    leader_id = run.get("leader_id", mission.leader.id if mission else None)
+    if mission and "slots" in run:
+        roles = {
+            vid: v.model_copy(
+                update={
+                    "role": "leader" if vid == leader_id else "wingman",
+                    "slot": None
+                    if vid == leader_id
+                    else tuple(run["slots"].get(str(vid), ())) or None,
+                }
+            )
+            for vid, v in roles.items()
+        }
+    leader = next((v for v in vehicles if v["id"] == leader_id), None)
     out = []
     for v in vehicles:
         spec = roles.get(v["id"])

@@ -104,7 +104,9 @@ def kernel_limits(limits: Limits, ground: float | None = None) -> KernelLimits:
     )
 
 
-def _priority_key(v: Vehicle) -> tuple[int, int, int]:
+def priority_key(v: Vehicle) -> tuple[int, int, int]:
+    """Avoidance order (lowest first): ``priority``, by default the leader first, then the
+    wingmen by id."""
     default = 0 if v.role == "leader" else v.id
     return (v.priority if v.priority is not None else default, v.role != "leader", v.id)
 
@@ -123,7 +125,7 @@ def scene_from_mission(mission: Mission) -> Scene:
     turns those its formation follows if the mission holds them (``gcs_ppf.planning.turns``).
     The target is the mission's: the shells fly a route leg by leg
     (``gcs_ppf.planning.route``)."""
-    by_priority = sorted(mission.vehicles, key=_priority_key)
+    by_priority = sorted(mission.vehicles, key=priority_key)
     rank_of = {v.id: r for r, v in enumerate(by_priority)}
     ordered = [mission.leader] + [v for v in by_priority if v.role != "leader"]
     lim = mission.limits

@@ -14,6 +14,7 @@ import math
 import statistics
 import time
 from collections import deque
+from dataclasses import replace
 
 import numpy as np
 
@@ -25,6 +26,7 @@ from gcs_ppf.guidance.online import VehicleState, clearance, home_ground, separa
 from gcs_ppf.guidance.tick_plan import traffic_radius_m
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_HEADING
+from gcs_ppf.planning import succession
 from gcs_ppf.planning.route import leg_flown
 from gcs_ppf.planning.scene import FloatArray, Obstacles, obstacles_from_mission
 from gcs_ppf.service import commanding, launch
@@ -133,13 +135,15 @@ def vehicle_time_s(station: Station, run: Run) -> float | None:
 
 async def tick_loop(station: Station, run: Run) -> None:
     """A tick at ``tick_hz`` of the leader's clock, woken by fresh telemetry, until the run
-    is aborted or ends; a telemetry sample at ``telemetry_sample_hz`` of mission time."""
+    is aborted or ends; a telemetry sample at ``telemetry_sample_hz`` of mission time.  A
+    new leader's clock carries the mission time on from where the last one left it."""
     fleet = station.fleet
     period = 1.0 / station.settings.tick_hz
     sample_period = 1.0 / station.settings.telemetry_sample_hz
     last_tick: float | None = None
     last_sample = -math.inf
     run.tick_rate = TickRate(station.settings.tick_hz)
+    clock_of = run.mission.leader.id
     while not run.abort.is_set():
         fleet.telemetry_event.clear()
         try:
@@ -155,6 +159,10 @@ async def tick_loop(station: Station, run: Run) -> None:
             continue
         if run.start_vehicle_time_s is None:
             run.start_vehicle_time_s = now_v
+        if run.mission.leader.id != clock_of:  # a new leader: mission time goes on, on its clock
+            clock_of = run.mission.leader.id
+            run.start_vehicle_time_s = now_v - run.mission_time_s
+            last_tick = None
         if last_tick is not None and now_v - last_tick < period * 0.999:
             continue
         if last_tick is not None:
@@ -190,8 +198,9 @@ def keep_rate(station: Station, run: Run, now_v: float, work_s: float) -> None:
 
 
 async def losses(station: Station, run: Run) -> bool:
-    """Events for vehicles newly lost (the watchdog's verdict, in their own seconds);
-    True when the leader is lost: the run has then failed, every vehicle loitering."""
+    """Events for vehicles newly lost (the watchdog's verdict, in their own seconds); the
+    leader lost, a wingman leads (``hand_over``); True when none is left to: the run has
+    then failed, every vehicle loitering."""
     for v in run.mission.vehicles:
         vehicle = station.fleet.by_id.get(v.id)
         if vehicle is not None and vehicle.lost and v.id not in run.lost_ids:
@@ -212,9 +221,30 @@ async def losses(station: Station, run: Run) -> bool:
                 )
             else:
                 run.duplicates.pop(v.id, None)
-    if run.mission.leader.id not in run.lost_ids:
+    if run.mission.leader.id not in run.lost_ids or hand_over(station, run, "lost"):
         return False
     end(station, run, RunState.FAILED, "leader lost")
+    return True
+
+
+def hand_over(station: Station, run: Run, why: str) -> bool:
+    """The leader lost (``why``: ``lost`` or ``not_responding``): the wingman of highest
+    priority leads and the slots move to it (``planning.succession``), a
+    ``leader_succeeded`` event; False when no wingman is left to lead.  What the ticks
+    carried from one to the next about the old leader's plan starts again."""
+    out = run.mission.leader.id
+    unable = run.lost_ids | run.obedience.not_responding | {out}
+    mission = succession.succeed(run.mission, unable)
+    if mission is None:
+        return False
+    run.mission = mission
+    run.orders = replace(run.orders, mission=mission)
+    run.last = None
+    run.speed_plan = None
+    run.formation_held = False
+    run.leader_pos = None
+    slots = {str(w.id): list(w.slot) for w in mission.wingmen if w.slot is not None}
+    station.event(run, "leader_succeeded", mission.leader.id, lost_leader=out, why=why, slots=slots)
     return True
 
 
@@ -338,7 +368,9 @@ async def tick(station: Station, run: Run) -> bool:
         airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
     with phases.phase("confirmation"):
         leader_not_responding = check_obedience(station, run, located, states, airframes)
-    if leader_not_responding:
+    if leader_not_responding:  # the next tick plans for the new leader, if there is one
+        if hand_over(station, run, "not_responding"):
+            return False
         end(station, run, RunState.FAILED, "leader not responding")
         return True
     uncontrolled = run.obedience.not_responding & set(states)

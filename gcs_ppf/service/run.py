@@ -200,6 +200,8 @@ def status(run: Run) -> dict[str, Any]:
         "state": run.state,
         "outcome": run.outcome,
         "mission_time_s": round(run.mission_time_s, 3),
+        "leader_id": run.mission.leader.id,
+        "slots": {str(w.id): list(w.slot) for w in run.mission.wingmen if w.slot is not None},
         "formation_formed": run.formation.formed,
         "formation": run.formation.status(),
         "leg": leg_status(run),

@@ -72,10 +72,11 @@ CONDITIONS: dict[str, Condition] = {
     "b": Condition("b", "x10, a CPU burner per core", 10.0, burn_cpus=True),
     "c": Condition("c", "x5, latency 300 ms, 20 % loss", 5.0, ("--fault", "latency=300,loss=20")),
     "d": Condition("d", "x10, a wingman ignores commands", 10.0, event="stuck"),
-    "e": Condition("e", "x10, the leader's link dies", 10.0, event="kill", expect="failed"),
+    "e": Condition("e", "x10, the leader's link dies (a wingman leads on)", 10.0, event="kill"),
     "f": Condition("f", "x5, idle", 5.0),
     "g": Condition("g", "x5, a CPU burner per core", 5.0, burn_cpus=True),
     "h": Condition("h", "x1, idle", 1.0),  # fleets too large for the tick at 5x (issue 29)
+    "i": Condition("i", "x5, latency 100 ms", 5.0, ("--fault", "latency=100")),
 }
 
 
@@ -236,21 +237,23 @@ def fly_once(
     _judge_run(rec, flight, obs, mission, after_s)
     rec["ok"] = rec["state"] == cond.expect
     if cond.event == "kill":
-        rec["ok"] = rec["ok"] and _failed_in_time(rec, obs, mission, event, flight.end_wall)
+        handed = flight.handed_over_wall
+        rec["ok"] = rec["ok"] and _handed_over_in_time(rec, obs, mission, event, handed)
     return rec
 
 
 @dataclass(frozen=True)
 class Flight:
     """What a run left for judging: the service's last status and the event injected, the
-    watch window in vehicle seconds (the start, the end seen by the status poll) and the
-    end in wall time (``time.time()``)."""
+    watch window in vehicle seconds (the start, the end seen by the status poll), the
+    end and the first leader succession (None: none) in wall time (``time.time()``)."""
 
     status: dict[str, Any]
     event: dict[str, Any] | None
     start_v: float
     end_v: float
     end_wall: float
+    handed_over_wall: float | None = None
 
     @property
     def mission_time_s(self) -> float:
@@ -331,7 +334,8 @@ def _fly(
     ended = [e["wall_s"] for e in events if e["kind"] in {f"run_{s}" for s in FINISHED}]
     if ended:  # the service's own moment (the status poll may be held up by an event)
         end_wall = min(end_wall, min(ended))
-    return Flight(status, event, start_v, end_v, end_wall)
+    handed = [e["wall_s"] for e in events if e["kind"] == "leader_succeeded"]
+    return Flight(status, event, start_v, end_v, end_wall, min(handed, default=None))
 
 
 def _judge_run(
@@ -414,26 +418,26 @@ def _inject(
     }
 
 
-def _failed_in_time(
+def _handed_over_in_time(
     rec: dict[str, Any],
     obs: Observer,
     mission: Mission,
     event: dict[str, Any] | None,
-    end_wall: float,
+    handed_over_wall: float | None,
 ) -> bool:
-    """Condition (e): the run ended ``failed`` within the lost-vehicle timeout (+ slack) of
-    the leader's last message, in vehicle time.  The end is when the status poll (every
-    0.1 s of wall time) first saw it, dated on a live vehicle's clock: an upper bound."""
-    if event is None:
-        rec["fail_delay_s"] = None
+    """Condition (e): a wingman led (``leader_succeeded``) within the lost-vehicle timeout
+    (+ slack) of the leader's last message, in vehicle time: the event's wall time dated on
+    a live vehicle's clock."""
+    if event is None or handed_over_wall is None:
+        rec["handover_delay_s"] = None
         return False
     clocks = obs.clocks()
     lead = clocks[mission.leader.id]
     alive = max((c for v, c in clocks.items() if v != mission.leader.id), key=len)
     silent_from = float(lead[-1, 1])
-    ended = float(np.interp(end_wall, alive[:, 0], alive[:, 1]))
-    rec["fail_delay_s"] = round(ended - silent_from, 1)
-    return bool(ended - silent_from <= LOST_TIMEOUT_S + LOST_SLACK_S)
+    handed = float(np.interp(handed_over_wall, alive[:, 0], alive[:, 1]))
+    rec["handover_delay_s"] = round(handed - silent_from, 1)
+    return bool(handed - silent_from <= LOST_TIMEOUT_S + LOST_SLACK_S)
 
 
 # ---- the campaign ------------------------------------------------------------------------

@@ -24,7 +24,7 @@ def progress_line(rec: dict[str, Any]) -> str:
     """One run, as it ends."""
     if rec.get("error"):
         return f"{rec['mission']} ({rec['condition']}) run {rec['run']}: ERROR {rec['error']}"
-    extra = f" fail delay {rec['fail_delay_s']} s" if "fail_delay_s" in rec else ""
+    extra = f" handover {rec['handover_delay_s']} s" if "handover_delay_s" in rec else ""
     if rec.get("formation_m") is not None:
         extra += f" formation {rec['formation_m']} m held {rec['formation_held_s']} s"
     return (
@@ -83,7 +83,7 @@ def _group(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
         "formation_held_max_s": max(vals("formation_held_s"), default=None),
         "uncontrolled_clearance_min_m": _stats(vals("uncontrolled_clearance_m"))[0],
         "sank": sum(1 for r in rows if r.get("sank")),
-        "fail_delay_max_s": max(vals("fail_delay_s"), default=None),
+        "handover_delay_max_s": max(vals("handover_delay_s"), default=None),
         "flown_median_s": _stats(vals("mission_time_s"))[1],
         "wall_median_s": _stats(vals("wall_s"))[1],
     }
@@ -114,8 +114,8 @@ def format_tables(summary: dict[str, Any]) -> str:
             note = [f"{s} {k}" for s, k in sorted(g["states"].items()) if s != c["expect"]]
             if g["uncontrolled_clearance_min_m"] is not None:
                 note.append(f"stuck wingman's clearance {g['uncontrolled_clearance_min_m']:.1f}")
-            if g["fail_delay_max_s"] is not None:
-                note.append(f"failed <= {g['fail_delay_max_s']:.1f} s after silence")
+            if g["handover_delay_max_s"] is not None:
+                note.append(f"new leader <= {g['handover_delay_max_s']:.1f} s after silence")
             if g["sank"]:
                 note.append(f"{g['sank']} below the ground keep-out")
             lines.append(

@@ -153,6 +153,22 @@ def test_each_wingmans_local_target_point_turns_with_the_leader() -> None:
     assert views[2]["local_target_m"] == pytest.approx([1000.0 + slot[0], 2000.0 + slot[1], 300.0])
 
 
+def test_a_run_whose_leader_was_lost_shows_its_new_leader_and_slots() -> None:
+    """After a succession the run's status names wingman 2 the leader and carries the
+    slots moved to it: the page draws those, not the uploaded document's."""
+    mission = Mission.model_validate(table3())
+    lead = vehicle_view(row(2), (1000.0, 2000.0, 300.0), (0.0, 100.0, 0.0))  # flying east
+    old = vehicle_view(row(1), None, (None, None, None))
+    wingman = vehicle_view(row(3), (0.0, 0.0, 300.0), (0.0, 100.0, 0.0))
+    status = {"leader_id": 2, "slots": {"1": [100.0, -100.0, 0.0], "3": [-100.0, 100.0, 0.0]}}
+    views = {v["id"]: v for v in with_formation([lead, old, wingman], mission, status)}
+    assert views[2]["role"] == "leader"
+    assert views[2]["slot_m"] is None
+    assert views[1]["role"] == "wingman"
+    assert views[3]["slot_m"] == [-100.0, 100.0, 0.0]
+    assert views[3]["local_target_m"] == pytest.approx([900.0, 2100.0, 300.0])
+
+
 def test_the_view_frame_carries_the_zones_in_the_ics(client: TestClient) -> None:
     """Table 3's zones example, one polygon given in lat/lon instead: the page gets every
     footprint in metres (the lat/lon one converted back to within a few cm), the band and

@@ -20,6 +20,7 @@ const WORDS = {
   conflict_resolution_ended: (e) => `${v(e)}: conflict resolved`,
   local_minimum_escape: (e) => `${v(e)} escaping a local minimum (s2, pulls up)`,
   vehicle_lost: (e) => `${v(e)} LOST: silent for 5 s of its own time`,
+  leader_succeeded: (e) => `${v(e)} LEADS: the leader (vehicle ${d(e).lost_leader}) ${d(e).why === "lost" ? "was lost" : "stopped responding"}`,
   duplicate_system_id: (e) => `${v(e)}: its system id heard on links ${(d(e).links || []).join(", ")} at once (commands on link ${d(e).commanded_link ?? "?"})`,
   vehicle_not_responding: (e) => `${v(e)} NOT RESPONDING (mode ${d(e).mode ?? "?"}, last answer ${d(e).last_ack ?? "none"})`,
   vehicle_responding: (e) => `${v(e)} responding again`,
@@ -38,7 +39,7 @@ const WORDS = {
 
 const LEVEL = {
   run_completed: "ok", formation_formed: "ok", vehicle_responding: "ok", waypoint_reached: "ok",
-  run_completed_unsafe: "bad", run_aborted: "warn", run_failed: "bad", vehicle_lost: "bad",
+  run_completed_unsafe: "bad", run_aborted: "warn", run_failed: "bad", vehicle_lost: "bad", leader_succeeded: "warn",
   run_interrupted: "bad", duplicate_system_id: "bad",
   vehicle_not_responding: "bad", safety_violation: "bad", takeoff_failed: "bad",
   formation_broken: "warn", avoidance_entered: "warn", conflict_resolution_began: "warn",
