@@ -52,3 +52,29 @@ def test_the_leader_lost_a_wingman_leads_and_the_run_completes(tmp_path: Path) -
         f"{flight.final['mission_time_s']:.1f} s, separation {separation:.1f} m, "
         f"clearance {clearance:.1f} m; SITL at {SPEEDUP}x"
     )
+
+
+@pytest.mark.integration
+def test_a_wingman_back_rejoins_and_a_leader_alone_flies_on(tmp_path: Path) -> None:
+    """Wingman 3's link cut for 8 s of the SITL's time from 40 s, past the obstacles (lost
+    after 5, back after 8): ``vehicle_lost`` then ``vehicle_back``, and from then on it is
+    planned for again (not lost in the status at the end); the others' links die at 55 s:
+    the leader, a formation of one, flies on to the target.  (Cut earlier, at 15 s, wingman
+    3 flew its last course blind for 10 s and into the obstacle Table 3 puts there: the
+    service cannot command a vehicle it cannot reach, its own failsafe must.)"""
+    faults = ["--fault", "3:cut=40+8", "--fault", "2:die=55", "--fault", "4:die=55",
+              "--fault", "5:die=55"]  # fmt: skip
+    flight = fly(tmp_path, json.loads(MISSION.read_text()), sitl_extra=faults)
+    assert flight.final["state"] == "completed", flight.final
+    assert flight.final["leader_id"] == 1
+    lost = sorted(v["id"] for v in flight.final["vehicles"] if v["lost"])
+    assert lost == [2, 4, 5]
+    store = Store(tmp_path / "gcs.db")
+    run = store.runs(flight.mission_id)[0]
+    kinds = [(e.kind, e.vehicle_id) for e in store.events(run.id)]
+    assert kinds.index(("vehicle_lost", 3)) < kinds.index(("vehicle_back", 3))
+    assert not any(kind == "leader_succeeded" for kind, _ in kinds)
+    _, separation, clearance = check_safety(flight, exclude=[2, 4, 5])
+    t = flight.final["mission_time_s"]
+    print(f"\nwingman 3 back, the others lost: completed at {t:.1f} s, separation "
+          f"{separation:.1f} m, clearance {clearance:.1f} m")  # fmt: skip
