@@ -21,6 +21,7 @@ import pytest
 
 from gcs_ppf.mission import Mission
 from gcs_ppf.tools.campaign import process
+from gcs_ppf.tools.formation_report import STEP_S, formation_flown
 from gcs_ppf.tools.observer import (
     Observer,
     closest_pass,
@@ -28,6 +29,7 @@ from gcs_ppf.tools.observer import (
     free_port_block,
     longest_formed_s,
     resample,
+    slot_distances,
     tracks_on_common_clock,
 )
 from tests.checks import wait_for
@@ -123,6 +125,13 @@ def fly_arduplane(tmp_path: Path, mission_path: Path) -> None:
     best, formation = formation_offsets(mission, tracks, *window)
     held = longest_formed_s(mission, tracks, *window)
     to_target = closest_pass(tracks[mission.leader.id], np.array(mission.target))
+    flown = formation_flown(mission, tracks, window[0], window[0] + window[1])
+    share = (
+        "never formed"
+        if flown is None or flown.formed_after_s is None
+        else (f"in formation {flown.in_formation_share:.0%} of the flight after forming")
+    )
+    reformed = reformed_after_passage_s(mission, tracks, window[0], window[0] + window[1])
     print(
         f"{mission.name} on ArduPlane SITL (×{SPEEDUP:g}): run {final['state']} "
         f"({final.get('outcome')}), flight time {final['mission_time_s']:.1f} s ({end_s:.1f} s "
@@ -132,7 +141,9 @@ def fly_arduplane(tmp_path: Path, mission_path: Path) -> None:
         f"target {to_target:.1f} m, formation error {formation:.1f} m (worst wingman at the "
         "best moment; each wingman's best "
         + ", ".join(f"{vid}: {d:.1f} m" for vid, d in best.items())
-        + f"), held {held:.1f} s, 'Hit ground' after takeoff: "
+        + f"), held {held:.1f} s, {share}, formed again "
+        + ("never" if reformed is None else f"{reformed:.1f} s")
+        + " after the leader's closest pass to the obstacle, 'Hit ground' after takeoff: "
         + ", ".join(f"{s}: {len(h)}" for s, h in hits.items())
     )
     assert final["state"] == "completed", final
@@ -155,3 +166,22 @@ def test_formation_flown_on_arduplane_sitl(mission: str, tmp_path: Path) -> None
     accuracy of its local target point (Eq. 6, from the observer's tracks) at one moment
     and all of them stay within it for HELD_S together."""
     fly_arduplane(tmp_path, EXAMPLES / f"{mission}.json")
+
+
+def reformed_after_passage_s(
+    mission: Mission, tracks: dict[int, np.ndarray], start_s: float, end_s: float
+) -> float | None:
+    """How long after the leader's closest pass to an obstacle's surface every wingman was
+    within the target accuracy of its slot again (0: never out of it; None: not again)."""
+    if not mission.obstacles:
+        return None
+    t = np.arange(start_s, end_s, STEP_S)
+    lead = resample({0: tracks[mission.leader.id]}, t)[:, 0]
+    surface = np.min(
+        [np.linalg.norm(lead - np.array(o.center), axis=1) - o.radius for o in mission.obstacles],
+        axis=0,
+    )
+    passed = int(np.argmin(surface))
+    worst = np.max(np.stack(list(slot_distances(mission, tracks, t).values())), axis=0)
+    again = np.flatnonzero(worst[passed:] <= mission.limits.target_accuracy)
+    return None if again.size == 0 else float(again[0] * STEP_S)

@@ -78,3 +78,29 @@ def test_a_wingman_back_rejoins_and_a_leader_alone_flies_on(tmp_path: Path) -> N
     t = flight.final["mission_time_s"]
     print(f"\nwingman 3 back, the others lost: completed at {t:.1f} s, separation "
           f"{separation:.1f} m, clearance {clearance:.1f} m")  # fmt: skip
+
+
+@pytest.mark.integration
+def test_a_leader_that_stops_obeying_hands_the_lead_on(tmp_path: Path) -> None:
+    """The leader ignores every command from 50 s of the SITL's time (the ``ignore`` fault,
+    past Table 3's obstacles): ``vehicle_not_responding`` for it, then ``leader_succeeded``
+    (``why`` ``not_responding``) for wingman 2, which leads the formation to the target;
+    the old leader, flying on by itself, is avoided as traffic (separation kept)."""
+    flight = fly(tmp_path, json.loads(MISSION.read_text()), sitl_extra=["--fault", "1:ignore=50"])
+    assert flight.final["state"] == "completed", flight.final
+    assert flight.final["leader_id"] == 2
+    store = Store(tmp_path / "gcs.db")
+    run = store.runs(flight.mission_id)[0]
+    events = store.events(run.id)
+    kinds = [(e.kind, e.vehicle_id) for e in events]
+    assert kinds.index(("vehicle_not_responding", 1)) < kinds.index(("leader_succeeded", 2))
+    handed = next(e for e in events if e.kind == "leader_succeeded")
+    assert handed.detail is not None
+    assert handed.detail["why"] == "not_responding"
+    led = succession.succeed(flight.mission, {1})
+    assert led is not None
+    _, separation, clearance = check_safety(replace(flight, mission=led))
+    t = flight.final["mission_time_s"]
+    print(f"\nthe leader stopped obeying; wingman 2 led from {handed.mission_time_s} s, "
+          f"completed at {t:.1f} s, separation {separation:.1f} m, "
+          f"clearance {clearance:.1f} m")  # fmt: skip
