@@ -131,29 +131,26 @@ def with_formation(
     ``leader_id`` and ``slots`` are shown, not the document's."""
     run = status or {}
     per_vehicle = {p["id"]: p for p in run.get("vehicles", [])}
-    roles = {v.id: v for v in mission.vehicles} if mission else {}
+    members = {v.id for v in mission.vehicles} if mission else set()
     leader_id = run.get("leader_id", mission.leader.id if mission else None)
-    if mission and "slots" in run:
-        roles = {
-            vid: v.model_copy(
-                update={
-                    "role": "leader" if vid == leader_id else "wingman",
-                    "slot": None
-                    if vid == leader_id
-                    else tuple(run["slots"].get(str(vid), ())) or None,
-                }
-            )
-            for vid, v in roles.items()
-        }
+    if "slots" in run:
+        slots = {int(vid): list(slot) for vid, slot in run["slots"].items()}
+    else:
+        slots = {w.id: list(w.slot) for w in mission.wingmen if w.slot} if mission else {}
     leader = next((v for v in vehicles if v["id"] == leader_id), None)
+
+    def role(vid: int) -> str:
+        if vid not in members:
+            return "other"
+        return "leader" if vid == leader_id else "wingman"
+
     out = []
     for v in vehicles:
-        spec = roles.get(v["id"])
+        slot = slots.get(v["id"])
         p = per_vehicle.get(v["id"], {})
         ltp = None
         if (
-            spec is not None
-            and spec.slot is not None
+            slot is not None
             and leader is not None
             and leader["pos_m"] is not None
             and leader["yaw_rad"] is not None
@@ -162,14 +159,14 @@ def with_formation(
                 np.asarray(leader["pos_m"], dtype=float),
                 leader["pitch_rad"] or 0.0,
                 leader["yaw_rad"],
-                np.asarray(spec.slot, dtype=float),
+                np.asarray(slot, dtype=float),
             )
             ltp = [round(float(c), 2) for c in point]
         out.append(
             {
                 **v,
-                "role": spec.role if spec else "other",
-                "slot_m": list(spec.slot) if spec and spec.slot else None,
+                "role": role(v["id"]),
+                "slot_m": slot,
                 "ppf_state": p.get("ppf_state"),
                 "avoiding": p.get("avoiding"),
                 "formed": p.get("formed"),

@@ -32,7 +32,7 @@ from gcs_ppf.planning.scene import FloatArray, Obstacles, obstacles_from_mission
 from gcs_ppf.service import commanding, launch
 from gcs_ppf.service.ending import end, hold_during_launch
 from gcs_ppf.service.fleet import planning_states
-from gcs_ppf.service.run import NOT_RESPONDING_S, Run, RunState, changes, min_of
+from gcs_ppf.service.run import NOT_RESPONDING_S, Run, RunState, changes, min_of, slots
 from gcs_ppf.service.station import Station
 from gcs_ppf.service.tick_rate import TickRate
 from gcs_ppf.service.watch import Located, reported_together, watch_safety
@@ -243,8 +243,9 @@ def hand_over(station: Station, run: Run, why: str) -> bool:
     run.speed_plan = None
     run.formation_held = False
     run.leader_pos = None
-    slots = {str(w.id): list(w.slot) for w in mission.wingmen if w.slot is not None}
-    station.event(run, "leader_succeeded", mission.leader.id, lost_leader=out, why=why, slots=slots)
+    station.event(
+        run, "leader_succeeded", mission.leader.id, lost_leader=out, why=why, slots=slots(mission)
+    )
     return True
 
 

@@ -178,6 +178,11 @@ def summary(run: Run) -> dict[str, Any]:
     }
 
 
+def slots(mission: Mission) -> dict[str, list[float]]:
+    """Each wingman's slot (its id as text: the status's and the events' JSON)."""
+    return {str(w.id): list(w.slot) for w in mission.wingmen if w.slot is not None}
+
+
 def status(run: Run) -> dict[str, Any]:
     """The API's status of a run in flight (``GET /missions/{id}/status``)."""
     g = run.last
@@ -201,7 +206,7 @@ def status(run: Run) -> dict[str, Any]:
         "outcome": run.outcome,
         "mission_time_s": round(run.mission_time_s, 3),
         "leader_id": run.mission.leader.id,
-        "slots": {str(w.id): list(w.slot) for w in run.mission.wingmen if w.slot is not None},
+        "slots": slots(run.mission),
         "formation_formed": run.formation.formed,
         "formation": run.formation.status(),
         "leg": leg_status(run),
