@@ -29,7 +29,7 @@ async def add_link(body: LinkRequest, service: Service) -> dict[str, Any]:
             '(GCS_PPF_LINK_ALLOW=\'["HOST", "10.0.0.0/24"]\')',
             {"host": host},
         )
-    return await service.fleet.add_link(body.url, allow_unsigned=body.allow_unsigned)
+    return await service.add_link(body.url, allow_unsigned=body.allow_unsigned)
 
 
 @router.get("/links", dependencies=READ_ONLY)
@@ -44,7 +44,7 @@ async def list_links(service: Service) -> list[dict[str, Any]]:
     dependencies=COMMANDS,
 )
 async def delete_link(link_id: LinkId, service: Service) -> None:
-    await service.fleet.remove_link(link_id)
+    await service.remove_link(link_id)
 
 
 @router.post("/vehicles/{system_id}/signing", responses=ERRORS, dependencies=COMMANDS)

@@ -117,8 +117,23 @@ async def start(mission_id: MissionId, service: Service) -> dict[str, Any]:
     return await service.start(mission_id)
 
 
+@router.post(
+    "/missions/{mission_id}/resume",
+    status_code=status.HTTP_202_ACCEPTED,
+    responses=ERRORS,
+    dependencies=COMMANDS,
+)
+async def resume(mission_id: MissionId, service: Service) -> dict[str, Any]:
+    """The mission's ``interrupted`` run (the service stopped while it flew) flown on from
+    where its record left it; 409 unless its last run is interrupted, or with a vehicle
+    it had not lost unheard."""
+    return await service.resume(mission_id)
+
+
 @router.post("/missions/{mission_id}/abort", responses=ERRORS, dependencies=COMMANDS)
 async def abort(mission_id: MissionId, service: Service) -> dict[str, Any]:
+    """The run stopped (an ``interrupted`` one too): every vehicle holds clear of every
+    keep-out."""
     return await service.abort(mission_id)
 
 

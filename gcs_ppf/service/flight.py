@@ -54,7 +54,11 @@ async def fly(station: Station, run: Run) -> None:
         await launch_fleet(station, run)
         run.state = RunState.RUNNING
         station.store.update_run(run.record.id, RunState.RUNNING)
-        station.event(run, "run_running")
+        if run.start_vehicle_time_s is None:  # mission time 0 now, or a resumed run's on
+            now_v = vehicle_time_s(station, run)
+            if now_v is not None:
+                run.start_vehicle_time_s = now_v - run.mission_time_s
+        station.event(run, "run_running", leader_clock_zero_s=run.start_vehicle_time_s)
         await tick_loop(station, run)
     except asyncio.CancelledError:
         raise
@@ -71,7 +75,7 @@ async def launch_fleet(station: Station, run: Run) -> None:
     in TAKEOFF mode to their TKOFF_ALT first, every arm and mode change confirmed);
     parameters not answered yet are asked for again first.  A vehicle lost meanwhile is
     left out and the run told (``vehicle_lost``); the leader lost ends it at the first tick."""
-    ids = [v.id for v in run.mission.vehicles]
+    ids = [v.id for v in run.mission.vehicles if v.id not in run.lost_ids]  # (resumed: lost)
     for vid in ids:
         await station.fleet.request_airframe_params(vid, missing_only=True)
 
@@ -157,8 +161,8 @@ async def tick_loop(station: Station, run: Run) -> None:
         now_v = vehicle_time_s(station, run)
         if now_v is None:
             continue
-        if run.start_vehicle_time_s is None:
-            run.start_vehicle_time_s = now_v
+        if run.start_vehicle_time_s is None:  # (a resumed run's mission time goes on)
+            run.start_vehicle_time_s = now_v - run.mission_time_s
         if run.mission.leader.id != clock_of:  # a new leader: mission time goes on, on its clock
             clock_of = run.mission.leader.id
             run.start_vehicle_time_s = now_v - run.mission_time_s
@@ -243,8 +247,15 @@ def hand_over(station: Station, run: Run, why: str) -> bool:
     run.speed_plan = None
     run.formation_held = False
     run.leader_pos = None
+    now_v = vehicle_time_s(station, run)  # the new leader's clock (``tick_loop`` follows it)
     station.event(
-        run, "leader_succeeded", mission.leader.id, lost_leader=out, why=why, slots=slots(mission)
+        run,
+        "leader_succeeded",
+        mission.leader.id,
+        lost_leader=out,
+        why=why,
+        slots=slots(mission),
+        leader_clock_zero_s=None if now_v is None else now_v - run.mission_time_s,
     )
     return True
 

@@ -19,11 +19,12 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import time
 from collections.abc import AsyncIterator
 from typing import Any
 
 from gcs_ppf.mission import CylinderZone, Mission, Obstacle, PolygonZone
-from gcs_ppf.service import commanding, ending, flight
+from gcs_ppf.service import commanding, ending, flight, resumption
 from gcs_ppf.service.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.service.fleet import Fleet
 from gcs_ppf.service.kernels import load_kernels
@@ -81,6 +82,9 @@ class FormationService:
             ]
             for url in self.settings.links:
                 await self.fleet.add_link(url)
+            for url, allow_unsigned in self.store.links():  # added over the API before
+                if url not in self.settings.links:
+                    await self.fleet.add_link(url, allow_unsigned=allow_unsigned)
             self._kernels = tg.create_task(
                 asyncio.to_thread(load_kernels, self.settings.planner_dt_s)
             )
@@ -131,6 +135,21 @@ class FormationService:
             raise ServiceError("the service is not running")
         return self._tasks.create_task(coro)
 
+    # Links -----------------------------------------------------------------------------
+    async def add_link(self, url: str, *, allow_unsigned: bool | None = None) -> dict[str, Any]:
+        """``Fleet.add_link``, remembered: a service started again opens it again (and so
+        hears the vehicles of a run it may resume)."""
+        info = await self.fleet.add_link(url, allow_unsigned=allow_unsigned)
+        self.store.add_link(url, allow_unsigned)
+        return info
+
+    async def remove_link(self, link_id: int) -> None:
+        """``Fleet.remove_link``, and forgotten."""
+        url = next((e["url"] for e in self.fleet.links() if e["id"] == link_id), None)
+        await self.fleet.remove_link(link_id)
+        if url is not None:
+            self.store.remove_link(url)
+
     # Missions ----------------------------------------------------------------------------
     def create_mission(self, mission: Mission) -> StoredMission:
         return self.store.add_mission(mission)
@@ -176,13 +195,38 @@ class FormationService:
         """A run created and answered at once (``starting``); it launches the fleet once the
         kernels are loaded (``flight.fly``), so that no tick compiles or loads one."""
         stored = self.mission(mission_id)
+        self._check_startable([v.id for v in stored.mission.vehicles])
+        record = self.store.add_run(mission_id, RunState.STARTING)
+        run = self._new_run(record, stored.mission)
+        self._station.event(run, "run_started")
+        run.task = self._spawn(flight.fly(self._station, run))
+        return self.status(mission_id)
+
+    async def resume(self, mission_id: int) -> dict[str, Any]:
+        """The mission's ``interrupted`` run flown on (``service.resumption``): its record
+        reopened, the run as its events left it (leader, leg, vehicles lost, violations),
+        mission time on as if the service had never stopped; the vehicles taken back in
+        GUIDED (confirmed) and planned for from their telemetry.  409 unless the last run
+        is interrupted, or with a vehicle it had not lost unheard."""
+        run = self._reopened(mission_id, RunState.STARTING)
+        self._station.event(
+            run,
+            "run_resumed",
+            run.mission.leader.id,
+            leg=run.legs[run.leg].index,
+            lost=sorted(run.lost_ids),
+        )
+        run.task = self._spawn(flight.fly(self._station, run))
+        return self.status(mission_id)
+
+    def _check_startable(self, ids: list[int]) -> None:
+        """No other run active, every one of ``ids`` heard and on one link only (409)."""
         active = self._active_run()
         if active is not None:
             raise Conflict(
                 f"mission {active.mission_id} is {active.state}; abort it first",
                 {"mission_id": active.mission_id, "state": active.state},
             )
-        ids = [v.id for v in stored.mission.vehicles]
         missing = [i for i in ids if i not in self.fleet.by_id or self.fleet.by_id[i].lost]
         if missing:
             raise Conflict(f"vehicles not connected: {missing}", {"missing_ids": missing})
@@ -198,24 +242,58 @@ class FormationService:
                 "SYSID_THISMAV or remove the extra link (DELETE /links/{id})",
                 {"duplicate_links": {str(k): list(v) for k, v in duplicates.items()}},
             )
-        record = self.store.add_run(mission_id, RunState.STARTING)
-        orders = commanding.Orders(
-            stored.mission, self.settings.guidance, self.settings.lookahead_s
+
+    def _new_run(self, record: StoredRun, mission: Mission) -> Run:
+        orders = commanding.Orders(mission, self.settings.guidance, self.settings.lookahead_s)
+        run = Run(record=record, mission_id=record.mission_id, mission=mission, orders=orders)
+        self._runs[record.mission_id] = run
+        return run
+
+    def _reopened(self, mission_id: int, state: RunState) -> Run:
+        """The mission's last run, ``interrupted``, in memory again as its records left it
+        (``resumption.standing``), its record unended (``state``); for ``resume`` the
+        vehicles it had not lost must be heard (``_check_startable``).  409 otherwise."""
+        stored = self.mission(mission_id)
+        past = self.store.runs(mission_id)
+        last = past[-1] if past else None
+        if last is None or last.state != RunState.INTERRUPTED:
+            raise Conflict(
+                f"mission {mission_id} has no interrupted run",
+                {"state": last.state if last else RunState.PENDING},
+            )
+        was = resumption.standing(stored.mission, self.store.events(last.id))
+        if state == RunState.STARTING:
+            self._check_startable([v.id for v in was.mission.vehicles if v.id not in was.lost_ids])
+        run = self._new_run(self.store.reopen_run(last.id, state), was.mission)
+        run.state = state
+        run.leg = min(was.leg, len(run.legs) - 1)
+        run.waypoint_times_s = list(was.waypoint_times_s)
+        run.lost_ids = set(was.lost_ids)
+        run.safety.count = was.violations
+        run.safety.deepest_m = dict(was.deepest_m)
+        rows = self.store.telemetry(last.id)
+        run.min_separation_m, run.min_clearance_m = resumption.closest_m(was.mission, rows)
+        now_v = flight.vehicle_time_s(self._station, run)
+        run.mission_time_s = resumption.mission_time_now_s(
+            was, now_v, time.time(), self.fleet.clock_rate()
         )
-        run = Run(record=record, mission_id=mission_id, mission=stored.mission, orders=orders)
-        self._runs[mission_id] = run
-        self._station.event(run, "run_started")
-        run.task = self._spawn(flight.fly(self._station, run))
-        return self.status(mission_id)
+        if was.flew and now_v is not None:  # on the leader's clock from here (``flight``)
+            run.start_vehicle_time_s = now_v - run.mission_time_s
+        return run
 
     async def abort(self, mission_id: int) -> dict[str, Any]:
+        """The run stopped, every vehicle held clear of every keep-out (``ending.end``);
+        an ``interrupted`` run too, its vehicles as they are heard now."""
         self.mission(mission_id)
         run = self._runs.get(mission_id)
         if run is None or run.state in FINISHED:
-            raise Conflict(
-                f"mission {mission_id} is not running",
-                {"state": run.state if run else RunState.PENDING},
-            )
+            past = self.store.runs(mission_id)
+            if not past or past[-1].state != RunState.INTERRUPTED:
+                raise Conflict(
+                    f"mission {mission_id} is not running",
+                    {"state": run.state if run else RunState.PENDING},
+                )
+            run = self._reopened(mission_id, RunState.RUNNING)
         run.abort.set()
         ending.end(self._station, run, RunState.ABORTED, "aborted by the operator")
         if run.task is not None:

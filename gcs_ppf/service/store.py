@@ -66,6 +66,13 @@ MIGRATIONS: tuple[str, ...] = (
     CREATE INDEX events_by_run ON events(run_id);
     CREATE INDEX telemetry_by_run ON telemetry(run_id, mission_time_s);
     """,
+    """
+    CREATE TABLE links (
+        url TEXT PRIMARY KEY,
+        allow_unsigned INTEGER,
+        added_s REAL NOT NULL
+    );
+    """,
 )
 
 
@@ -307,6 +314,16 @@ class Store:
         return self.run(run_id)
 
     @_after_queued
+    def reopen_run(self, run_id: int, state: str) -> StoredRun:
+        """An ended run unended again (``state``, no end time, no outcome): resumed."""
+        with self._transaction() as db:
+            db.execute(
+                "UPDATE runs SET state = ?, ended_s = NULL, outcome = NULL WHERE id = ?",
+                (state, run_id),
+            )
+        return self.run(run_id)
+
+    @_after_queued
     def run(self, run_id: int) -> StoredRun:
         row = self._db.execute(
             "SELECT id, mission_id, state, started_s, ended_s, outcome, summary FROM runs "
@@ -332,6 +349,27 @@ class Store:
     def interrupted_runs(self) -> list[StoredRun]:
         """Runs a previous process left unfinished (it stopped while they flew)."""
         return [r for r in self.runs() if r.ended_s is None]
+
+    # Links ------------------------------------------------------------------------------
+    @_after_queued
+    def add_link(self, url: str, allow_unsigned: bool | None) -> None:
+        """A link the service was told to open (``POST /links``): opened again on restart."""
+        with self._transaction() as db:
+            db.execute(
+                "INSERT OR REPLACE INTO links (url, allow_unsigned, added_s) VALUES (?, ?, ?)",
+                (url, None if allow_unsigned is None else int(allow_unsigned), time.time()),
+            )
+
+    @_after_queued
+    def remove_link(self, url: str) -> None:
+        with self._transaction() as db:
+            db.execute("DELETE FROM links WHERE url = ?", (url,))
+
+    @_after_queued
+    def links(self) -> list[tuple[str, bool | None]]:
+        """(url, allow_unsigned) of every link added and not removed, in the order added."""
+        rows = self._db.execute("SELECT url, allow_unsigned FROM links ORDER BY added_s")
+        return [(url, None if a is None else bool(a)) for url, a in rows.fetchall()]
 
     # Events and telemetry ----------------------------------------------------------------
     def add_event(

@@ -4,6 +4,7 @@ the reported positions each tick, the events, and the status and summary that ca
 from __future__ import annotations
 
 import time
+from types import SimpleNamespace
 from typing import Any, cast
 
 import numpy as np
@@ -28,6 +29,7 @@ class Events:
 
     def __init__(self) -> None:
         self.seen: list[tuple[str, int | None, dict[str, Any]]] = []
+        self.fleet = SimpleNamespace(by_id={})  # no vehicle heard: no clock
 
     def event(self, run: Run, kind: str, vehicle_id: int | None = None, **detail: Any) -> None:
         self.seen.append((kind, vehicle_id, detail))

@@ -67,7 +67,10 @@ def test_start_answers_while_the_kernels_load_and_launch_waits_for_them(
 
 
 def report_flying(
-    service: FormationService, mission: Mission, on_ground: int | None = None
+    service: FormationService,
+    mission: Mission,
+    on_ground: int | None = None,
+    time_boot_ms: int = 1000,
 ) -> None:
     """Every vehicle of ``mission`` as if its link reported it flying east at 150 m/s where
     the mission starts it (``on_ground``: that one on the ground there, 300 m below the
@@ -78,7 +81,7 @@ def report_flying(
         lat, lon, alt = enu_to_geodetic(*v.position, mission.origin)
         t = VehicleTelemetry(v.id, 1, lat_deg=lat, lon_deg=lon, alt_amsl_m=alt,
                              relative_alt_m=0.0 if v.id == on_ground else 300.0, vn_m_s=0.0,
-                             ve_m_s=150.0, vd_m_s=0.0, time_boot_ms=1000,
+                             ve_m_s=150.0, vd_m_s=0.0, time_boot_ms=time_boot_ms,
                              position_received_s=time.monotonic())  # fmt: skip
         service.fleet.by_id[v.id] = Vehicle(v.id, 0, t, last_heard_s=time.monotonic() + 60)
 
