@@ -33,6 +33,11 @@ class VehicleClock:
     _anchor_boot_ms: int = 0
     _rates: deque[float] = field(default_factory=lambda: deque(maxlen=RATES_KEPT))
 
+    @property
+    def measured(self) -> bool:
+        """Its rate has been measured (``MIN_SPAN_S`` after it was first heard)."""
+        return bool(self._rates)
+
     def observe(self, now_s: float, time_boot_ms: int) -> None:
         """A message stamped ``time_boot_ms`` arrived at our ``now_s``."""
         if self._anchor_s is None or time_boot_ms < self._anchor_boot_ms:  # first, or reboot

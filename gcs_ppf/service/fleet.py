@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import math
 import statistics
 import time
 from collections import deque
@@ -68,6 +69,8 @@ heartbeats, this many times (names an ArduPlane version does not have are never 
 Asked twice only, on a link losing 20 % of its packets a vehicle of five flew without its
 TECS limits (so by the planned vertical speed in param3, which ArduPlane barely climbs by)
 and its wingman stayed 1–2 km below its slot in Table 2's climb."""
+UNMEASURED_HEARTBEAT_HZ = 10.0
+"""Our heartbeats per second of ours while a vehicle's clock rate is not yet measured."""
 
 
 @dataclass
@@ -358,18 +361,34 @@ class Fleet:
             await entry.link.send(msg)
 
     async def heartbeats(self) -> None:
-        """Our HEARTBEAT on every link, for ever (CONVENTIONS §5), each with a TIMESYNC
-        request that measures the link's round trip; and each vehicle's airframe parameters
-        not answered yet asked for again (``PARAM_ASKS``)."""
+        """Our HEARTBEAT on every link, for ever, at ``heartbeat_hz`` of the vehicles' time
+        (CONVENTIONS §5: a SITL at ×10 hears 1 Hz of its seconds, and its GCS failsafe,
+        FS_LONG_TIMEOUT of them, does not take our silence for a dead GCS), each with a
+        TIMESYNC request that measures the link's round trip; and each vehicle's airframe
+        parameters not answered yet asked for again (``PARAM_ASKS``), at ``heartbeat_hz``
+        of ours (a round trip over a slow radio is ours, not the vehicle's)."""
+        asked = -math.inf
         while True:
             for entry in list(self._links.values()):
                 await entry.link.send(commands.gcs_heartbeat())
                 await entry.link.send(commands.timesync_request(time.monotonic_ns()))
-            for vehicle in list(self.by_id.values()):
-                if vehicle.param_asks < PARAM_ASKS and not vehicle.lost:
-                    vehicle.param_asks += 1
-                    await self.request_airframe_params(vehicle.system_id, missing_only=True)
-            await asyncio.sleep(1.0 / self.settings.heartbeat_hz)
+            if time.monotonic() - asked >= 1.0 / self.settings.heartbeat_hz:
+                asked = time.monotonic()
+                for vehicle in list(self.by_id.values()):
+                    if vehicle.param_asks < PARAM_ASKS and not vehicle.lost:
+                        vehicle.param_asks += 1
+                        await self.request_airframe_params(vehicle.system_id, missing_only=True)
+            await asyncio.sleep(self._heartbeat_period_s())
+
+    def _heartbeat_period_s(self) -> float:
+        """``heartbeat_hz`` of the fastest vehicle clock; while a vehicle heard is not yet
+        measured, at least ``UNMEASURED_HEARTBEAT_HZ`` of ours (its first second: at ×10,
+        1 Hz of ours left 10 s of its time between our first two heartbeats, and its GCS
+        failsafe took the vehicle out of GUIDED)."""
+        hz = self.settings.heartbeat_hz * self.clock_rate()
+        if any(not v.clock.measured for v in self.by_id.values() if not v.lost):
+            hz = max(hz, UNMEASURED_HEARTBEAT_HZ)
+        return 1.0 / hz
 
     async def watchdog(self) -> None:
         """Mark vehicles lost after the timeout of silence, in their own seconds

@@ -30,9 +30,12 @@ import numpy as np
 from pymavlink import mavutil
 
 from gcs_ppf.mission import Mission
+from gcs_ppf.tools.campaign_crash import KINDS as CRASHES
+from gcs_ppf.tools.campaign_crash import ServiceProcess, crash, get_json, judge_crash, wait_for
 from gcs_ppf.tools.campaign_tables import format_tables, progress_line, summarize
 from gcs_ppf.tools.observer import (
     FloatArray,
+    Judgement,
     Observer,
     free_port_block,
     held_s,
@@ -56,7 +59,8 @@ class Condition:
     """How a run is flown.  ``event`` is done ``event_at_s`` of mission time into the run:
     ``stuck`` makes the last wingman ignore commands (SIM_CMD_IGNORE=1, the SITL's
     ``ignore`` fault from then on), ``kill`` makes the leader die (SIM_KILL=1, the ``die``
-    fault from then on).  ``expect`` is the outcome a good run ends with."""
+    fault from then on); the ``crash_…`` events kill the service (``campaign_crash``).
+    ``expect`` is the outcome a good run ends with."""
 
     key: str
     label: str
@@ -66,6 +70,8 @@ class Condition:
     event: str | None = None
     expect: str = "completed"
 
+
+FAILSAFE = ("--param", "FS_GCS_ENABL=1")  # ArduPlane's GCS failsafe: RTL after 5 s of silence
 
 CONDITIONS: dict[str, Condition] = {
     "a": Condition("a", "x10, idle", 10.0),
@@ -77,6 +83,30 @@ CONDITIONS: dict[str, Condition] = {
     "g": Condition("g", "x5, a CPU burner per core", 5.0, burn_cpus=True),
     "h": Condition("h", "x1, idle", 1.0),  # fleets too large for the tick at 5x (issue 29)
     "i": Condition("i", "x5, latency 100 ms", 5.0, ("--fault", "latency=100")),
+    # the service killed mid-run (issue 26 item 3), the vehicles' GCS failsafe on
+    "j": Condition(
+        "j",
+        "x10, the service killed, started again, the run resumed",
+        10.0,
+        FAILSAFE,
+        event="crash_resume",
+    ),
+    "k": Condition(
+        "k",
+        "x10, the service killed, started again, the run aborted",
+        10.0,
+        FAILSAFE,
+        event="crash_abort",
+        expect="aborted",
+    ),
+    "l": Condition(
+        "l",
+        "x10, the service killed and left dead (GCS failsafe)",
+        10.0,
+        FAILSAFE,
+        event="crash_dead",
+        expect="failsafe",
+    ),
 }
 
 
@@ -122,24 +152,6 @@ def cpu_burners(count: int) -> Iterator[None]:
             p.kill()
         for p in procs:
             p.wait()
-
-
-def wait_for(predicate: Callable[[], Any], timeout_s: float, what: str) -> Any:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(0.1)
-    raise TimeoutError(f"timed out waiting for {what}")
-
-
-def _get(api: httpx.Client, path: str) -> Any:
-    try:
-        r = api.get(path)
-    except httpx.HTTPError:
-        return None
-    return r.json() if r.status_code == 200 else None
 
 
 def set_param(port: int, sysid: int, name: str, value: float, *, until_silent: bool) -> None:
@@ -216,8 +228,10 @@ def fly_once(
     t_total = time.monotonic()
     url = f"http://127.0.0.1:{api_port}"
     with ExitStack() as stack, httpx.Client(base_url=url, timeout=5.0) as api:
-        obs = _start_processes(stack, api, sitl, serve, workdir, ports)
-        flight = _fly(api, doc, mission, cond, ports, obs, budget_s, event_at_s, after_s, rec)
+        obs, service = _start_processes(stack, api, sitl, serve, workdir, ports)
+        flight = _fly(
+            api, doc, mission, cond, ports, obs, service, budget_s, event_at_s, after_s, rec
+        )
     rec["total_wall_s"] = round(time.monotonic() - t_total, 1)
     raw = {v: {"pos": r.pos, "texts": r.texts} for v, r in obs.records.items()}
     (workdir / "observer.json").write_text(json.dumps({"end_wall": flight.end_wall, **raw}))
@@ -235,7 +249,14 @@ def fly_once(
     if status.get("state") not in FINISHED:
         rec["state"] = f"not finished after {budget_s:.0f} s"
     _judge_run(rec, flight, obs, mission, after_s)
-    rec["ok"] = rec["state"] == cond.expect
+    if cond.event in CRASHES:
+        crashed_ok = judge_crash(rec, obs, event)
+        _judge_down(rec, obs, mission, flight, after_s)
+        rec["ok"] = (
+            rec["state"] == cond.expect and crashed_ok and not rec.get("violations_commanded")
+        )
+    else:
+        rec["ok"] = rec["state"] == cond.expect
     if cond.event == "kill":
         handed = flight.handed_over_wall
         rec["ok"] = rec["ok"] and _handed_over_in_time(rec, obs, mission, event, handed)
@@ -254,6 +275,8 @@ class Flight:
     end_v: float
     end_wall: float
     handed_over_wall: float | None = None
+    event_walls: tuple[tuple[str, float], ...] = ()
+    """(kind, wall time) of every event the service answered at the end."""
 
     @property
     def mission_time_s(self) -> float:
@@ -267,24 +290,25 @@ def _start_processes(
     serve: list[str],
     workdir: Path,
     ports: dict[int, int],
-) -> Observer:
+) -> tuple[Observer, ServiceProcess]:
     """Start the service and the SITL in ``stack``, link the service to every vehicle, and
     the observer once the vehicles are discovered and heard."""
     # The service first: the vehicles fly straight on from their start states until the
     # run starts, so the SITL starts only once the service is up (its first start may
     # compile the planner), and the service connects to it then.
     env = {"GCS_PPF_TLOG_DIR": str(workdir / "tlogs")}
-    stack.enter_context(process(serve, workdir / "serve.log", env))
-    wait_for(lambda: _get(api, "/missions") is not None, 180, "the service")
+    service = ServiceProcess(stack, lambda: process(serve, workdir / "serve.log", env))
+    service.start()
+    wait_for(lambda: get_json(api, "/missions") is not None, 180, "the service")
     sitl_log = workdir / "sitl.log"
     stack.enter_context(process(sitl, sitl_log))
     wait_for(lambda: "sitl ready" in sitl_log.read_text(), 60, "the SITL")
     for p in ports.values():
         api.post("/links", json={"url": f"tcp:127.0.0.1:{p}"}).raise_for_status()
     obs = stack.enter_context(Observer(ports))
-    wait_for(lambda: len(_get(api, "/vehicles") or []) == len(ports), 60, "vehicles discovered")
+    wait_for(lambda: len(get_json(api, "/vehicles") or []) == len(ports), 60, "vehicles discovered")
     wait_for(lambda: all(obs.latest_boot_ms().values()), 30, "the observer's first samples")
-    return obs
+    return obs, service
 
 
 def _fly(
@@ -294,6 +318,7 @@ def _fly(
     cond: Condition,
     ports: dict[int, int],
     obs: Observer,
+    service: ServiceProcess,
     budget_s: float,
     event_at_s: float,
     after_s: float,
@@ -312,11 +337,17 @@ def _fly(
     status: dict[str, Any] = {}
     event: dict[str, Any] | None = None
     while time.monotonic() - t0 < budget_s:
-        status = _get(api, f"/missions/{mid}/status") or status
+        status = get_json(api, f"/missions/{mid}/status") or status
         if status.get("state") in FINISHED:
             break
         if cond.event and event is None and (status.get("mission_time_s") or 0) >= event_at_s:
-            event = _inject(cond.event, mission, ports, obs, status)
+            if cond.event in CRASHES:
+                ids = [v.id for v in mission.vehicles]
+                event = crash(cond.event, api, mid, service, obs, ids, status, cond.speedup)
+                if cond.event == "crash_dead":
+                    break
+            else:
+                event = _inject(cond.event, mission, ports, obs, status)
         time.sleep(0.1)
     end_wall = time.time()
     rec["wall_s"] = round(time.monotonic() - t0, 1)
@@ -328,14 +359,15 @@ def _fly(
     )
     # the service watches after the end too: a violation then makes a completed run
     # completed_unsafe, so its last word is read after the watch
-    status = _get(api, f"/missions/{mid}/status") or status
-    events = _get(api, f"/missions/{mid}/events") or []
+    status = get_json(api, f"/missions/{mid}/status") or status
+    events = get_json(api, f"/missions/{mid}/events") or []
     rec["events"] = [(e["kind"], e["vehicle_id"]) for e in events]
     ended = [e["wall_s"] for e in events if e["kind"] in {f"run_{s}" for s in FINISHED}]
     if ended:  # the service's own moment (the status poll may be held up by an event)
         end_wall = min(end_wall, min(ended))
     handed = [e["wall_s"] for e in events if e["kind"] == "leader_succeeded"]
-    return Flight(status, event, start_v, end_v, end_wall, min(handed, default=None))
+    walls = tuple((e["kind"], e["wall_s"]) for e in events)
+    return Flight(status, event, start_v, end_v, end_wall, min(handed, default=None), walls)
 
 
 def _judge_run(
@@ -368,19 +400,26 @@ def _judge_run(
         lowest_height_m={v: _r(h) for v, h in j.lowest_m.items()},
         leader_to_target_m=_r(j.leader_to_target_m),
     )
-    violations = []
-    if j.min_separation_m is not None and j.min_separation_m < lim.safe_distance_uav:
-        violations.append(f"separation {j.min_separation_m:.1f} m {j.closest_pair}")
-    for v, c in j.clearance_m.items():
-        if c is not None and c < lim.safe_distance_obstacle and v not in uncontrolled:
-            violations.append(f"vehicle {v} clearance {c:.1f} m")
-    rec["violations"] = violations
+    rec["violations"] = violations_of(j, mission, uncontrolled)
     rec["sank"] = [
         v for v, h in j.lowest_m.items() if h is not None and h < lim.safe_distance_obstacle
     ]
     rec["formation_m"], rec["formation_held_s"] = formation_seen(
         mission, tracks, flight.start_v, end_v
     )
+
+
+def violations_of(j: Judgement, mission: Mission, uncontrolled: Sequence[int] = ()) -> list[str]:
+    """The safe distances the observer saw broken, in words (``uncontrolled`` vehicles'
+    clearance apart)."""
+    lim = mission.limits
+    out = []
+    if j.min_separation_m is not None and j.min_separation_m < lim.safe_distance_uav:
+        out.append(f"separation {j.min_separation_m:.1f} m {j.closest_pair}")
+    for v, c in j.clearance_m.items():
+        if c is not None and c < lim.safe_distance_obstacle and v not in uncontrolled:
+            out.append(f"vehicle {v} clearance {c:.1f} m")
+    return out
 
 
 def formation_seen(
@@ -397,6 +436,34 @@ def formation_seen(
     offsets = slot_distances(mission, {v: tracks[v] for v in ids}, np.arange(start_s, end_s, step))
     worst = np.max(np.stack(list(offsets.values())), axis=0)
     return _r(float(worst.min())), _r(held_s(worst, mission.limits.target_accuracy, step))
+
+
+def _judge_down(
+    rec: dict[str, Any], obs: Observer, mission: Mission, flight: Flight, after_s: float
+) -> None:
+    """A crash's run split where the service did not command the vehicles (from the kill
+    until the run flew again after the restart, or the abort's holds; to the watch's end
+    when left dead) and where it did: each part's violations."""
+    event = flight.event
+    if event is None:
+        return
+    tracks = tracks_enu(obs, mission)
+    killed_v, end_v = float(event["vehicle_s"]), flight.end_v + after_s
+    back = [w for k, w in flight.event_walls if k in ("run_running", "holds_flown")]
+    back = [w for w in back if w > float(event["wall_s"])]
+    clock = max(obs.clocks().values(), key=len)
+    back_v = float(np.interp(min(back), clock[:, 0], clock[:, 1])) if back else end_v
+    down = judge(mission, tracks, killed_v, back_v)
+    rec["down"] = {
+        "window_s": [round(killed_v, 1), round(back_v, 1)],
+        "min_separation_m": _r(down.min_separation_m),
+        "min_clearance_m": _r(down.min_clearance_m()),
+        "violations": violations_of(down, mission),
+    }
+    commanded = [judge(mission, tracks, flight.start_v, killed_v)]
+    if back_v < end_v:
+        commanded.append(judge(mission, tracks, back_v, end_v))
+    rec["violations_commanded"] = [v for j in commanded for v in violations_of(j, mission)]
 
 
 def _r(x: float | None) -> float | None:

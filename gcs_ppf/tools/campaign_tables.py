@@ -84,6 +84,13 @@ def _group(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
         "uncontrolled_clearance_min_m": _stats(vals("uncontrolled_clearance_m"))[0],
         "sank": sum(1 for r in rows if r.get("sank")),
         "handover_delay_max_s": max(vals("handover_delay_s"), default=None),
+        "failsafe_max_s": max(
+            (d for r in rows for d in (r.get("failsafe_after_s") or {}).values() if d is not None),
+            default=None,
+        ),
+        "violations_down": sum(1 for r in rows if (r.get("down") or {}).get("violations")),
+        "violations_commanded": sum(1 for r in rows if r.get("violations_commanded")),
+        "events_lost": sum(1 for r in rows if (r.get("event") or {}).get("events_kept") is False),
         "flown_median_s": _stats(vals("mission_time_s"))[1],
         "wall_median_s": _stats(vals("wall_s"))[1],
     }
@@ -116,6 +123,12 @@ def format_tables(summary: dict[str, Any]) -> str:
                 note.append(f"stuck wingman's clearance {g['uncontrolled_clearance_min_m']:.1f}")
             if g["handover_delay_max_s"] is not None:
                 note.append(f"new leader <= {g['handover_delay_max_s']:.1f} s after silence")
+            if g["failsafe_max_s"] is not None:
+                note.append(
+                    f"RTL <= {g['failsafe_max_s']:.1f} s after the kill; violations while "
+                    f"down {g['violations_down']}, commanded {g['violations_commanded']}"
+                    + (f"; events lost {g['events_lost']}" if g["events_lost"] else "")
+                )
             if g["sank"]:
                 note.append(f"{g['sank']} below the ground keep-out")
             lines.append(

@@ -96,17 +96,19 @@ def free_port() -> int:
 class Record:
     """What the observer heard from one vehicle.  ``pos`` rows: (arrival wall time s
     (``time.time()``), time_boot_ms, lat deg, lon deg, alt AMSL m, height above home m);
-    ``texts``: (the latest time_boot_ms heard before it, text)."""
+    ``texts``: (the latest time_boot_ms heard before it, text); ``modes``: (the same,
+    HEARTBEAT custom_mode) at each change of mode."""
 
     pos: list[tuple[float, int, float, float, float, float]] = field(default_factory=list)
     texts: list[tuple[int, str]] = field(default_factory=list)
+    modes: list[tuple[int, int]] = field(default_factory=list)
     prearm_ok: bool = False
 
 
 class Observer:
     """One pymavlink connection per vehicle (``ports``: system id → TCP port on 127.0.0.1),
-    a thread each, recording GLOBAL_POSITION_INT, STATUSTEXT and the pre-arm health of
-    SYS_STATUS.  With ``request_streams`` it asks the vehicle on that port for
+    a thread each, recording GLOBAL_POSITION_INT, STATUSTEXT, the HEARTBEAT's mode and the
+    pre-arm health of SYS_STATUS.  With ``request_streams`` it asks the vehicle on that port for
     GLOBAL_POSITION_INT at 10 Hz and SYS_STATUS at 1 Hz (SET_MESSAGE_INTERVAL applies to the
     port it arrives on: real ArduPlane) until positions flow; the built-in SITL streams them
     to every client anyway.  It sends nothing else."""
@@ -141,7 +143,7 @@ class Observer:
                             vid, 1, 511, 0, msg_id, interval_us, 0, 0, 0, 0, 0
                         )
                 msg = conn.recv_match(
-                    type=["GLOBAL_POSITION_INT", "STATUSTEXT", "SYS_STATUS"],
+                    type=["GLOBAL_POSITION_INT", "STATUSTEXT", "SYS_STATUS", "HEARTBEAT"],
                     blocking=True,
                     timeout=0.2,
                 )
@@ -164,6 +166,9 @@ class Observer:
                     )
                 elif kind == "STATUSTEXT":
                     rec.texts.append((tbm, str(msg.text)))
+                elif kind == "HEARTBEAT":
+                    if not rec.modes or rec.modes[-1][1] != msg.custom_mode:
+                        rec.modes.append((tbm, int(msg.custom_mode)))
                 else:
                     rec.prearm_ok = bool(msg.onboard_control_sensors_health & PREARM_OK)
         finally:

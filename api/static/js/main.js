@@ -612,6 +612,18 @@ async function start() {
   updateButtons();
 }
 
+async function resume() {
+  const id = state.frame && state.frame.run && state.frame.run.mission_id;
+  if (!id) return;
+  try {
+    const st = await api("POST", `/missions/${id}/resume`);
+    message(`Mission #${id} resumed (run #${st.run_id}): taking the vehicles back.`, "ok");
+  } catch (err) {
+    message(err.status === 409 ? `Cannot resume: ${err.detail}.` : err.message, "bad");
+  }
+  updateButtons();
+}
+
 async function abort() {
   const id = state.frame && state.frame.run && state.frame.run.mission_id;
   if (!id) return;
@@ -629,7 +641,9 @@ function updateButtons() {
   $("btn-validate").disabled = !hasDoc;
   $("btn-preview").disabled = !hasDoc || running;
   $("btn-start").disabled = !hasDoc || running;
-  $("btn-abort").disabled = !running;
+  const interrupted = Boolean(state.frame && state.frame.run && state.frame.run.state === "interrupted");
+  $("btn-resume").disabled = !interrupted;
+  $("btn-abort").disabled = !running && !interrupted;
   $("btn-add-obstacle").disabled = !hasDoc || state.mode === "replay";
 }
 
@@ -968,6 +982,7 @@ function bind() {
   });
   $("btn-preview").addEventListener("click", preview);
   $("btn-start").addEventListener("click", start);
+  $("btn-resume").addEventListener("click", resume);
   $("btn-abort").addEventListener("click", abort);
   $("btn-zoom-in").addEventListener("click", () => zoomBy(1.4));
   $("btn-zoom-out").addEventListener("click", () => zoomBy(1 / 1.4));

@@ -11,6 +11,7 @@ const WORDS = {
   run_aborted: (e) => `Run aborted: ${d(e).outcome || "by the operator"}`,
   run_failed: (e) => `Run FAILED: ${d(e).outcome || ""}`,
   run_interrupted: (e) => `Run INTERRUPTED: ${d(e).outcome || "the service stopped"}`,
+  run_resumed: (e) => `Run RESUMED: ${v(e)} leads, leg ${d(e).leg}${(d(e).lost || []).length ? `, lost ${d(e).lost.join(", ")}` : ""}`,
   formation_formed: () => "Formation formed: every wingman at its slot",
   formation_broken: () => "Formation broken",
   waypoint_reached: (e) => `Waypoint ${d(e).waypoint + 1} reached (${d(e).distance_m} m off): leg ${d(e).waypoint + 2} of ${d(e).legs}`,
@@ -40,7 +41,7 @@ const WORDS = {
 const LEVEL = {
   run_completed: "ok", formation_formed: "ok", vehicle_responding: "ok", waypoint_reached: "ok",
   run_completed_unsafe: "bad", run_aborted: "warn", run_failed: "bad", vehicle_lost: "bad", leader_succeeded: "warn",
-  run_interrupted: "bad", duplicate_system_id: "bad",
+  run_interrupted: "bad", duplicate_system_id: "bad", run_resumed: "warn",
   vehicle_not_responding: "bad", safety_violation: "bad", takeoff_failed: "bad",
   formation_broken: "warn", avoidance_entered: "warn", conflict_resolution_began: "warn",
   local_minimum_escape: "warn", hold_not_clear: "warn", parameter_not_set: "warn",

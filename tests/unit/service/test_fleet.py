@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 
 from gcs_ppf.mavlink import commands
@@ -202,3 +203,25 @@ def test_a_removed_link_is_not_a_duplicate(tmp_path: Path) -> None:
     assert fleet.duplicates() == {}
     for coro in fleet.spawned:
         coro.close()
+
+
+def test_our_heartbeat_keeps_1_hz_of_the_vehicles_clock(tmp_path: Path) -> None:
+    """CONVENTIONS §5 in the vehicle's seconds: a SITL at ×10 hears 10 of our heartbeats a
+    second, so its GCS failsafe (FS_LONG_TIMEOUT 5 of its seconds) never takes us for
+    dead; before its clock is measured (its first second) at least 10 a second of ours."""
+    from gcs_ppf.mavlink.telemetry import VehicleTelemetry
+    from gcs_ppf.service.fleet import Vehicle
+
+    fleet = Recording(tmp_path)
+    assert fleet._heartbeat_period_s() == pytest.approx(1.0)  # nobody heard
+    vehicle = Vehicle(1, 0, VehicleTelemetry(1, 1), last_heard_s=0.0)
+    fleet.by_id[1] = vehicle
+    assert fleet._heartbeat_period_s() == pytest.approx(0.1)  # its clock not measured yet
+    for k in range(3):
+        vehicle.clock.observe(100.0 + 1.5 * k, 15_000 * k)  # 10 of its seconds per ours
+    assert vehicle.clock.measured
+    assert fleet._heartbeat_period_s() == pytest.approx(0.1)
+    vehicle.clock = type(vehicle.clock)()
+    for k in range(3):
+        vehicle.clock.observe(100.0 + 1.5 * k, 1_500 * k)  # real time
+    assert fleet._heartbeat_period_s() == pytest.approx(1.0)
