@@ -71,6 +71,8 @@ TECS limits (so by the planned vertical speed in param3, which ArduPlane barely 
 and its wingman stayed 1–2 km below its slot in Table 2's climb."""
 UNMEASURED_HEARTBEAT_HZ = 10.0
 """Our heartbeats per second of ours while a vehicle's clock rate is not yet measured."""
+HEARTBEAT_POLL_S = 0.05
+"""How often (ours) the heartbeats' period is looked at."""
 
 
 @dataclass
@@ -367,8 +369,13 @@ class Fleet:
         TIMESYNC request that measures the link's round trip; and each vehicle's airframe
         parameters not answered yet asked for again (``PARAM_ASKS``), at ``heartbeat_hz``
         of ours (a round trip over a slow radio is ours, not the vehicle's)."""
-        asked = -math.inf
+        asked = beat = -math.inf
         while True:
+            # the period looked at often: a vehicle first heard shortens it at once
+            await asyncio.sleep(min(HEARTBEAT_POLL_S, self._heartbeat_period_s()))
+            if time.monotonic() - beat < self._heartbeat_period_s():
+                continue
+            beat = time.monotonic()
             for entry in list(self._links.values()):
                 await entry.link.send(commands.gcs_heartbeat())
                 await entry.link.send(commands.timesync_request(time.monotonic_ns()))
@@ -378,7 +385,6 @@ class Fleet:
                     if vehicle.param_asks < PARAM_ASKS and not vehicle.lost:
                         vehicle.param_asks += 1
                         await self.request_airframe_params(vehicle.system_id, missing_only=True)
-            await asyncio.sleep(self._heartbeat_period_s())
 
     def _heartbeat_period_s(self) -> float:
         """``heartbeat_hz`` of the fastest vehicle clock; while a vehicle heard is not yet

@@ -19,7 +19,7 @@ from dataclasses import replace
 import numpy as np
 
 from gcs_ppf.geodesy import velocity_ned_to_enu
-from gcs_ppf.guidance import assurance, lag, obedience, speed_reference, tick_plan
+from gcs_ppf.guidance import assurance, failsafe, lag, obedience, speed_reference, tick_plan
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.formation_watch import slot_errors_m
 from gcs_ppf.guidance.online import VehicleState, clearance, home_ground, separations
@@ -78,6 +78,8 @@ async def launch_fleet(station: Station, run: Run) -> None:
     ids = [v.id for v in run.mission.vehicles if v.id not in run.lost_ids]  # (resumed: lost)
     for vid in ids:
         await station.fleet.request_airframe_params(vid, missing_only=True)
+    if station.settings.failsafe_rtl_altitude:  # beside the launch, not before it
+        station.spawn(set_failsafe_altitudes(station, run, ids))
 
     def is_lost(vid: int) -> bool:
         vehicle = station.fleet.by_id.get(vid)
@@ -103,6 +105,36 @@ async def launch_fleet(station: Station, run: Run) -> None:
         if holding is not None:  # the holds flown until now, sent once, before the run
             holding.cancel()
             await asyncio.wait([holding])
+
+
+async def set_failsafe_altitudes(station: Station, run: Run, ids: list[int]) -> None:
+    """Each vehicle's RTL_ALTITUDE set and read back (``guidance.failsafe``: over every
+    keep-out, one holding level apart), all at once: a ``failsafe_rtl_altitude`` event with
+    the altitude above its home as read back (None: never answered), and the value it had."""
+    homes = {}
+    for vehicle, pos in station.located(run):
+        h = vehicle.telemetry.relative_alt_m
+        if vehicle.system_id in ids and h is not None:
+            homes[vehicle.system_id] = pos[2] - h
+    altitudes = failsafe.rtl_altitudes_m(
+        run.mission, homes, run.mission_time_s, commanding.stack_spacing_m(run.mission)
+    )
+
+    async def set_one(vid: int, alt_m: float) -> None:
+        t = station.fleet.telemetry(vid)
+        before = None if t is None else t.param("RTL_ALTITUDE")
+        read = await launch.set_param(
+            station.fleet, vid, "RTL_ALTITUDE", alt_m, station.events_of(run)
+        )
+        station.event(
+            run,
+            "failsafe_rtl_altitude",
+            vid,
+            rtl_altitude_m=read,
+            was_m=None if before is None else before.value,
+        )
+
+    await asyncio.gather(*(set_one(vid, alt) for vid, alt in altitudes.items()))
 
 
 def hold_while_others_take_off(

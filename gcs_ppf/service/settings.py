@@ -84,6 +84,12 @@ class Settings(BaseSettings):
         "and retries an arm refused for a reason that may clear (real ArduPlane: some seconds "
         "after boot while the EKF settles); 0: arm at once, or fail naming the reasons",
     )
+    failsafe_rtl_altitude: bool = Field(
+        default=True,
+        description="at each launch, set every vehicle's RTL_ALTITUDE over every keep-out of "
+        "the mission, one holding level apart (guidance.failsafe): the altitude its own GCS "
+        "failsafe flies home at if the service dies; false: leave the vehicles' own",
+    )
     vehicle_timeout_s: float = Field(
         default=5.0, gt=0.0, description="silence, in the vehicle's own seconds, that makes it lost"
     )

@@ -233,7 +233,7 @@ def fly_once(
             api, doc, mission, cond, ports, obs, service, budget_s, event_at_s, after_s, rec
         )
     rec["total_wall_s"] = round(time.monotonic() - t_total, 1)
-    raw = {v: {"pos": r.pos, "texts": r.texts} for v, r in obs.records.items()}
+    raw = {v: {"pos": r.pos, "texts": r.texts, "modes": r.modes} for v, r in obs.records.items()}
     (workdir / "observer.json").write_text(json.dumps({"end_wall": flight.end_wall, **raw}))
     status, event = flight.status, flight.event
     rec.update(

@@ -260,9 +260,12 @@ def test_a_start_that_fails_leaves_the_vehicles_on_the_ground_alone(
     grounded = [e for e in events if e["kind"] == "holds_not_on_ground"]
     on_ground = [2] if some_flying else [v.id for v in mission.vehicles]
     assert [e["detail"]["vehicles"] for e in grounded] == [on_ground]  # type: ignore[index]
-    # the launch (refused at once) asked for parameters only; the holds sent them nothing
+    # the launch (refused at once) asked for parameters and set the failsafe's RTL altitude
+    # only; the holds sent them nothing
     kinds_sent = {getattr(m, "get_type", lambda: "?")() for vid, m in sent if vid in on_ground}
-    assert kinds_sent <= {"PARAM_REQUEST_READ"}
+    assert kinds_sent <= {"PARAM_REQUEST_READ", "PARAM_SET"}
+    set_names = {m.param_id for vid, m in sent if vid in on_ground and m.get_type() == "PARAM_SET"}  # type: ignore[attr-defined]
+    assert set_names == {"RTL_ALTITUDE"}
     assert not [r for r in caplog.records if r.exc_info], "a refusal is not an exception"
     if some_flying:
         reposition = commands.MAV_CMD_DO_REPOSITION
