@@ -113,8 +113,13 @@ async def post_zones(
     responses=ERRORS,
     dependencies=COMMANDS,
 )
-async def start(mission_id: MissionId, service: Service) -> dict[str, Any]:
-    return await service.start(mission_id)
+async def start(
+    mission_id: MissionId, service: Service, from_where_they_are: bool = False
+) -> dict[str, Any]:
+    """A run of the mission (202, ``starting``).  409 when a vehicle is not heard, heard
+    on two links, inside a keep-out or far from its start position (each named), unless
+    ``from_where_they_are`` for the last two: then the run starts as they are."""
+    return await service.start(mission_id, from_where_they_are)
 
 
 @router.post(

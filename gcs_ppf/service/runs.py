@@ -18,11 +18,13 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import logging
 import time
 from collections.abc import AsyncIterator
 from typing import Any
 
+from gcs_ppf.guidance import start_check
 from gcs_ppf.mission import CylinderZone, Mission, Obstacle, PolygonZone
 from gcs_ppf.service import commanding, ending, flight, resumption
 from gcs_ppf.service.errors import Conflict, NotFound, ServiceError
@@ -191,14 +193,29 @@ class FormationService:
     def _active_run(self) -> Run | None:
         return next((r for r in self._runs.values() if r.state not in FINISHED), None)
 
-    async def start(self, mission_id: int) -> dict[str, Any]:
+    async def start(self, mission_id: int, from_where_they_are: bool = False) -> dict[str, Any]:
         """A run created and answered at once (``starting``); it launches the fleet once the
-        kernels are loaded (``flight.fly``), so that no tick compiles or loads one."""
+        kernels are loaded (``flight.fly``), so that no tick compiles or loads one.  A
+        vehicle inside a keep-out or far from its start position (``start_check``) is a 409
+        naming it, unless ``from_where_they_are``: then the run starts as they are (the
+        assurance's escape first), and ``run_started`` says so."""
         stored = self.mission(mission_id)
         self._check_startable([v.id for v in stored.mission.vehicles])
+        positions = {v.system_id: p for v, p in self._station.located_of(stored.mission)}
+        found = start_check.misplaced(stored.mission, positions)
+        if found and not from_where_they_are:
+            raise Conflict(
+                "; ".join(m.words() for m in found)
+                + ": move them, or start from where they are (from_where_they_are=true)",
+                {"misplaced": [dataclasses.asdict(m) for m in found]},
+            )
         record = self.store.add_run(mission_id, RunState.STARTING)
         run = self._new_run(record, stored.mission)
-        self._station.event(run, "run_started")
+        if found:  # the operator's choice, and what it was made over
+            misplaced = [dataclasses.asdict(m) for m in found]
+            self._station.event(run, "run_started", None, from_where_they_are=misplaced)
+        else:
+            self._station.event(run, "run_started")
         run.task = self._spawn(flight.fly(self._station, run))
         return self.status(mission_id)
 

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from gcs_ppf.geodesy import geodetic_to_enu_many
+from gcs_ppf.mission import Mission
 from gcs_ppf.service.confirmation import EventSink
 from gcs_ppf.service.fleet import Fleet, Vehicle
 from gcs_ppf.service.run import Run
@@ -70,8 +71,12 @@ class Station:
     def located(self, run: Run) -> Iterator[tuple[Vehicle, tuple[float, float, float]]]:
         """The run's vehicles that have reported a position, with it in the ICS (all
         converted in one call)."""
+        return self.located_of(run.mission)
+
+    def located_of(self, mission: Mission) -> Iterator[tuple[Vehicle, tuple[float, float, float]]]:
+        """``located`` for the vehicles of ``mission``, in its ICS."""
         found: list[tuple[Vehicle, tuple[float, float, float]]] = []
-        for v in run.mission.vehicles:
+        for v in mission.vehicles:
             vehicle = self.fleet.by_id.get(v.id)
             if vehicle is None:
                 continue
@@ -80,7 +85,7 @@ class Station:
                 found.append((vehicle, (t.lat_deg, t.lon_deg, t.alt_amsl_m)))
         if not found:
             return
-        enu = geodetic_to_enu_many(np.array([g for _, g in found]), run.mission.origin)
+        enu = geodetic_to_enu_many(np.array([g for _, g in found]), mission.origin)
         for (vehicle, _), (e, n, u) in zip(found, enu.tolist(), strict=True):
             yield vehicle, (e, n, u)
 

@@ -601,13 +601,26 @@ function showMetrics(mt) {
 async function start() {
   if (!(await store())) return;
   const id = state.storedId;
-  try {
-    const st = await api("POST", `/missions/${id}/start`);
+  const launch = async (query) => {
+    const st = await api("POST", `/missions/${id}/start${query}`);
     message(`Mission #${id} started (run #${st.run_id}): launching the vehicles.`, "ok");
     stream.view(id);
     top.fitted = false;
+  };
+  try {
+    await launch("");
   } catch (err) {
-    message(err.status === 409 ? `Cannot start: ${err.detail}.` : err.message, "bad");
+    // a vehicle inside a keep-out or far from its start: the operator may start as they are
+    const misplaced = err.status === 409 && String(err.detail).includes("from_where_they_are");
+    if (misplaced && window.confirm(`${err.detail}.\n\nStart from where the vehicles are?`)) {
+      try {
+        await launch("?from_where_they_are=true");
+      } catch (again) {
+        message(again.message, "bad");
+      }
+    } else {
+      message(err.status === 409 ? `Cannot start: ${err.detail}.` : err.message, "bad");
+    }
   }
   updateButtons();
 }

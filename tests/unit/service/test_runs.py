@@ -324,3 +324,39 @@ def test_a_run_left_flying_by_a_dead_service_is_interrupted_on_restart(tmp_path:
     FormationService(settings, third)
     assert [e.kind for e in third.events(run.id)].count("run_interrupted") == 1
     third.close()
+
+
+def test_a_start_far_from_the_plan_is_refused_unless_asked_from_where_they_are(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Vehicle 3 flew on 10 km from where the uploaded mission starts it: the start is a
+    409 naming it and the distance (nothing started), and with ``from_where_they_are``
+    the run starts, its ``run_started`` event saying what it started over."""
+    monkeypatch.setattr(runs, "load_kernels", lambda planner_dt_s: None)
+
+    async def launch_fleet(station: object, run: Run) -> None:
+        return None
+
+    monkeypatch.setattr(flight, "launch_fleet", launch_fleet)
+    flown = Mission.model_validate_json((EXAMPLES / "paper_table3.json").read_text())
+    doc = flown.model_dump()
+    doc["vehicles"][2]["position"] = [1500.0, -8500.0, 200.0]  # vehicle 3, 10 km south
+    planned = Mission.model_validate(doc)
+
+    async def scenario() -> None:
+        service = recording(tmp_path, monkeypatch, [])
+        async with service.running():
+            report_flying(service, flown)
+            mid = service.create_mission(planned).id
+            with pytest.raises(Conflict, match="vehicle 3 is 10000 m from its start") as err:
+                await service.start(mid)
+            assert err.value.detail["misplaced"][0]["vehicle_id"] == 3
+            assert service.status(mid)["state"] == "pending"
+            status = await service.start(mid, from_where_they_are=True)
+            assert status["state"] == "starting"
+            started = service.events(mid)[0]
+            assert started["kind"] == "run_started"
+            assert started["detail"]["from_where_they_are"][0]["keep_out"] == "far"
+            service.fleet.by_id.clear()
+
+    asyncio.run(scenario())
