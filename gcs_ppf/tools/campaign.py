@@ -32,6 +32,7 @@ from pymavlink import mavutil
 from gcs_ppf.mission import Mission
 from gcs_ppf.tools.campaign_crash import KINDS as CRASHES
 from gcs_ppf.tools.campaign_crash import ServiceProcess, crash, get_json, judge_crash, wait_for
+from gcs_ppf.tools.campaign_crash import moment_s as crash_moment_s
 from gcs_ppf.tools.campaign_tables import format_tables, progress_line, summarize
 from gcs_ppf.tools.observer import (
     FloatArray,
@@ -190,6 +191,8 @@ def fly_once(
     ``seed`` seeds the SITL's packet loss and noise: runs with one seed lose the same
     packets, so each run of a campaign gets its own."""
     workdir.mkdir(parents=True, exist_ok=True)
+    if cond.event in CRASHES:  # a moment of its own for each run
+        event_at_s = crash_moment_s(seed)
     doc = json.loads(mission_path.read_text())
     mission = Mission.model_validate(doc)
     base = free_port_block(10 * len(mission.vehicles))

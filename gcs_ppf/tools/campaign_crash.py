@@ -1,6 +1,7 @@
-"""The campaign's service crashes (issue 26 item 3): the service killed (``kill -9``) in the
-middle of a run, then started again on the same database and the run resumed or aborted,
-or left dead while the vehicles' own GCS failsafe (FS_GCS_ENABL 1, set on the SITL) acts.
+"""The campaign's service crashes (issue 26 item 3): the service killed (``kill -9``) at a
+moment of the run drawn from its seed (``moment_s``), then started again on the same
+database and the run resumed or aborted, or left dead while the vehicles' own GCS failsafe
+(FS_GCS_ENABL 1, set on the SITL) acts.
 
 What is judged here, beside the campaign's own separation and clearance: that every event
 the API answered before the kill is still answered after the restart, what the resume or
@@ -11,6 +12,7 @@ it).
 
 from __future__ import annotations
 
+import random
 import signal
 import subprocess
 import time
@@ -25,6 +27,8 @@ from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.tools.observer import Observer
 
 KINDS = ("crash_resume", "crash_abort", "crash_dead")
+MOMENT_S = (5.0, 60.0)
+"""The mission times a run's kill is drawn from (its seed's): anywhere in the flight."""
 FS_LONG_TIMEOUT_S = 5.0  # ArduPlane's default, the SITL's too
 FAILSAFE_SLACK_S = 3.0  # the last heartbeat up to 1 s before the kill, and the SITL's step
 DEAD_WATCH_S = 20.0  # vehicle seconds watched after the kill when the service stays dead
@@ -46,6 +50,11 @@ class ServiceProcess:
         assert self.proc is not None
         self.proc.send_signal(signal.SIGKILL)
         self.proc.wait()
+
+
+def moment_s(seed: int) -> float:
+    """When the service is killed in the run of ``seed`` (mission time)."""
+    return random.Random(seed).uniform(*MOMENT_S)
 
 
 def _latest_v(obs: Observer) -> float:

@@ -386,6 +386,20 @@ class Judgement:
         return min(values) if values else None
 
 
+def vehicle_time_at(clock: FloatArray, wall_s: float, window_s: float = 0.3) -> float:
+    """A vehicle's clock at our wall time ``wall_s``, from its samples ([K,2] rows of
+    (arrival wall s, vehicle s), ``Observer.clocks``): each sample that arrived in the
+    ``window_s`` before, its stamp carried on at the clock's rate over the track, is a lower
+    bound (it arrived after it was stamped), and the largest is the one read soonest.
+    (Interpolating the arrivals instead puts the clock late by however late a busy observer
+    read it: at ×10, 20 ms of ours is 0.2 s of the vehicle's.)"""
+    rate = (clock[-1, 1] - clock[0, 1]) / max(clock[-1, 0] - clock[0, 0], 1e-9)
+    near = clock[(clock[:, 0] <= wall_s) & (clock[:, 0] >= wall_s - window_s)]
+    if len(near) == 0:
+        return float(np.interp(wall_s, clock[:, 0], clock[:, 1]))
+    return float(np.max(near[:, 1] + (wall_s - near[:, 0]) * rate))
+
+
 def judge(
     mission: Mission,
     tracks: dict[int, FloatArray],

@@ -14,12 +14,15 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import httpx
 import numpy as np
 import pytest
 
 from gcs_ppf.mission import Mission
+from gcs_ppf.service.store import Store
+from gcs_ppf.tools.arduplane_sitl import find_plane_parm
 from gcs_ppf.tools.campaign import process
 from gcs_ppf.tools.formation_report import STEP_S, formation_flown
 from gcs_ppf.tools.observer import (
@@ -53,7 +56,20 @@ pytestmark = [
 ]
 
 
-def fly_arduplane(tmp_path: Path, mission_path: Path) -> None:
+def fly_arduplane(
+    tmp_path: Path,
+    mission_path: Path,
+    *,
+    wait_prearm: bool = True,
+    formation: bool = True,
+    extra_defaults: str = "",
+    env_extra: dict[str, str] | None = None,
+) -> dict[str, Any]:
+    """Fly ``mission_path`` on real ArduPlane SITL and judge it (the run completed, safe
+    distances kept, no ground hit; with ``formation`` also formed and held ``HELD_S``);
+    the final status.  ``wait_prearm``: start once the observer sees every vehicle pre-arm
+    healthy (otherwise the moment the service hears them all, after boot);
+    ``extra_defaults``: parameter lines added to plane.parm for every instance."""
     doc = json.loads(mission_path.read_text())
     mission = Mission.model_validate(doc)
     lim, n = mission.limits, len(mission.vehicles)
@@ -66,10 +82,16 @@ def fly_arduplane(tmp_path: Path, mission_path: Path) -> None:
     launcher = [sys.executable, "-m", "gcs_ppf.cli", "arduplane-sitl", str(mission_path),
                 "--binary", BINARY, "--speedup", f"{SPEEDUP:g}", "--base-port", str(base),
                 "--workdir", str(tmp_path / "sitl")]  # fmt: skip
+    if extra_defaults:
+        plane = find_plane_parm(Path(BINARY))
+        assert plane is not None, "extra_defaults needs the ArduPilot tree's plane.parm"
+        defaults = tmp_path / "plane-extra.parm"
+        defaults.write_text(plane.read_text() + "\n" + extra_defaults + "\n")
+        launcher += ["--defaults", str(defaults)]
     links = [a for p in service_ports.values() for a in ("--link", f"tcp:127.0.0.1:{p}")]
     serve = [sys.executable, "-m", "gcs_ppf.cli", "serve", "--port", str(api_port),
              "--db", str(tmp_path / "gcs.db"), *links]  # fmt: skip
-    env = {"GCS_PPF_TLOG_DIR": str(tmp_path / "tlogs")}
+    env = {"GCS_PPF_TLOG_DIR": str(tmp_path / "tlogs"), **(env_extra or {})}
     launcher_log = tmp_path / "arduplane-sitl.log"
     wall_budget = (mission.planner.max_time + 120.0) / SPEEDUP + 60.0
     with process(launcher, launcher_log):
@@ -81,11 +103,14 @@ def fly_arduplane(tmp_path: Path, mission_path: Path) -> None:
             wait_for(lambda: _vehicle_count(api) == n, 60, "the service to see every vehicle")
             t_ready = time.monotonic()
             try:  # GPS and EKF settle before ArduPlane will arm
-                wait_for(lambda: all(r.prearm_ok for r in obs.records.values()), 120, "pre-arm")
+                if wait_prearm:
+                    wait_for(lambda: all(r.prearm_ok for r in obs.records.values()), 120, "pre-arm")
             except AssertionError:
                 late = [s for s, r in obs.records.items() if not r.prearm_ok]
                 print(f"\nnot pre-arm healthy, started anyway: vehicles {late}")
-            print(f"\n{n} vehicles ready after {time.monotonic() - t_ready:.1f} s wall")
+            healthy = sorted(s for s, r in obs.records.items() if r.prearm_ok)
+            print(f"\n{n} vehicles heard, started after {time.monotonic() - t_ready:.1f} s "
+                  f"wall; pre-arm healthy then: {healthy}")  # fmt: skip
             with httpx.Client(base_url=api, timeout=10) as client:
                 r = client.post("/missions", json=doc)
                 assert r.status_code == 201, r.text
@@ -94,6 +119,8 @@ def fly_arduplane(tmp_path: Path, mission_path: Path) -> None:
                 r = client.post(f"/missions/{mid}/start")
                 assert r.status_code == 202, r.text
             final = wait_for(lambda: _finished(api, mid), wall_budget, "the run to end")
+            if final["state"] == "failed":  # a start refused: nothing flew to judge
+                return dict(final)
             end_s = (time.time() - t0_wall) * SPEEDUP  # on the common clock
             end_ms = obs.latest_boot_ms()
 
@@ -122,7 +149,7 @@ def fly_arduplane(tmp_path: Path, mission_path: Path) -> None:
         hits[sysid] = [t for b, t in rec.texts if "Hit ground" in t and up and b >= up[0]]
     # The run's clock starts once the vehicles are launched: its window ends at end_s.
     window = (end_s - final["mission_time_s"], final["mission_time_s"])
-    best, formation = formation_offsets(mission, tracks, *window)
+    best, formation_error = formation_offsets(mission, tracks, *window)
     held = longest_formed_s(mission, tracks, *window)
     to_target = closest_pass(tracks[mission.leader.id], np.array(mission.target))
     flown = formation_flown(mission, tracks, window[0], window[0] + window[1])
@@ -138,7 +165,7 @@ def fly_arduplane(tmp_path: Path, mission_path: Path) -> None:
         "from the start command, takeoff included); observer: "
         f"min separation {separation:.1f} m (safe {lim.safe_distance_uav:g}), min clearance "
         f"{clearance:.1f} m (safe {lim.safe_distance_obstacle:g}), leader's closest to the "
-        f"target {to_target:.1f} m, formation error {formation:.1f} m (worst wingman at the "
+        f"target {to_target:.1f} m, formation error {formation_error:.1f} m (worst wingman at the "
         "best moment; each wingman's best "
         + ", ".join(f"{vid}: {d:.1f} m" for vid, d in best.items())
         + f"), held {held:.1f} s, {share}, formed again "
@@ -150,8 +177,10 @@ def fly_arduplane(tmp_path: Path, mission_path: Path) -> None:
     assert separation >= lim.safe_distance_uav
     assert clearance >= lim.safe_distance_obstacle
     assert not any(hits.values()), hits
-    assert formation <= lim.target_accuracy
-    assert held >= HELD_S, f"formed, but held only {held:.1f} s"
+    if formation:
+        assert formation_error <= lim.target_accuracy
+        assert held >= HELD_S, f"formed, but held only {held:.1f} s"
+    return dict(final)
 
 
 @pytest.mark.arduplane
@@ -166,6 +195,47 @@ def test_formation_flown_on_arduplane_sitl(mission: str, tmp_path: Path) -> None
     accuracy of its local target point (Eq. 6, from the observer's tracks) at one moment
     and all of them stay within it for HELD_S together."""
     fly_arduplane(tmp_path, EXAMPLES / f"{mission}.json")
+
+
+@pytest.mark.arduplane
+@pytest.mark.parametrize("run", range(3))
+def test_a_start_as_soon_as_the_vehicles_are_heard_waits_for_them(run: int, tmp_path: Path) -> None:
+    """Started the moment the service hears every vehicle after boot (ArduPlane refuses to
+    arm while its EKF and GPS settle): the start waits for each vehicle's pre-arm checks
+    (``prearm_waiting`` with its own reasons, then ``prearm_passed``) or retries the arm it
+    refused, and the run completes safely (judged as above; the formation reported)."""
+    final = fly_arduplane(tmp_path, EXAMPLES / "arduplane_3.json", wait_prearm=False,
+                          formation=False)  # fmt: skip
+    store = Store(tmp_path / "gcs.db")
+    events = store.events(store.runs()[0].id)
+    waited = [(e.kind, e.vehicle_id, e.detail) for e in events
+              if e.kind in ("prearm_waiting", "prearm_passed", "arm_refused")]  # fmt: skip
+    print(f"run {run}: {final['state']}; the start's waits: {waited}")
+    assert final["state"] == "completed"
+
+
+@pytest.mark.arduplane
+def test_a_start_that_can_never_arm_fails_with_the_vehicle_s_reason(tmp_path: Path) -> None:
+    """Every instance asks for more battery than it has to arm (BATT_ARM_VOLT 30 V): the
+    start waits its bound (here 20 s), then the run fails naming the vehicle's own PreArm:
+    reason; no vehicle is commanded to fly, and nothing in the service's log is an
+    exception."""
+    final = fly_arduplane(
+        tmp_path,
+        EXAMPLES / "arduplane_3.json",
+        wait_prearm=False,
+        extra_defaults="BATT_ARM_VOLT 30",
+        env_extra={"GCS_PPF_PREARM_TIMEOUT_S": "20"},
+    )
+    print(f"refused for good: {final['state']}: {final.get('outcome')}")
+    assert final["state"] == "failed"
+    assert "PreArm" in str(final.get("outcome")), final
+    log = (tmp_path / "gcs.log").read_text(errors="replace")
+    assert "Traceback" not in log
+    store = Store(tmp_path / "gcs.db")
+    kinds = [e.kind for e in store.events(store.runs()[0].id)]
+    assert "prearm_failed" in kinds
+    assert "takeoff" not in kinds
 
 
 def reformed_after_passage_s(

@@ -1,6 +1,7 @@
 """Crash recovery on loopback (issue 26 item 3): ``gcs-ppf serve`` killed with SIGKILL in
 the middle of Table 3 at x10, the built-in SITL's GCS failsafe on (FS_GCS_ENABL 1), judged
-by the independent observer (``gcs_ppf.tools.campaign_crash``, conditions j and l)."""
+by the independent observer (``gcs_ppf.tools.campaign_crash``, conditions j and l).  Two
+flights (about 70 s here): ``make campaign-check``, not ``make test``."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ RTL_WITHIN_S = 5.0 + 3.0  # FS_LONG_TIMEOUT, and the last heartbeat's and the SI
 
 
 @pytest.mark.integration
+@pytest.mark.campaign
 def test_killed_mid_run_started_again_and_resumed_the_run_completes(tmp_path: Path) -> None:
     """Killed 15 s in: every vehicle switches itself to RTL within FS_LONG_TIMEOUT of our
     last heartbeat; the service started again on the same database opens the links it was
@@ -43,6 +45,7 @@ def test_killed_mid_run_started_again_and_resumed_the_run_completes(tmp_path: Pa
 
 
 @pytest.mark.integration
+@pytest.mark.campaign
 def test_left_dead_every_vehicle_s_own_failsafe_returns_it(tmp_path: Path) -> None:
     """Killed and never started again: each vehicle's long GCS failsafe (its STATUSTEXT and
     its HEARTBEAT's mode, heard by the observer) takes it to RTL within FS_LONG_TIMEOUT."""

@@ -31,6 +31,7 @@ from gcs_ppf.tools.observer import (
     free_port_block,
     resample,
     tracks_enu,
+    vehicle_time_at,
 )
 from gcs_ppf.tools.observer import formation_offsets as observer_formation_offsets
 from tests.checks import wait_for
@@ -314,7 +315,7 @@ def test_a_wingman_lost_mid_run_leaves_and_the_rest_continue(tmp_path: Path) -> 
     event = next(e for e in store.events(run.id) if e.kind == "vehicle_lost")
     leader = flight.clocks[flight.mission.leader.id]
     assert leader[0, 0] < event.wall_s < leader[-1, 0]
-    declared = float(np.interp(event.wall_s, leader[:, 0], leader[:, 1]))
+    declared = vehicle_time_at(leader, event.wall_s)
     last_heard = flight.tracks[3][-1, 0]
     silent = declared - last_heard
     assert event.mission_time_s is not None

@@ -150,3 +150,20 @@ def test_slot_errors_are_in_the_leaders_flight_path_frame() -> None:
     errors = slot_errors(m, tracks, inner)[2]
     assert np.allclose(errors, [5.0, 3.0, 20.0], atol=1e-6)
     assert np.allclose(slot_distances(m, tracks, inner)[2], np.sqrt(25 + 9 + 400), atol=1e-6)
+
+
+def test_the_vehicle_clock_at_a_wall_time_is_read_from_the_soonest_sample() -> None:
+    """At x10, samples stamped every 0.1 s of the vehicle's, the last two read 30 ms late:
+    interpolating the arrivals puts the clock 0.3 s late, the soonest sample does not."""
+    import numpy as np
+
+    from gcs_ppf.tools.observer import vehicle_time_at
+
+    stamps = np.arange(0.0, 10.0, 0.1)
+    arrivals = stamps / 10.0
+    arrivals[-2:] += 0.03
+    clock = np.column_stack([arrivals, stamps])
+    wall = arrivals[-1]
+    true_v = (wall - 0.03) * 10.0 + 0.3  # the last stamp, 30 ms of ours ago, carried on
+    assert abs(vehicle_time_at(clock, wall) - true_v) < 0.05
+    assert float(np.interp(wall, clock[:, 0], clock[:, 1])) < true_v - 0.25
