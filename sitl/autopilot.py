@@ -21,6 +21,7 @@ from gcs_ppf.mavlink.ardupilot import (
 )
 from gcs_ppf.mavlink.enums import MAV_SEVERITY_CRITICAL, MAV_SEVERITY_INFO, MAV_SEVERITY_WARNING
 from gcs_ppf.mission import Origin
+from sitl import fence
 from sitl import messages as mb
 from sitl import mission_protocol as mp
 from sitl import streams as st
@@ -131,6 +132,11 @@ class Autopilot:
         lat, lon, alt = geodesy.enu_to_geodetic(*home_enu_m, origin)
         self.home_geo = (lat, lon, alt)
         self.mission = mp.MissionServer()
+        self.fence = mp.MissionServer(mp.MISSION_TYPE_FENCE, fence.validate_item)
+        self.fence_areas: list[fence.Area] = []
+        self.fence_breached = False
+        self.fence_breach_count = 0
+        self.fence_breach_time_ms = 0
         self.runner = MissionRunner([], [])
         self.streams = st.StreamSchedule.default()
         self.mode = PlaneMode.MANUAL
@@ -397,16 +403,82 @@ class Autopilot:
         if self.mission_current_sent != self.runner.current:
             out = out or Outbox()
             out.broadcast.append(self.mission_current_msg())
+        breach = self._fence_check(kin, clock)
+        if breach is not None:
+            out = out or Outbox()
+            out.broadcast.extend(breach.broadcast)
         fs = self._failsafe(kin, clock)
         if fs is not None:
             out = out or Outbox()
             out.broadcast.extend(fs.broadcast)
-        if self.mission.state == mp.Transfer.RECEIVING:
-            res = self.mission.tick(clock.link_s)
-            if res.replies:
-                out = out or Outbox()
-                out.broadcast.extend(res.replies)
+        for server in (self.mission, self.fence):
+            if server.state == mp.Transfer.RECEIVING:
+                res = server.tick(clock.link_s)
+                if res.replies:
+                    out = out or Outbox()
+                    out.broadcast.extend(res.replies)
         return out
+
+    # ---- the fence -----------------------------------------------------------------------
+    def fence_changed(self) -> bool:
+        """The fence list uploaded or cleared: its areas (False: a polygon's vertices do not
+        add up, and the list is refused whole, as ArduPilot does)."""
+        found = fence.areas(self.fence.items)
+        if found is None:
+            self.fence.items = []
+            self.fence_areas = []
+            return False
+        self.fence_areas = found
+        return True
+
+    @property
+    def fence_enabled(self) -> bool:
+        """FENCE_ENABLE with the polygon type (4) on and areas to keep."""
+        on = self.params["FENCE_ENABLE"] != 0 and int(self.params["FENCE_TYPE"]) & 4
+        return bool(on and self.fence_areas)
+
+    def _fence_check(self, kin: Kinematics, clock: Clock) -> Outbox | None:
+        """ArduPlane's fence: a breach (outside an inclusion area, inside an exclusion one)
+        is a CRITICAL STATUSTEXT and, unless FENCE_ACTION is 0 (report only), RTL; the
+        breach clears when the vehicle is back on the right side."""
+        if not self.fence_enabled:
+            self.fence_breached = False
+            return None
+        lat, lon, _ = geodesy.enu_to_geodetic(*kin.pos_enu_m, self.origin)
+        now = bool(fence.breached(self.fence_areas, lat, lon))
+        if now == self.fence_breached:
+            return None
+        self.fence_breached = now
+        out = Outbox()
+        if not now:
+            out.text(MAV_SEVERITY_INFO, "Fence breach cleared")
+            return out
+        self.fence_breach_count += 1
+        self.fence_breach_time_ms = clock.time_boot_ms
+        out.text(MAV_SEVERITY_CRITICAL, "Fence Breached")
+        acting = int(self.params["FENCE_ACTION"]) != 0 and self.armed and not kin.landed
+        if acting and self.mode != PlaneMode.RTL:
+            self.set_mode(PlaneMode.RTL, kin, clock, out)
+        return out
+
+    def fence_status_msg(self) -> Message | None:
+        """FENCE_STATUS while the fence is enabled (ArduPlane sends none otherwise)."""
+        if not self.fence_enabled:
+            return None
+        return mb.fence_status(
+            self.fence_breached,
+            self.fence_breach_count,
+            self.fence_breach_time_ms,
+            fence.BREACH_BOUNDARY if self.fence_breach_count else 0,
+        )
+
+    def sys_status_msg(self, drop_rate_comm_cpct: int = 0) -> Message:
+        return mb.sys_status(
+            drop_rate_comm_cpct,
+            fence_present=bool(self.fence_areas),
+            fence_enabled=self.fence_enabled,
+            fence_breached=self.fence_breached,
+        )
 
     def _failsafe(self, kin: Kinematics, clock: Clock) -> Outbox | None:
         """ArduPlane's long GCS failsafe: no heartbeat from SYSID_MYGCS for FS_LONG_TIMEOUT."""

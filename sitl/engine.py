@@ -184,6 +184,8 @@ class Simulation:
                 or ap.mission_current_sent != ap.runner.current
                 or ap.faults.die_at_s is not None
                 or ap.mission.state != Transfer.IDLE
+                or ap.fence.state != Transfer.IDLE
+                or ap.fence_enabled
             ):
                 out = ap.update(self.kinematics(i), clock)
                 if out is not None:
@@ -265,7 +267,9 @@ class Simulation:
         if msg_id == st.HEARTBEAT:
             return ap.heartbeat()
         if msg_id == st.SYS_STATUS:
-            return mb.sys_status()
+            return ap.sys_status_msg()
+        if msg_id == st.FENCE_STATUS:
+            return ap.fence_status_msg()
         if msg_id == st.SYSTEM_TIME:
             return mb.system_time(clock.unix_us, clock.time_boot_ms)
         if msg_id == st.EXTENDED_SYS_STATE:

@@ -29,7 +29,8 @@ Message: TypeAlias = Any  # a pymavlink MAVLink_*_message (pymavlink is untyped)
 
 #: ArduPlane version we present: 4.5.7 official.
 FLIGHT_SW_VERSION = (4 << 24) | (5 << 16) | (7 << 8) | 255
-#: Capabilities this SITL honours (no FTP, no fence/rally, no terrain): MISSION_INT,
+#: Capabilities this SITL honours (no FTP, no rally, no terrain; fences by the mission
+#: protocol, which has no capability bit): MISSION_INT,
 #: COMMAND_INT, SET_POSITION_TARGET_GLOBAL_INT (altitude only, as ArduPlane), MAVLINK2 and
 #: PARAM_ENCODE_C_CAST (integer parameters travel as float-cast values, as on ArduPilot).
 CAPABILITIES = (
@@ -94,9 +95,30 @@ def heartbeat(mode: PlaneMode, armed: bool, system_status: int) -> Message:
     )
 
 
-def sys_status(drop_rate_comm_cpct: int = 0) -> Message:
+GEOFENCE = 0x100000
+"""MAV_SYS_STATUS_GEOFENCE."""
+
+
+def sys_status(
+    drop_rate_comm_cpct: int = 0,
+    fence_present: bool = False,
+    fence_enabled: bool = False,
+    fence_breached: bool = False,
+) -> Message:
+    """SYS_STATUS; the geofence bits as ArduPilot's AC_Fence sets them: present with fence
+    items, enabled with FENCE_ENABLE, and healthy unless breached (healthy with no fence at
+    all: MAVProxy calls a healthy bit that drops a breach)."""
+    present = _SENSORS | (GEOFENCE if fence_present else 0)
+    enabled = _SENSORS | (GEOFENCE if fence_enabled else 0)
+    health = _SENSORS | (0 if fence_breached else GEOFENCE)
     return mavlink.MAVLink_sys_status_message(
-        _SENSORS, _SENSORS, _SENSORS, 200, 12600, 1000, 90, _u16(drop_rate_comm_cpct), 0, 0, 0, 0, 0
+        present, enabled, health, 200, 12600, 1000, 90, _u16(drop_rate_comm_cpct), 0, 0, 0, 0, 0
+    )
+
+
+def fence_status(breached: bool, count: int, breach_time_ms: int, breach_type: int) -> Message:
+    return mavlink.MAVLink_fence_status_message(
+        int(breached), _u16(count), breach_type, breach_time_ms & 0xFFFFFFFF, 0
     )
 
 

@@ -7,7 +7,9 @@ home); one upload at a time, owned by the (sysid, compid) that sent MISSION_COUN
 arrive in order (another sequence number → MISSION_ACK INVALID_SEQUENCE, the upload goes on);
 an item that cannot be stored ends the upload with its error; the vehicle asks again for an
 item after ``RESEND_S`` of silence and gives up after ``UPLOAD_TIMEOUT_S``
-(MISSION_ACK OPERATION_CANCELLED). Fence and rally lists are empty and cannot be filled.
+(MISSION_ACK OPERATION_CANCELLED). One server per list: the mission (its item 0 home), and
+the fence (``sitl.fence``: no home item, its own items); the rally list is empty and cannot
+be filled.
 Timers run on the link's (wall) clock: protocol timeouts are properties of the link, not of
 simulated time.
 """
@@ -15,6 +17,7 @@ simulated time.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -155,8 +158,12 @@ class Result:
 
 @dataclass
 class MissionServer:
-    """The stored mission (``items[0]`` is the home slot) and the upload state machine."""
+    """A stored list and its upload state machine: the mission (``items[0]`` is the home
+    slot) or, with ``mission_type`` MISSION_TYPE_FENCE, the fence (``validate`` checks its
+    items)."""
 
+    mission_type: int = MISSION_TYPE_MISSION
+    validate: Callable[[MissionItem], int] = field(default=validate_item, repr=False)
     items: list[MissionItem] = field(default_factory=list)
     state: Transfer = Transfer.IDLE
     _owner: tuple[int, int] = (0, 0)
@@ -169,15 +176,19 @@ class MissionServer:
     # ---- helpers -------------------------------------------------------------------------
     @property
     def count(self) -> int:
-        """MISSION_COUNT of a download: home plus the stored items (at least 1)."""
+        """MISSION_COUNT of a download: home plus the stored items (at least 1); a fence's
+        items alone."""
+        if self.mission_type != MISSION_TYPE_MISSION:
+            return len(self.items)
         return max(1, len(self.items))
 
-    def _ack(self, to: tuple[int, int], result: int, mission_type: int = 0) -> Message:
-        return mavlink.MAVLink_mission_ack_message(to[0], to[1], result, mission_type)
+    def _ack(self, to: tuple[int, int], result: int, mission_type: int | None = None) -> Message:
+        kind = self.mission_type if mission_type is None else mission_type
+        return mavlink.MAVLink_mission_ack_message(to[0], to[1], result, kind)
 
     def _request(self) -> Message:
         return mavlink.MAVLink_mission_request_int_message(
-            self._owner[0], self._owner[1], self._expected, MISSION_TYPE_MISSION
+            self._owner[0], self._owner[1], self._expected, self.mission_type
         )
 
     def _finish_upload(self) -> None:
@@ -186,7 +197,7 @@ class MissionServer:
 
     # ---- events --------------------------------------------------------------------------
     def on_count(self, src: tuple[int, int], count: int, mission_type: int, now_s: float) -> Result:
-        if mission_type != MISSION_TYPE_MISSION:
+        if mission_type != self.mission_type:
             result = MAV_MISSION_ACCEPTED if count == 0 else MAV_MISSION_UNSUPPORTED
             return Result([self._ack(src, result, mission_type)])
         if self.state == Transfer.RECEIVING and src != self._owner:
@@ -205,7 +216,7 @@ class MissionServer:
     def on_item(
         self, src: tuple[int, int], seq: int, item: MissionItem, mission_type: int, now_s: float
     ) -> Result:
-        if mission_type != MISSION_TYPE_MISSION:
+        if mission_type != self.mission_type:
             return Result([self._ack(src, MAV_MISSION_UNSUPPORTED, mission_type)])
         if self.state != Transfer.RECEIVING:
             return Result([self._ack(src, MAV_MISSION_ERROR)])
@@ -213,7 +224,8 @@ class MissionServer:
             return Result([self._ack(src, MAV_MISSION_INVALID_SEQUENCE)])
         if src != self._owner:
             return Result([self._ack(src, MAV_MISSION_DENIED)])
-        result = MAV_MISSION_ACCEPTED if seq == 0 else validate_item(item)
+        home = seq == 0 and self.mission_type == MISSION_TYPE_MISSION
+        result = MAV_MISSION_ACCEPTED if home else self.validate(item)
         if result != MAV_MISSION_ACCEPTED:
             self._finish_upload()
             return Result([self._ack(src, result)])
@@ -229,7 +241,7 @@ class MissionServer:
     def on_request_list(self, src: tuple[int, int], mission_type: int) -> Result:
         if self.state == Transfer.RECEIVING:
             return Result([self._ack(src, MAV_MISSION_DENIED, mission_type)])
-        count = self.count if mission_type == MISSION_TYPE_MISSION else 0
+        count = self.count if mission_type == self.mission_type else 0
         return Result([mavlink.MAVLink_mission_count_message(src[0], src[1], count, mission_type)])
 
     def on_request(
@@ -238,15 +250,15 @@ class MissionServer:
         """MISSION_REQUEST_INT (``as_int``) or the deprecated MISSION_REQUEST."""
         if self.state == Transfer.RECEIVING:
             return Result([self._ack(src, MAV_MISSION_DENIED, mission_type)])
-        if mission_type != MISSION_TYPE_MISSION or not 0 <= seq < self.count:
-            count = self.count if mission_type == MISSION_TYPE_MISSION else 0
+        if mission_type != self.mission_type or not 0 <= seq < self.count:
+            count = self.count if mission_type == self.mission_type else 0
             return Result(
                 [
                     mavlink.MAVLink_mission_count_message(src[0], src[1], count, mission_type),
                     self._ack(src, MAV_MISSION_INVALID_SEQUENCE, mission_type),
                 ]
             )
-        it = home if seq == 0 else self.items[seq]
+        it = home if seq == 0 and self.mission_type == MISSION_TYPE_MISSION else self.items[seq]
         if as_int:
             msg = mavlink.MAVLink_mission_item_int_message(
                 src[0],
@@ -263,7 +275,7 @@ class MissionServer:
                 it.x,
                 it.y,
                 it.z,
-                MISSION_TYPE_MISSION,
+                self.mission_type,
             )
         else:
             scale = 1e-7 if it.frame in GLOBAL_FRAMES else 1.0
@@ -282,7 +294,7 @@ class MissionServer:
                 it.x * scale,
                 it.y * scale,
                 it.z,
-                MISSION_TYPE_MISSION,
+                self.mission_type,
             )
         return Result([msg])
 
@@ -291,7 +303,7 @@ class MissionServer:
             if src != self._owner:
                 return Result([self._ack(src, MAV_MISSION_DENIED, mission_type)])
             self._finish_upload()
-        if mission_type in (MISSION_TYPE_MISSION, MISSION_TYPE_ALL):
+        if mission_type in (self.mission_type, MISSION_TYPE_ALL):
             self.items = []
             return Result([self._ack(src, MAV_MISSION_ACCEPTED, mission_type)], True)
         return Result([self._ack(src, MAV_MISSION_ACCEPTED, mission_type)])

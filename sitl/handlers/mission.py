@@ -9,7 +9,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from gcs_ppf.mavlink import enums
 from gcs_ppf.mavlink.ardupilot import PlaneMode
-from gcs_ppf.mavlink.enums import MAV_SEVERITY_INFO
+from gcs_ppf.mavlink.enums import MAV_SEVERITY_INFO, MAV_SEVERITY_WARNING
 from sitl import mission_protocol as mp
 from sitl.autopilot import Autopilot, Clock, Kinematics, Outbox
 from sitl.handlers.base import Src, finite
@@ -21,13 +21,23 @@ def _home_item(ap: Autopilot) -> mp.MissionItem:
     return mp.MissionItem(0, 16, 0, 1, 0.0, 0.0, 0.0, 0.0, round(lat * 1e7), round(lon * 1e7), alt)
 
 
-def _mission_result(ap: Autopilot, res: mp.Result, out: Outbox) -> None:
+def _server(ap: Autopilot, mission_type: int) -> mp.MissionServer:
+    """The list a message is about: the fence's, or the mission's (which answers the rest)."""
+    return ap.fence if mission_type == mp.MISSION_TYPE_FENCE else ap.mission
+
+
+def _mission_result(ap: Autopilot, res: mp.Result, out: Outbox, mission_type: int = 0) -> None:
     out.reply.extend(res.replies)
-    if res.mission_changed:
-        ap.mission_changed()
-        out.text(
-            MAV_SEVERITY_INFO, f"Flight plan received ({max(len(ap.mission.items) - 1, 0)} items)"
-        )
+    if not res.mission_changed:
+        return
+    if mission_type == mp.MISSION_TYPE_FENCE:
+        if ap.fence_changed():
+            out.text(MAV_SEVERITY_INFO, f"Fence: {len(ap.fence_areas)} areas")
+        else:
+            out.text(MAV_SEVERITY_WARNING, "Fence: polygon vertex counts do not add up; cleared")
+        return
+    ap.mission_changed()
+    out.text(MAV_SEVERITY_INFO, f"Flight plan received ({max(len(ap.mission.items) - 1, 0)} items)")
 
 
 def mavlink_ack(src: Src, result: int, mission_type: int) -> Any:
@@ -38,7 +48,9 @@ def mavlink_ack(src: Src, result: int, mission_type: int) -> Any:
 def on_mission_count(
     ap: Autopilot, msg: Any, src: Src, kin: Kinematics, clock: Clock, out: Outbox
 ) -> None:
-    _mission_result(ap, ap.mission.on_count(src, msg.count, msg.mission_type, clock.link_s), out)
+    server = _server(ap, msg.mission_type)
+    res = server.on_count(src, msg.count, msg.mission_type, clock.link_s)
+    _mission_result(ap, res, out, msg.mission_type)
 
 
 def on_mission_item(
@@ -55,27 +67,34 @@ def on_mission_item(
         result = enums.MAV_MISSION_ACCEPTED if ok else enums.MAV_MISSION_ERROR
         out.reply.append(mavlink_ack(src, result, msg.mission_type))
         return
-    _mission_result(ap, ap.mission.on_item(src, msg.seq, item, msg.mission_type, clock.link_s), out)
+    server = _server(ap, msg.mission_type)
+    res = server.on_item(src, msg.seq, item, msg.mission_type, clock.link_s)
+    _mission_result(ap, res, out, msg.mission_type)
 
 
 def on_mission_request_list(
     ap: Autopilot, msg: Any, src: Src, kin: Kinematics, clock: Clock, out: Outbox
 ) -> None:
-    _mission_result(ap, ap.mission.on_request_list(src, msg.mission_type), out)
+    res = _server(ap, msg.mission_type).on_request_list(src, msg.mission_type)
+    _mission_result(ap, res, out, msg.mission_type)
 
 
 def on_mission_request(
     ap: Autopilot, msg: Any, src: Src, kin: Kinematics, clock: Clock, out: Outbox
 ) -> None:
     as_int = msg.get_type() == "MISSION_REQUEST_INT"
-    res = ap.mission.on_request(src, msg.seq, msg.mission_type, _home_item(ap), as_int)
-    _mission_result(ap, res, out)
+    server = _server(ap, msg.mission_type)
+    res = server.on_request(src, msg.seq, msg.mission_type, _home_item(ap), as_int)
+    _mission_result(ap, res, out, msg.mission_type)
 
 
 def on_mission_clear_all(
     ap: Autopilot, msg: Any, src: Src, kin: Kinematics, clock: Clock, out: Outbox
 ) -> None:
-    _mission_result(ap, ap.mission.on_clear_all(src, msg.mission_type), out)
+    if msg.mission_type == mp.MISSION_TYPE_ALL:  # every list, the fence's too
+        _mission_result(ap, ap.fence.on_clear_all(src, msg.mission_type), Outbox(), 1)
+    server = _server(ap, msg.mission_type)
+    _mission_result(ap, server.on_clear_all(src, msg.mission_type), out, msg.mission_type)
 
 
 def on_mission_set_current(

@@ -355,3 +355,50 @@ def test_timesync_is_answered_as_arduplane_does() -> None:
         c.mav.timesync_send(0, 42)
         later = c.wait("TIMESYNC", lambda m: m.ts1 in (987654321, 42))
         assert later.ts1 == 42
+
+
+def _upload_fence(c: Client, items: list[tuple[int, float, float, float]]) -> None:
+    """(command, lat, lon, param1) items as the fence list (MAV_MISSION_TYPE_FENCE 1)."""
+    c.mav.mission_count_send(1, 1, len(items), 1)
+    for _ in items:
+        req = c.wait("MISSION_REQUEST_INT")
+        assert req.mission_type == 1
+        command, lat, lon, p1 = items[req.seq]
+        c.mav.mission_item_int_send(1, 1, req.seq, 0, command, 0, 1, p1, 0, 0, 0,
+                                    round(lat * 1e7), round(lon * 1e7), 0, 1)  # fmt: skip
+    assert c.wait("MISSION_ACK").type == 0
+
+
+def test_a_fence_uploaded_read_back_and_breached_sends_the_vehicle_home() -> None:
+    """A third party's fence (an exclusion circle 1.5 km ahead of vehicle 1, on its track):
+    read back as sent; with FENCE_ENABLE the vehicle, flying on, breaches it: STATUSTEXT
+    "Fence Breached", RTL, FENCE_STATUS and SYS_STATUS's geofence health say so; back out
+    of it, the breach clears."""
+    with run_sitl(TWO, speedup=10) as sitl, Client(sitl.port(0)) as c:
+        gpi = c.wait("GLOBAL_POSITION_INT", lambda m: m.get_srcSystem() == 1)
+        x, y, z = enu_of(gpi)
+        speed = math.hypot(gpi.vx, gpi.vy) / 100.0
+        east, north = gpi.vy / 100.0 / speed, gpi.vx / 100.0 / speed
+        lat, lon, _ = enu_to_geodetic(x + 1500.0 * east, y + 1500.0 * north, z, ORIGIN)
+        items = [(5004, lat, lon, 400.0), (5000, gpi.lat * 1e-7, gpi.lon * 1e-7, 0.0)]
+        _upload_fence(c, items)
+        c.mav.mission_request_list_send(1, 1, 1)
+        assert c.wait("MISSION_COUNT", lambda m: m.mission_type == 1).count == 2
+        for seq, (command, a, b, p1) in enumerate(items):
+            c.mav.mission_request_int_send(1, 1, seq, 1)
+            it = c.wait("MISSION_ITEM_INT", functools.partial(has_seq, seq=seq))
+            assert (it.command, it.x, it.y, it.param1, it.mission_type) == (
+                command, round(a * 1e7), round(b * 1e7), p1, 1)  # fmt: skip
+        status = c.wait("SYS_STATUS")
+        assert status.onboard_control_sensors_present & 0x100000  # a fence: present
+        assert not status.onboard_control_sensors_enabled & 0x100000  # not enabled yet
+        c.mav.param_set_send(1, 1, b"FENCE_ENABLE", 1, 2)
+        c.wait("PARAM_VALUE", lambda m: m.param_id == "FENCE_ENABLE")
+        text = c.wait("STATUSTEXT", lambda m: "Fence Breached" in m.text, timeout=10.0)
+        assert text is not None
+        assert c.wait("HEARTBEAT", lambda m: m.get_srcSystem() == 1).custom_mode == 11
+        fs = c.wait("FENCE_STATUS", lambda m: m.breach_status == 1)
+        assert fs.breach_count == 1
+        assert not c.wait("SYS_STATUS").onboard_control_sensors_health & 0x100000
+        c.wait("STATUSTEXT", lambda m: "breach cleared" in m.text, timeout=15.0)
+        assert c.wait("SYS_STATUS").onboard_control_sensors_health & 0x100000
