@@ -23,7 +23,6 @@ from typing import Any
 
 import httpx
 
-from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.tools.observer import Observer
 
 KINDS = ("crash_resume", "crash_abort", "crash_dead")
@@ -31,6 +30,7 @@ MOMENT_S = (5.0, 60.0)
 """The mission times a run's kill is drawn from (its seed's): anywhere in the flight."""
 FS_LONG_TIMEOUT_S = 5.0  # ArduPlane's default, the SITL's too
 FAILSAFE_SLACK_S = 3.0  # the last heartbeat up to 1 s before the kill, and the SITL's step
+RTL_MODE = 11  # ArduPlane's custom_mode of RTL (the observer shares no code with the service)
 DEAD_WATCH_S = 20.0  # vehicle seconds watched after the kill when the service stays dead
 
 
@@ -134,7 +134,7 @@ def failsafe_delays_s(obs: Observer, killed_v: float) -> dict[int, float | None]
         switched = [
             tbm / 1000.0 - killed_v
             for tbm, mode in rec.modes
-            if mode == int(PlaneMode.RTL) and tbm / 1000.0 >= killed_v
+            if mode == RTL_MODE and tbm / 1000.0 >= killed_v
         ]
         out[vid] = round(min(switched), 1) if switched else None
     return out
