@@ -131,7 +131,7 @@ class VehicleTelemetry:
     """The airframe's pitch limits (PARAM_VALUE of ``PITCH_LIMIT_PARAMS``), degrees."""
     pitch_min_deg: float | None = None
     params: tuple[ParamValue, ...] = ()
-    """The last PARAM_VALUE of each of ``AIRFRAME_PARAMS`` received, ordered by name."""
+    """The last PARAM_VALUE of each of ``KEPT_PARAMS`` received, ordered by name."""
     prearm_ok: bool | None = None
     """SYS_STATUS: ArduPilot's pre-arm checks pass (``MAV_SYS_STATUS_PREARM_CHECK`` healthy);
     None when the vehicle does not report the bit (or no SYS_STATUS yet)."""
@@ -154,7 +154,7 @@ class VehicleTelemetry:
         return None
 
     def param(self, name: str) -> ParamValue | None:
-        """The last PARAM_VALUE received for ``name`` (one of ``AIRFRAME_PARAMS``), if any."""
+        """The last PARAM_VALUE received for ``name`` (of ``KEPT_PARAMS``), if any."""
         for p in self.params:
             if p.name == name:
                 return p
@@ -365,6 +365,11 @@ AIRFRAME_PARAMS: tuple[str, ...] = (
 keeps, under the names of ArduPlane 4.5 on and of the versions before; see
 ``gcs_ppf.guidance.airframe`` for what each one limits."""
 
+SET_PARAMS: tuple[str, ...] = ("RTL_ALTITUDE", "FENCE_ENABLE", "FENCE_TYPE", "FENCE_ACTION")
+"""Parameters the service sets on a vehicle at a launch (the failsafe's RTL altitude, the
+fence): their PARAM_VALUE is kept too, so that the value set reads back."""
+KEPT_PARAMS = frozenset(AIRFRAME_PARAMS) | frozenset(SET_PARAMS)
+
 
 def _param_value(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:
     name = msg.param_id
@@ -372,7 +377,7 @@ def _param_value(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> di
         name = name.decode("ascii", "replace")
     name = str(name).rstrip("\x00")
     value = float(msg.param_value)
-    if name not in AIRFRAME_PARAMS or not math.isfinite(value):
+    if name not in KEPT_PARAMS or not math.isfinite(value):
         return {}
     kept = [p for p in tel.params if p.name != name]
     out: dict[str, Any] = {

@@ -11,7 +11,7 @@ import logging
 
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import VehicleState
-from gcs_ppf.service import commanding, confirmation, hold_flight, launch
+from gcs_ppf.service import commanding, confirmation, hold_flight, launch, vehicle_fences
 from gcs_ppf.service.fleet import planning_states
 from gcs_ppf.service.run import FINISHED, Run, RunState, summary
 from gcs_ppf.service.station import Station
@@ -84,6 +84,8 @@ async def hold(station: Station, run: Run, states: dict[int, VehicleState], stac
     mine = [o for o in plan.orders if o.vehicle_id not in taken]
     await _confirm(station, run, mine)
     station.event(run, "holds_loitering", None, vehicles=sorted({o.vehicle_id for o in mine}))
+    if run.fences_before:  # the vehicles' own fences back, beside the watch
+        station.spawn(vehicle_fences.take_down(station, run))
     await watch_after_end(station, run)
 
 

@@ -10,12 +10,13 @@ read ``by_id`` and call ``send``; ``telemetry_event`` wakes them when positions 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import logging
 import math
 import statistics
 import time
 from collections import deque
-from collections.abc import Callable, Coroutine
+from collections.abc import Callable, Coroutine, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -69,6 +70,10 @@ heartbeats, this many times (names an ArduPlane version does not have are never 
 Asked twice only, on a link losing 20 % of its packets a vehicle of five flew without its
 TECS limits (so by the planned vertical speed in param3, which ArduPlane barely climbs by)
 and its wingman stayed 1–2 km below its slot in Table 2's climb."""
+MISSION_REPLIES = frozenset(
+    {"MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK", "MISSION_COUNT", "MISSION_ITEM_INT"}
+)
+"""A vehicle's side of the mission protocol, handed to a transfer in progress."""
 UNMEASURED_HEARTBEAT_HZ = 10.0
 """Our heartbeats per second of ours while a vehicle's clock rate is not yet measured."""
 HEARTBEAT_POLL_S = 0.05
@@ -136,6 +141,7 @@ class Fleet:
         self._links: dict[int, LinkEntry] = {}
         self._next_link_id = 1
         self._decoded_gone_s = 0.0  # ``decoding_s`` of the links removed
+        self._inboxes: dict[int, asyncio.Queue[Any]] = {}  # ``mission_inbox``
         self.by_id: dict[int, Vehicle] = {}
         self.telemetry_event = asyncio.Event()
         self.telemetry_received_s = 0.0  # perf_counter of the latest position message
@@ -260,6 +266,22 @@ class Fleet:
         if msg.get_type() == "GLOBAL_POSITION_INT":
             self.telemetry_received_s = time.perf_counter()
             self.telemetry_event.set()
+        inbox = self._inboxes.get(sysid)
+        if inbox is not None and msg.get_type() in MISSION_REPLIES:
+            inbox.put_nowait(msg)
+
+    @contextlib.contextmanager
+    def mission_inbox(self, system_id: int) -> Iterator[asyncio.Queue[Any]]:
+        """The vehicle's mission-protocol messages (``MISSION_REPLIES``) while the block
+        runs: one transfer with a vehicle at a time (``service.mission_transfer``)."""
+        if system_id in self._inboxes:
+            raise Conflict(f"vehicle {system_id}: a mission transfer is in progress")
+        inbox: asyncio.Queue[Any] = asyncio.Queue()
+        self._inboxes[system_id] = inbox
+        try:
+            yield inbox
+        finally:
+            del self._inboxes[system_id]
 
     def _check_duplicate(self, vehicle: Vehicle, now: float) -> None:
         """Note (and log, when it starts and ends) a system id heard on more than one link

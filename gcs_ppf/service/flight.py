@@ -29,7 +29,7 @@ from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_H
 from gcs_ppf.planning import succession
 from gcs_ppf.planning.route import leg_flown
 from gcs_ppf.planning.scene import FloatArray, Obstacles, obstacles_from_mission
-from gcs_ppf.service import commanding, launch
+from gcs_ppf.service import commanding, launch, vehicle_fences
 from gcs_ppf.service.ending import end, hold_during_launch
 from gcs_ppf.service.fleet import planning_states
 from gcs_ppf.service.run import NOT_RESPONDING_S, Run, RunState, changes, min_of, slots
@@ -80,6 +80,8 @@ async def launch_fleet(station: Station, run: Run) -> None:
         await station.fleet.request_airframe_params(vid, missing_only=True)
     if station.settings.failsafe_rtl_altitude:  # beside the launch, not before it
         station.spawn(set_failsafe_altitudes(station, run, ids))
+    if station.settings.fences and run.mission.zones:
+        station.spawn(vehicle_fences.put_up(station, run, ids))
 
     def is_lost(vid: int) -> bool:
         vehicle = station.fleet.by_id.get(vid)

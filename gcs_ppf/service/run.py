@@ -15,6 +15,7 @@ from gcs_ppf.guidance import assurance, lag, obedience, safety_monitor, slew
 from gcs_ppf.guidance.formation_watch import FormationWatch
 from gcs_ppf.guidance.online import Guidance
 from gcs_ppf.guidance.speed_reference import SpeedPlan
+from gcs_ppf.mavlink.fences import FenceItem
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.route import Leg, legs
 from gcs_ppf.planning.zones import Zones, zones_from_mission
@@ -24,6 +25,17 @@ from gcs_ppf.service.tick_phases import TickPhases
 from gcs_ppf.service.tick_rate import TickRate
 
 NOT_RESPONDING_S = 3.0
+
+
+@dataclass(frozen=True)
+class SavedFence:
+    """A vehicle's fence before the run put up its own (``service.vehicle_fences``): its
+    list and FENCE_ENABLE, _TYPE, _ACTION as read (None: never read)."""
+
+    items: list[FenceItem]
+    params: dict[str, float | None]
+
+
 """Vehicle seconds out of GUIDED or refusing the course: not responding."""
 
 
@@ -121,6 +133,8 @@ class Run:
     """``Fleet.decoding_s`` at the last tick (the decoding since is the next tick's)."""
     tick_rate: TickRate | None = None
     """Whether the ticks keep their period (``service.tick_rate``), from the first tick."""
+    fences_before: dict[int, SavedFence] = field(default_factory=dict)
+    """The vehicles whose fence the run put up, and what they had (restored at the end)."""
     _zones: tuple[Mission, Zones] | None = field(default=None, repr=False)
 
     @property

@@ -90,6 +90,23 @@ class Settings(BaseSettings):
         "the mission, one holding level apart (guidance.failsafe): the altitude its own GCS "
         "failsafe flies home at if the service dies; false: leave the vehicles' own",
     )
+    fences: bool = Field(
+        default=True,
+        description="at each launch, upload the mission's zones as every vehicle's own fence "
+        "(verified, FENCE_ENABLE 1), and restore what it had after the run",
+    )
+    fence_action: int = Field(
+        default=1,
+        ge=0,
+        le=7,
+        description="FENCE_ACTION given with the fence: 1 RTL (ArduPlane's default), 0 report "
+        "only, 6 guided to the fence's return point",
+    )
+    fence_footprints: bool = Field(
+        default=False,
+        description="upload also the footprints of exclusion zones with a floor or a ceiling "
+        "(a fence has neither: the vehicle may not fly over or under them then)",
+    )
     vehicle_timeout_s: float = Field(
         default=5.0, gt=0.0, description="silence, in the vehicle's own seconds, that makes it lost"
     )
