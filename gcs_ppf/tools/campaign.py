@@ -31,7 +31,14 @@ from pymavlink import mavutil
 
 from gcs_ppf.mission import Mission
 from gcs_ppf.tools.campaign_crash import KINDS as CRASHES
-from gcs_ppf.tools.campaign_crash import ServiceProcess, crash, get_json, judge_crash, wait_for
+from gcs_ppf.tools.campaign_crash import (
+    ServiceProcess,
+    crash,
+    get_json,
+    judge_crash,
+    outside_m,
+    wait_for,
+)
 from gcs_ppf.tools.campaign_crash import moment_s as crash_moment_s
 from gcs_ppf.tools.campaign_tables import format_tables, progress_line, summarize
 from gcs_ppf.tools.observer import (
@@ -107,6 +114,13 @@ CONDITIONS: dict[str, Condition] = {
         FAILSAFE,
         event="crash_dead",
         expect="failsafe",
+    ),
+    "m": Condition(
+        "m",
+        "x10, the service killed and left dead, no GCS failsafe (the vehicles' fences)",
+        10.0,
+        event="crash_fenced",
+        expect="fenced",
     ),
 }
 
@@ -255,6 +269,9 @@ def fly_once(
     if cond.event in CRASHES:
         crashed_ok = judge_crash(rec, obs, event)
         _judge_down(rec, obs, mission, flight, after_s)
+        if mission.zones and event is not None:
+            tracks = tracks_enu(obs, mission)
+            rec["outside_zones_m"] = outside_m(mission, tracks, float(event["vehicle_s"]))
         rec["ok"] = (
             rec["state"] == cond.expect and crashed_ok and not rec.get("violations_commanded")
         )
@@ -347,7 +364,7 @@ def _fly(
             if cond.event in CRASHES:
                 ids = [v.id for v in mission.vehicles]
                 event = crash(cond.event, api, mid, service, obs, ids, status, cond.speedup)
-                if cond.event == "crash_dead":
+                if cond.event in ("crash_dead", "crash_fenced"):
                     break
             else:
                 event = _inject(cond.event, mission, ports, obs, status)

@@ -23,15 +23,18 @@ from typing import Any
 
 import httpx
 
+from gcs_ppf.mission import Mission, zone_clearance, zone_footprint
 from gcs_ppf.tools.observer import Observer
 
-KINDS = ("crash_resume", "crash_abort", "crash_dead")
+KINDS = ("crash_resume", "crash_abort", "crash_dead", "crash_fenced")
+LEFT_DEAD = ("crash_dead", "crash_fenced")
 MOMENT_S = (5.0, 60.0)
 """The mission times a run's kill is drawn from (its seed's): anywhere in the flight."""
 FS_LONG_TIMEOUT_S = 5.0  # ArduPlane's default, the SITL's too
 FAILSAFE_SLACK_S = 3.0  # the last heartbeat up to 1 s before the kill, and the SITL's step
 RTL_MODE = 11  # ArduPlane's custom_mode of RTL (the observer shares no code with the service)
 DEAD_WATCH_S = 20.0  # vehicle seconds watched after the kill when the service stays dead
+FENCED_WATCH_S = 60.0  # …and with no failsafe, until the vehicles reach their fences
 
 
 @dataclass
@@ -102,9 +105,10 @@ def crash(
         "vehicle_s": round(killed_v, 1),
         "events_before": len(before),
     }
-    if kind == "crash_dead":
-        wait_for(lambda: _latest_v(obs) >= killed_v + DEAD_WATCH_S, DEAD_WATCH_S / speedup * 4 + 30,
-               "vehicle time after the kill")  # fmt: skip
+    if kind in LEFT_DEAD:
+        watch = FENCED_WATCH_S if kind == "crash_fenced" else DEAD_WATCH_S
+        wait_for(lambda: _latest_v(obs) >= killed_v + watch, watch / speedup * 4 + 30,
+                 "vehicle time after the kill")  # fmt: skip
         return out
     service.start()
     wait_for(lambda: get_json(api, "/missions") is not None, 180, "the service started again")
@@ -140,6 +144,31 @@ def failsafe_delays_s(obs: Observer, killed_v: float) -> dict[int, float | None]
     return out
 
 
+def fence_breaches_s(obs: Observer, killed_v: float) -> dict[int, float | None]:
+    """Each vehicle's vehicle seconds from the kill to its first "Fence Breached" (None:
+    none)."""
+    out: dict[int, float | None] = {}
+    for vid, rec in obs.records.items():
+        hits = [tbm / 1000.0 - killed_v for tbm, text in rec.texts
+                if "Fence Breached" in text and tbm / 1000.0 >= killed_v]  # fmt: skip
+        out[vid] = round(min(hits), 1) if hits else None
+    return out
+
+
+def outside_m(mission: Mission, tracks: dict[int, Any], start_s: float) -> dict[int, float]:
+    """How far each vehicle went outside the mission's inclusion zones (or into its
+    exclusion ones) after ``start_s`` (vehicle s), by the observer's tracks; 0: never."""
+    shapes = [(z, zone_footprint(z, mission.origin)) for z in mission.zones]
+    out: dict[int, float] = {}
+    for vid, track in tracks.items():
+        worst = 0.0
+        for row in track[track[:, 0] >= start_s]:
+            for zone, footprint in shapes:
+                worst = max(worst, -zone_clearance(zone, footprint, row[1:4]))
+        out[vid] = round(worst, 1)
+    return out
+
+
 def judge_crash(rec: dict[str, Any], obs: Observer, event: dict[str, Any] | None) -> bool:
     """The crash's figures into ``rec``; True when it went as it should: the failsafe of
     every vehicle within FS_LONG_TIMEOUT (and the slack) of the kill, and after a restart
@@ -148,6 +177,13 @@ def judge_crash(rec: dict[str, Any], obs: Observer, event: dict[str, Any] | None
         return False
     delays = failsafe_delays_s(obs, float(event["vehicle_s"]))
     rec["failsafe_after_s"] = delays
+    if event["kind"] == "crash_fenced":  # RTL by the fence, not by a failsafe
+        breaches = fence_breaches_s(obs, float(event["vehicle_s"]))
+        rec["fence_breach_after_s"] = breaches
+        fenced = all(b is not None and d is not None and d >= b
+                     for b, d in zip(breaches.values(), delays.values(), strict=True))  # fmt: skip
+        rec["state"] = "fenced" if fenced else "not fenced"
+        return fenced
     if event["kind"] == "crash_dead":
         rec["state"] = "failsafe" if all(d is not None for d in delays.values()) else "no failsafe"
     in_time = all(d is not None and d <= FS_LONG_TIMEOUT_S + FAILSAFE_SLACK_S
