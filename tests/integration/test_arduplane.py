@@ -64,12 +64,15 @@ def fly_arduplane(
     formation: bool = True,
     extra_defaults: str = "",
     env_extra: dict[str, str] | None = None,
-) -> dict[str, Any]:
+    kill_after_s: float | None = None,
+) -> dict[Any, Any]:
     """Fly ``mission_path`` on real ArduPlane SITL and judge it (the run completed, safe
     distances kept, no ground hit; with ``formation`` also formed and held ``HELD_S``);
     the final status.  ``wait_prearm``: start once the observer sees every vehicle pre-arm
     healthy (otherwise the moment the service hears them all, after boot);
-    ``extra_defaults``: parameter lines added to plane.parm for every instance."""
+    ``extra_defaults``: parameter lines added to plane.parm for every instance;
+    ``kill_after_s``: the service killed (SIGKILL) this long (wall) after the run is
+    running, and what the vehicles do then returned (``fenced_after_kill``)."""
     doc = json.loads(mission_path.read_text())
     mission = Mission.model_validate(doc)
     lim, n = mission.limits, len(mission.vehicles)
@@ -97,7 +100,7 @@ def fly_arduplane(
     with process(launcher, launcher_log):
         wait_for(lambda: "ready" in launcher_log.read_text(), 60, f"the fleet ({launcher_log})")
         with (
-            process(serve, tmp_path / "gcs.log", env),
+            process(serve, tmp_path / "gcs.log", env) as serve_proc,
             Observer(observer_ports, sysid=OBSERVER_SYSID, request_streams=True) as obs,
         ):
             wait_for(lambda: _vehicle_count(api) == n, 60, "the service to see every vehicle")
@@ -118,6 +121,8 @@ def fly_arduplane(
                 t0_wall = time.time()  # the observer's arrival clock
                 r = client.post(f"/missions/{mid}/start")
                 assert r.status_code == 202, r.text
+            if kill_after_s is not None:
+                return fenced_after_kill(api, mid, serve_proc, obs, kill_after_s)
             final = wait_for(lambda: _finished(api, mid), wall_budget, "the run to end")
             if final["state"] == "failed":  # a start refused: nothing flew to judge
                 return dict(final)
@@ -238,6 +243,44 @@ def test_a_start_that_can_never_arm_fails_with_the_vehicle_s_reason(tmp_path: Pa
     assert "takeoff" not in kinds
 
 
+def fenced_after_kill(
+    api: str, mid: int, serve: Any, obs: Observer, kill_after_s: float
+) -> dict[Any, Any]:
+    """The run running for ``kill_after_s`` (wall), the service killed; then, by the
+    observer, each vehicle's first "Fence Breached" after the kill and its mode after it
+    (vehicle s since the kill)."""
+
+    def running() -> bool:
+        final = _finished(api, mid)
+        assert final is None, final
+        with httpx.Client(base_url=api, timeout=5) as client:
+            return bool(client.get(f"/missions/{mid}/status").json().get("state") == "running")
+
+    wait_for(running, 120, "the run running")
+    time.sleep(kill_after_s)
+    killed_ms = obs.latest_boot_ms()
+    serve.kill()
+    serve.wait()
+
+    def breach(vid: int) -> int | None:
+        hits = [b for b, t in obs.records[vid].texts
+                if "fence" in t.lower() and b >= killed_ms[vid]]  # fmt: skip
+        return hits[0] if hits else None
+
+    wait_for(lambda: all(breach(v) is not None for v in obs.records), 240, "every fence breach")
+    time.sleep(10 / SPEEDUP + 1)  # their mode changes are heard
+    out: dict[Any, Any] = {"state": "killed"}
+    for vid, rec in obs.records.items():
+        at = breach(vid)
+        assert at is not None
+        before = [m for b, m in rec.modes if b < at][-1:]  # the mode in effect, then changes
+        after = before + [m for b, m in rec.modes if b >= at]
+        texts = [t for b, t in rec.texts if b >= at][:3]
+        out[vid] = {"breach_after_s": (at - killed_ms[vid]) / 1000.0, "modes": after,
+                    "texts": texts}  # fmt: skip
+    return out
+
+
 def reformed_after_passage_s(
     mission: Mission, tracks: dict[int, np.ndarray], start_s: float, end_s: float
 ) -> float | None:
@@ -255,3 +298,48 @@ def reformed_after_passage_s(
     worst = np.max(np.stack(list(slot_distances(mission, tracks, t).values())), axis=0)
     again = np.flatnonzero(worst[passed:] <= mission.limits.target_accuracy)
     return None if again.size == 0 else float(again[0] * STEP_S)
+
+
+@pytest.mark.arduplane
+def test_the_zones_are_real_arduplane_s_fence_for_the_run(tmp_path: Path) -> None:
+    """``arduplane_3`` inside a stay-inside square 2.5 km round it: the service uploads it
+    as each ArduPlane's fence at the launch, reads it back as sent and enables it
+    (``fence_set``); the run completes with the fence up."""
+    doc = json.loads((EXAMPLES / "arduplane_3.json").read_text())
+    square = [[-2500.0, -2500.0], [2500.0, -2500.0], [2500.0, 5500.0], [-2500.0, 5500.0]]
+    doc["zones"] = [{"kind": "polygon", "name": "operation area", "inclusion": True,
+                     "vertices": square}]  # fmt: skip
+    path = tmp_path / "arduplane_3_fenced.json"
+    path.write_text(json.dumps(doc))
+    final = fly_arduplane(tmp_path, path, formation=False)
+    store = Store(tmp_path / "gcs.db")
+    events = store.events(store.runs()[0].id)
+    fenced = {e.vehicle_id: e.detail for e in events if e.kind == "fence_set"}
+    failed = [(e.vehicle_id, e.detail) for e in events if e.kind == "fence_failed"]
+    restored = sorted(e.vehicle_id or 0 for e in events if e.kind == "fence_restored")
+    print(f"fences on ArduPlane: set {fenced}, failed {failed}, restored {restored}")
+    assert final["state"] == "completed"
+    assert failed == []
+    assert set(fenced) == {1, 2, 3}
+    for detail in fenced.values():
+        assert detail is not None
+        assert detail["verified"]
+        assert detail["fence_enable"] == 1
+        assert int(detail["fence_type"]) & 4
+
+
+@pytest.mark.arduplane
+def test_with_the_service_dead_real_arduplane_s_own_fence_turns_it_home(tmp_path: Path) -> None:
+    """The same fenced mission, the service killed 20 s (wall, ×5) into the run and left
+    dead (no GCS failsafe: plane.parm's FS_GCS_ENABL 0): each ArduPlane flies on its last
+    GUIDED course until its own fence, then reports the breach and turns home in RTL."""
+    doc = json.loads((EXAMPLES / "arduplane_3.json").read_text())
+    square = [[-1500.0, -1500.0], [1500.0, -1500.0], [1500.0, 4500.0], [-1500.0, 4500.0]]
+    doc["zones"] = [{"kind": "polygon", "name": "operation area", "inclusion": True,
+                     "vertices": square}]  # fmt: skip
+    path = tmp_path / "arduplane_3_fenced.json"
+    path.write_text(json.dumps(doc))
+    seen = fly_arduplane(tmp_path, path, formation=False, kill_after_s=20.0)
+    print(f"the service killed; each vehicle then: {seen}")
+    for vid in (1, 2, 3):
+        assert seen[vid]["modes"][-1] == 11, seen[vid]  # RTL, by its own fence
