@@ -12,11 +12,14 @@ final (``TransferFailed`` with the vehicle's MAV_MISSION_RESULT).
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import time
+from collections.abc import Iterator
 from typing import Any
 
 from gcs_ppf.mavlink import fences
 from gcs_ppf.mavlink.fences import FenceItem
+from gcs_ppf.service.errors import Conflict
 from gcs_ppf.service.fleet import Fleet
 
 ITEM_TIMEOUT_S = 1.5
@@ -42,6 +45,16 @@ async def _next(
     return None
 
 
+@contextlib.contextmanager
+def _inbox(fleet: Fleet, vid: int) -> Iterator[asyncio.Queue[Any]]:
+    """``Fleet.mission_inbox``; another transfer in progress is a ``TransferFailed``."""
+    try:
+        with fleet.mission_inbox(vid) as inbox:
+            yield inbox
+    except Conflict as exc:
+        raise TransferFailed(str(exc)) from None
+
+
 def _timeout_s(fleet: Fleet) -> float:
     return ITEM_TIMEOUT_S / fleet.clock_rate()
 
@@ -51,7 +64,7 @@ async def upload(fleet: Fleet, vid: int, items: list[FenceItem]) -> None:
     by sending again what the vehicle last had from us: the count, or the item it last
     asked for (a lost request, a lost item), ``ATTEMPTS`` times in a row at most."""
     kind = fences.MISSION_TYPE_FENCE
-    with fleet.mission_inbox(vid) as inbox:
+    with _inbox(fleet, vid) as inbox:
         last: Any = fences.count(vid, len(items))
         await fleet.send(vid, last)
         silences = 0
@@ -78,7 +91,7 @@ async def upload(fleet: Fleet, vid: int, items: list[FenceItem]) -> None:
 async def download(fleet: Fleet, vid: int) -> list[FenceItem]:
     """The vehicle's fence list as it holds it."""
     kind = fences.MISSION_TYPE_FENCE
-    with fleet.mission_inbox(vid) as inbox:
+    with _inbox(fleet, vid) as inbox:
         count = None
         for _ in range(ATTEMPTS):
             await fleet.send(vid, fences.request_list(vid))

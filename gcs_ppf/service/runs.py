@@ -26,7 +26,7 @@ from typing import Any
 
 from gcs_ppf.guidance import start_check
 from gcs_ppf.mission import CylinderZone, Mission, Obstacle, PolygonZone
-from gcs_ppf.service import commanding, ending, flight, resumption
+from gcs_ppf.service import commanding, ending, flight, resumption, vehicle_fences
 from gcs_ppf.service.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.service.fleet import Fleet
 from gcs_ppf.service.kernels import load_kernels
@@ -171,7 +171,9 @@ class FormationService:
 
     def add_zones(self, mission_id: int, zones: list[CylinderZone | PolygonZone]) -> StoredMission:
         """Zones added to the mission's; a running mission keeps out of them from its next
-        tick on.  A set that does not fit the mission (a start inside one) adds none."""
+        tick on, and its vehicles' fences are put up again with them
+        (``vehicle_fences.put_up``).  A set that does not fit the mission (a start inside
+        one) adds none."""
         kept = [z.model_dump() for z in self.mission(mission_id).mission.zones]
         return self._revise(mission_id, zones=[*kept, *(z.model_dump() for z in zones)])
 
@@ -186,7 +188,15 @@ class FormationService:
             raise ServiceError(str(exc)) from None
         run = self._runs.get(mission_id)
         if run is not None and run.state not in FINISHED:
-            run.mission = mission
+            # the run's own document changed the same way: its leader and slots may not be
+            # the uploaded ones any more (``leader_succeeded``)
+            flown = run.mission.model_dump()
+            flown.update(fields)
+            run.mission = Mission.model_validate(flown)
+            run.orders = dataclasses.replace(run.orders, mission=run.mission)
+            if "zones" in fields and self.settings.fences and run.state == RunState.RUNNING:
+                ids = [v.id for v in run.mission.vehicles if v.id not in run.lost_ids]
+                self._spawn(vehicle_fences.put_up(self._station, run, ids))
         return self.store.replace_mission(mission_id, mission)
 
     # Runs --------------------------------------------------------------------------------

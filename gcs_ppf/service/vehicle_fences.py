@@ -5,8 +5,10 @@ or to leave a stay-inside one.
 At the launch, for each vehicle at once: its fence list as it was (downloaded), the zones'
 fence items (``gcs_ppf.mavlink.fences``) uploaded and downloaded again to verify, then
 FENCE_TYPE with its polygon bit, FENCE_ACTION as the settings say and FENCE_ENABLE 1, each
-read back (``fence_set``, or ``fence_failed`` with why).  When the run's holds are handed
-over, the list it had goes back and the three parameters with it (``fence_restored``).
+read back (``fence_set``, or ``fence_failed`` with why); again when zones are added mid-run
+(``FormationService.add_zones``), keeping what the vehicle had before the run.  When the
+run's holds are handed over, the list it had goes back and the three parameters with it
+(``fence_restored``).  Nothing here may take the service down: a failure is an event.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
+from typing import Any
 
 from gcs_ppf.mavlink import commands, fences
 from gcs_ppf.service import launch, mission_transfer
@@ -35,7 +38,21 @@ async def put_up(station: Station, run: Run, ids: list[int]) -> None:
         station.event(run, "fence_zones_left_out", None, zones=left_out)
     if not items:
         return
-    await asyncio.gather(*(_put_up_one(station, run, vid, items) for vid in ids))
+    await asyncio.gather(*(_guarded(station, run, vid, _put_up_one(station, run, vid, items))
+                           for vid in ids))  # fmt: skip
+
+
+async def _guarded(station: Station, run: Run, vid: int, work: Any) -> None:
+    """``work`` awaited; any failure an event (``fence_failed``), never the service's end."""
+    try:
+        await work
+    except asyncio.CancelledError:
+        raise
+    except mission_transfer.TransferFailed as exc:
+        station.event(run, "fence_failed", vid, reason=str(exc))
+    except Exception as exc:
+        log.exception("mission %d: the fence of vehicle %d", run.mission_id, vid)
+        station.event(run, "fence_failed", vid, reason=f"error: {exc}")
 
 
 FENCE_PARAMS = ("FENCE_ENABLE", "FENCE_TYPE", "FENCE_ACTION")
@@ -84,7 +101,9 @@ async def _put_up_one(station: Station, run: Run, vid: int, items: list[fences.F
         station.event(run, "fence_failed", vid, reason=uploaded)
         return
     was = await _read(station, vid, FENCE_PARAMS)
-    run.fences_before[vid] = SavedFence(before, was)
+    # put up again (zones added mid-run): what the vehicle had before the run is kept
+    run.fences_before.setdefault(vid, SavedFence(before, was))
+    was = {**was, **run.fences_before[vid].params}
     fence_type = int(was["FENCE_TYPE"] or 0) | POLYGON_TYPE
     set_type = await _param(station, run, vid, "FENCE_TYPE", fence_type)
     set_action = await _param(station, run, vid, "FENCE_ACTION", settings.fence_action)
@@ -120,4 +139,4 @@ async def take_down(station: Station, run: Run) -> None:
 
     saved = dict(run.fences_before)
     run.fences_before.clear()
-    await asyncio.gather(*(one(vid, s) for vid, s in saved.items()))
+    await asyncio.gather(*(_guarded(station, run, vid, one(vid, s)) for vid, s in saved.items()))

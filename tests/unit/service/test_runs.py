@@ -360,3 +360,37 @@ def test_a_start_far_from_the_plan_is_refused_unless_asked_from_where_they_are(
             service.fleet.by_id.clear()
 
     asyncio.run(scenario())
+
+
+def test_obstacles_replaced_mid_run_keep_the_run_s_own_leader(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """After a leader succession the run flies a document of its own (wingman 2 leading);
+    ``PUT …/obstacles`` changed the run's document back to the uploaded one, leader and
+    all. Now only the obstacles change in it."""
+    from gcs_ppf.planning import succession
+
+    monkeypatch.setattr(runs, "load_kernels", lambda planner_dt_s: None)
+
+    async def launch_fleet(station: object, run: Run) -> None:
+        return None
+
+    monkeypatch.setattr(flight, "launch_fleet", launch_fleet)
+    mission = Mission.model_validate_json((EXAMPLES / "paper_table3.json").read_text())
+
+    async def scenario() -> None:
+        service = recording(tmp_path, monkeypatch, [])
+        async with service.running():
+            report_flying(service, mission)
+            mid = service.create_mission(mission).id
+            await service.start(mid)
+            run = service._runs[mid]
+            run.mission = succession.led_by(run.mission, run.mission.vehicles[1])
+            service.replace_obstacles(mid, mission.obstacles[:1])
+            assert run.mission.leader.id == 2
+            assert len(run.mission.obstacles) == 1
+            assert run.orders.mission is run.mission
+            assert service.mission(mid).mission.leader.id == 1  # the uploaded one
+            service.fleet.by_id.clear()
+
+    asyncio.run(scenario())
