@@ -1,7 +1,7 @@
-"""The mission's zones as the vehicles' own fences (issue 27 item 3) on loopback: the
-service uploads them at the launch and verifies them, a third party (pymavlink on the
-vehicle's own port) reads back what was sent, and after the run the vehicles' own lists
-(here: none) are back."""
+"""The mission's zones as the vehicles' own fences (issue 27 items 3 and 4) on loopback:
+the service uploads them at the launch and verifies them, a third party (pymavlink on the
+vehicle's own port) reads back what was sent, a zone added mid-run goes up too, and after
+the run the vehicles' own lists (here: none) are back."""
 
 from __future__ import annotations
 
@@ -67,6 +67,17 @@ def test_the_zones_are_each_vehicle_s_fence_for_the_run(tmp_path: Path) -> None:
                  "every vehicle's fence")  # fmt: skip
         seen["set"] = kinds(api, mid, "fence_set")
         seen["read"] = {v: read_fence(p, v) for v, p in ports(api).items()}
+        # a no-fly circle added mid-run (GeoJSON, ~6.7 km south-west of the origin)
+        added = {"type": "FeatureCollection", "features": [{"type": "Feature",
+                 "properties": {"name": "added", "radius": 300.0},
+                 "geometry": {"type": "Point", "coordinates": [8.50, 47.35]}}]}  # fmt: skip
+        status, _ = http("POST", f"{api}/missions/{mid}/zones", added)
+        assert status == 200
+        wait_for(lambda: len(kinds(api, mid, "fence_set")) == 2 * len(mission.vehicles), 30,
+                 "every vehicle's fence put up again")  # fmt: skip
+        _, revised = http("GET", f"{api}/missions/{mid}")
+        seen["sent_again"], _ = fence_items(Mission.model_validate(revised["mission"]))
+        seen["read_again"] = {v: read_fence(p, v) for v, p in ports(api).items()}
 
     def after(api: str, mid: int) -> None:
         wait_for(lambda: len(kinds(api, mid, "fence_restored")) == len(mission.vehicles), 60,
@@ -80,6 +91,8 @@ def test_the_zones_are_each_vehicle_s_fence_for_the_run(tmp_path: Path) -> None:
     assert all(e["detail"]["verified"] and e["detail"]["fence_enable"] == 1 for e in seen["set"])
     assert all(int(e["detail"]["fence_type"]) & 4 for e in seen["set"])  # polygons, circles
     assert seen["read"] == {v.id: sent for v in mission.vehicles}  # read back as sent
+    assert len(seen["sent_again"]) == len(sent) + 1
+    assert seen["read_again"] == {v.id: seen["sent_again"] for v in mission.vehicles}
     assert seen["after"] == {v.id: [] for v in mission.vehicles}  # they had none before
     print(f"\n{len(sent)} fence items on each of {len(mission.vehicles)} vehicles, read back "
           "by a third party as sent; cleared after the run")  # fmt: skip
