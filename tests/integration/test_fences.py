@@ -1,7 +1,7 @@
 """The mission's zones as the vehicles' own fences (issue 27 items 3 and 4) on loopback:
 the service uploads them at the launch and verifies them, a third party (pymavlink on the
 vehicle's own port) reads back what was sent, a zone added mid-run goes up too, and after
-the run the vehicles' own lists (here: none) are back."""
+the run the vehicles' own lists (here: none) are back.  ``make campaign-check``."""
 
 from __future__ import annotations
 
@@ -52,6 +52,7 @@ def kinds(api: str, mid: int, kind: str) -> list[dict[str, Any]]:
 
 
 @pytest.mark.integration
+@pytest.mark.campaign
 def test_the_zones_are_each_vehicle_s_fence_for_the_run(tmp_path: Path) -> None:
     doc = json.loads(MISSION.read_text())
     mission = Mission.model_validate(doc)

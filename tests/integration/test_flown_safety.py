@@ -87,11 +87,19 @@ def test_a_leader_that_stops_obeying_hands_the_lead_on(tmp_path: Path) -> None:
     (``why`` ``not_responding``) for wingman 2, which leads the formation to the target;
     the old leader, flying on by itself, is avoided as traffic (separation kept)."""
     flight = fly(tmp_path, json.loads(MISSION.read_text()), sitl_extra=["--fault", "1:ignore=50"])
-    assert flight.final["state"] == "completed", flight.final
-    assert flight.final["leader_id"] == 2
     store = Store(tmp_path / "gcs.db")
     run = store.runs(flight.mission_id)[0]
     events = store.events(run.id)
+    # From 50 s the old leader flies its own last course: whether that clips a sphere is not
+    # the service's to keep (campaign (d) judges a stuck wingman so); a run it made unsafe
+    # says so, and only it may have (it came 0.0 m into the dome's keep-out once in make
+    # test, 32.5 m clear before).
+    unsafe = [e for e in events if e.kind == "safety_violation"]
+    assert all(e.vehicle_id == 1 and e.detail and e.detail["keep_out"] == "obstacle"
+               for e in unsafe), unsafe  # fmt: skip
+    expected = "completed_unsafe" if unsafe else "completed"
+    assert flight.final["state"] == expected, flight.final
+    assert flight.final["leader_id"] == 2
     kinds = [(e.kind, e.vehicle_id) for e in events]
     assert kinds.index(("vehicle_not_responding", 1)) < kinds.index(("leader_succeeded", 2))
     handed = next(e for e in events if e.kind == "leader_succeeded")
@@ -99,7 +107,12 @@ def test_a_leader_that_stops_obeying_hands_the_lead_on(tmp_path: Path) -> None:
     assert handed.detail["why"] == "not_responding"
     led = succession.succeed(flight.mission, {1})
     assert led is not None
-    _, separation, clearance = check_safety(replace(flight, mission=led))
+    _, separation, clearance = check_safety(replace(flight, mission=led), exclude=[1])
+    stuck = flight.tracks[1]  # avoided as traffic: every other vehicle kept apart from it
+    for vid, track in flight.tracks.items():
+        if vid != 1:
+            others = resample({vid: track}, stuck[:, 0])[:, 0]
+            assert np.linalg.norm(others - stuck[:, 1:4], axis=1).min() >= 50.0
     t = flight.final["mission_time_s"]
     print(f"\nthe leader stopped obeying; wingman 2 led from {handed.mission_time_s} s, "
           f"completed at {t:.1f} s, separation {separation:.1f} m, "
