@@ -280,7 +280,7 @@ def hand_over(station: Station, run: Run, why: str) -> bool:
     run.last = None
     run.speed_plan = None
     run.formation_held = False
-    run.leader_pos = None
+    run.leader_pos = run.leader_fix_ms = None
     now_v = vehicle_time_s(station, run)  # the new leader's clock (``tick_loop`` follows it)
     station.event(
         run,
@@ -397,11 +397,7 @@ async def tick(station: Station, run: Run) -> bool:
             run.min_clearance_m, clearance(positions, obstacles, run.zones)
         )
 
-        leader_pos = np.array(reported[leader_id])
-        previous, run.leader_pos = run.leader_pos, leader_pos
-        follow_route(station, run, previous, leader_pos)
-        leg = run.legs[run.leg]  # the target's leg: reached within the target accuracy
-        reached = leg.final and leg_flown(leg, previous, leader_pos)
+        reached = leader_flown(station, run, np.array(reported[leader_id]))
     if reached:
         end(station, run, RunState.COMPLETED, "leader reached the target", states)
         return True
@@ -426,6 +422,22 @@ async def tick(station: Station, run: Run) -> bool:
         obstacles = obedience.with_obstacles(obstacles, traffic)
     await plan_and_command(station, run, airframes, states, active, obstacles, ground)
     return False
+
+
+def leader_flown(station: Station, run: Run, leader_pos: FloatArray) -> bool:
+    """Whether the leader has reached the target, along every position it reported since the
+    last tick (``Station.path_since``) to ``leader_pos``, its latest; the route's legs it
+    flew on the way are followed (``follow_route``)."""
+    path, run.leader_fix_ms = station.path_since(
+        run.mission, run.mission.leader.id, run.leader_fix_ms
+    )
+    reached = False
+    for position in [*path[:-1], leader_pos]:
+        previous, run.leader_pos = run.leader_pos, position
+        follow_route(station, run, previous, position)
+        leg = run.legs[run.leg]  # the target's leg: reached within the target accuracy
+        reached = reached or (leg.final and leg_flown(leg, previous, position))
+    return reached
 
 
 def follow_route(

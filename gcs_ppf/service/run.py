@@ -114,6 +114,8 @@ class Run:
     sent_courses: dict[int, deque[tuple[float, float]]] = field(default_factory=dict)
     """The courses (mission time, ICS yaw in rad) each vehicle was sent lately."""
     leader_pos: Any = None  # ICS position at the last tick
+    leader_fix_ms: int | None = None
+    """Vehicle time of the leader's newest position judged (``Station.path_since``)."""
     tick_latency_s: deque[float] = field(default_factory=lambda: deque(maxlen=10_000))
     tick_gaps_s: deque[float] = field(default_factory=lambda: deque(maxlen=RECENT_GAPS))
     """Vehicle seconds between the latest ticks: how long a command may have to hold."""

@@ -19,6 +19,7 @@ import numpy as np
 
 from gcs_ppf.geodesy import geodetic_to_enu_many
 from gcs_ppf.mission import Mission
+from gcs_ppf.planning.scene import FloatArray
 from gcs_ppf.service.confirmation import EventSink
 from gcs_ppf.service.fleet import Fleet, Vehicle
 from gcs_ppf.service.run import Run
@@ -88,6 +89,23 @@ class Station:
         enu = geodetic_to_enu_many(np.array([g for _, g in found]), mission.origin)
         for (vehicle, _), (e, n, u) in zip(found, enu.tolist(), strict=True):
             yield vehicle, (e, n, u)
+
+    def path_since(
+        self, mission: Mission, vehicle_id: int, since_ms: int | None
+    ) -> tuple[FloatArray, int | None]:
+        """The vehicle's reported positions (ICS, [K,3], oldest first) newer than vehicle
+        time ``since_ms`` (None: its latest only), and the newest one's time.  A tick late
+        under load sees several at once; the chord from the last tick's to the latest cuts
+        inside a turn (at ×10, a second of flight between ticks)."""
+        vehicle = self.fleet.by_id.get(vehicle_id)
+        fixes = () if vehicle is None else vehicle.telemetry.recent_fixes
+        newer = [f for f in fixes if since_ms is None or f.boot_ms > since_ms]
+        if since_ms is None or not newer:  # first look, or a clock gone back: the latest
+            newer = list(fixes[-1:])
+        if not newer:
+            return np.zeros((0, 3)), since_ms
+        geodetic = np.array([(f.lat_deg, f.lon_deg, f.alt_amsl_m) for f in newer])
+        return geodetic_to_enu_many(geodetic, mission.origin), newer[-1].boot_ms
 
     def fleet_time_s(self) -> float | None:
         """The latest vehicle time any vehicle still heard has reported (seconds)."""
