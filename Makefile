@@ -15,7 +15,7 @@ LOCK   := requirements-lock.txt
 UV_VERSION   := 0.13.9
 LOCK_UPGRADE ?= --upgrade
 
-.PHONY: install run plan sitl test lint bench sitl-bench clean lock chromium web-bench compose-check campaign-check
+.PHONY: install run plan sitl test lint bench sitl-bench clean lock chromium socat web-bench compose-check campaign-check
 
 # Exactly the locked set (pip refuses anything unpinned or with another hash), then gcs-ppf
 # itself on top, editable, without dependencies, built by the locked setuptools; pip check
@@ -34,7 +34,7 @@ $(KERNELS): $(STAMP) $(SOURCES)
 	$(PY) -m gcs_ppf.service.kernels
 	touch $(KERNELS)
 
-install: $(STAMP) $(KERNELS) chromium
+install: $(STAMP) $(KERNELS) chromium socat
 
 # Debian's chromium and chromium-driver for the operator's page tests (tests/web, skipped
 # without them), with apt-get when either is missing (root, or sudo); otherwise nothing.
@@ -45,6 +45,17 @@ chromium:
 	    DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq chromium chromium-driver >/dev/null; \
 	  then echo "installed chromium and chromium-driver"; \
 	  else echo "chromium not installed: the browser tests (tests/web) will be skipped"; fi; \
+	fi
+
+# Debian's socat for the serial-radio tests (pseudo-terminal pairs; tests/integration/
+# test_serial.py, skipped without it), the same way.
+socat:
+	@if ! command -v socat >/dev/null; then \
+	  SUDO=$$([ "$$(id -u)" = 0 ] || echo sudo); \
+	  if command -v apt-get >/dev/null && $$SUDO apt-get update -qq && \
+	    DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq socat >/dev/null; \
+	  then echo "installed socat"; \
+	  else echo "socat not installed: the serial link tests will be skipped"; fi; \
 	fi
 
 # uv resolves (into the venv with pip, pinned); installing from the lock needs only pip.

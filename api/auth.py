@@ -14,6 +14,7 @@ dependencies (``HTTPBearer``, ``SecurityScopes``), and where links may go.
 
 from __future__ import annotations
 
+import fnmatch
 import ipaddress
 from dataclasses import dataclass
 from typing import Annotated
@@ -173,7 +174,13 @@ def check_exposure(settings: Settings, keyring: Keyring) -> None:
 
 def link_allowed(host: str, allow: list[str]) -> bool:
     """May ``POST /links`` connect to (or listen on) ``host``: loopback, a name or address
-    of ``allow`` (case-insensitive, not resolved), or an address in one of its networks."""
+    of ``allow`` (case-insensitive, not resolved), or an address in one of its networks;
+    a serial device (a path) only if ``allow`` names it or a pattern of it matches
+    (``/dev/ttyUSB*``): the service would open whatever device it is told."""
+    if host.startswith("/"):
+        return any(
+            entry.startswith("/dev/") and fnmatch.fnmatchcase(host, entry) for entry in allow
+        )
     if is_loopback(host):
         return True
     host = host.strip("[]").lower()

@@ -17,13 +17,20 @@ router = APIRouter(responses=AUTH_ERRORS)
 
 @router.post("/links", status_code=status.HTTP_201_CREATED, responses=ERRORS, dependencies=COMMANDS)
 async def add_link(body: LinkRequest, service: Service) -> dict[str, Any]:
-    """A link to a loopback address, or to a host or network of the settings' ``link_allow``
-    (403 otherwise: the service would connect wherever it is told)."""
+    """A link to a loopback address, to a host or network of the settings' ``link_allow``,
+    or to a serial device it names (403 otherwise: the service would connect wherever it is
+    told, and open whatever device)."""
     try:
         host = parse_link_url(body.url).host
-    except (ValueError, NotImplementedError):
+    except ValueError:
         host = None  # the service names what is wrong with the URL
     if host is not None and not link_allowed(host, service.settings.link_allow):
+        if host.startswith("/"):
+            raise Forbidden(
+                f"url: serial device {host} is not in the service's link_allow "
+                "(GCS_PPF_LINK_ALLOW='[\"/dev/ttyUSB*\"]')",
+                {"host": host},
+            )
         raise Forbidden(
             f"url: {host} is neither loopback nor in the service's link_allow "
             '(GCS_PPF_LINK_ALLOW=\'["HOST", "10.0.0.0/24"]\')',

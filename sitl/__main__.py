@@ -16,7 +16,7 @@ from gcs_ppf.mission import MissionError, load_mission_file
 from sitl.airframe import AIRFRAMES
 from sitl.engine import Simulation, parse_param_override
 from sitl.faults import parse_fault
-from sitl.server import ServerConfig, check_speedup, serve, signing_key
+from sitl.server import ServerConfig, check_speedup, parse_serial, serve, signing_key
 
 
 def parse_udp(text: str) -> tuple[str, int]:
@@ -81,6 +81,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="vehicles start on the ground at their start positions, disarmed (take off in "
         "TAKEOFF mode), instead of in the air at their start state",
     )
+    p.add_argument(
+        "--serial",
+        action="append",
+        default=[],
+        metavar="DEVICE[:BAUD]",
+        help="also serve on a serial device (57600 baud unless given): once per vehicle, in "
+        "order, or once for every vehicle on one line (repeatable)",
+    )
     p.add_argument("--duration", type=float, default=None, help="stop after this many sim seconds")
     return p
 
@@ -128,6 +136,12 @@ def main(argv: list[str] | None = None) -> int:
         params = [parse_param_override(t) for t in args.param]
         faults = [parse_fault(t) for t in args.fault]
         key = _signing_key(args)
+        serial = tuple(parse_serial(t) for t in args.serial)
+        if len(serial) > 1 and len(serial) != len(mission.vehicles):
+            raise ValueError(
+                f"--serial: {len(serial)} devices for {len(mission.vehicles)} vehicles; give "
+                "one per vehicle, or one for all"
+            )
         if not 1 <= args.base_port <= 65535 - 10 * (len(mission.vehicles) - 1):
             raise ValueError("--base-port: ports out of range for this many vehicles")
         sim = Simulation(
@@ -151,6 +165,7 @@ def main(argv: list[str] | None = None) -> int:
         signing_key=key,
         tlog_dir=args.tlog,
         duration_s=args.duration,
+        serial=serial,
     )
 
     def ready(line: str) -> None:

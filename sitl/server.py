@@ -3,6 +3,10 @@
 Per vehicle i a TCP server on 127.0.0.1:base_port + 10·i accepts any number of clients; all
 of them receive the telemetry stream, replies go to the client that asked. With ``--out``
 each vehicle also has a UDP socket that streams to that address and accepts commands from it.
+With ``--serial`` a vehicle is also on a serial device (a pseudo-terminal standing in for a
+telemetry radio), or every vehicle on one, as one radio carries a fleet: each vehicle reads
+every frame on the line and takes what is addressed to it; a device that goes away is
+opened again.
 Every client has its own pymavlink codec (``MAVLink(None, sysid, 1)``): ``parse_buffer`` in,
 ``pack`` out. Nothing here decides what a vehicle does; ``sitl.engine`` does.
 """
@@ -23,6 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
 
+import serial_asyncio_fast
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from gcs_ppf.mavlink.codec import guard_stream_timestamps, signing_key_from_text
@@ -290,6 +295,83 @@ class _UdpOut(asyncio.DatagramProtocol):
         pass
 
 
+class _SerialLine(asyncio.Protocol):
+    """One serial device carrying one or more vehicles (their links)."""
+
+    def __init__(self, links: list[VehicleLink], label: str) -> None:
+        self.links = links
+        self.label = label
+        self.peers: list[Peer] = []
+        self.lost: asyncio.Future[None] = asyncio.get_event_loop().create_future()
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        assert isinstance(transport, asyncio.Transport)
+        self.transport = transport
+        for link in self.links:
+            peer = Peer(link, self._write, self.label)
+            peer.buffered = transport.get_write_buffer_size
+            peer.close = transport.close
+            link.peers.append(peer)
+            self.peers.append(peer)
+
+    def _write(self, data: bytes) -> None:
+        if not self.transport.is_closing():
+            self.transport.write(data)
+
+    def data_received(self, data: bytes) -> None:
+        for peer in self.peers:
+            peer.link.receive(peer, data)
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        for peer in self.peers:
+            if peer in peer.link.peers:
+                peer.link.peers.remove(peer)
+        if not self.lost.done():
+            self.lost.set_result(None)
+
+
+SERIAL_RETRY_S = 0.5
+"""Wall seconds between attempts to open a serial device that is not there (yet)."""
+
+
+async def serve_serial(links: list[VehicleLink], device: str, baud: int) -> None:
+    """Keep ``links``' vehicles on ``device`` at ``baud``: open it, serve it until it goes
+    away (a radio unplugged, a pseudo-terminal closed), open it again; until cancelled."""
+    loop = asyncio.get_running_loop()
+    said = False
+    while True:
+        line = _SerialLine(links, f"serial:{device}")
+        try:
+            transport, _ = await serial_asyncio_fast.create_serial_connection(
+                loop, functools.partial(_same, line), device, baudrate=baud
+            )
+        except OSError as exc:  # serial.SerialException is one
+            if not said:
+                print(f"sitl: {device}: {exc}; trying again", file=sys.stderr)
+                said = True
+            await asyncio.sleep(SERIAL_RETRY_S)
+            continue
+        said = False
+        try:
+            await line.lost
+        finally:
+            transport.close()
+        await asyncio.sleep(SERIAL_RETRY_S)
+
+
+def _same(line: _SerialLine) -> _SerialLine:
+    return line
+
+
+def parse_serial(text: str) -> tuple[str, int]:
+    """``DEVICE`` or ``DEVICE:BAUD`` (also ``DEVICE,BAUD``) → (device, baud; 57600 when
+    not given, a SiK radio's)."""
+    device, _, baud = text.replace(",", ":").partition(":")
+    if not device or (baud and (not baud.isdigit() or int(baud) <= 0)):
+        raise ValueError(f"--serial: expected DEVICE[:BAUD], got {text!r}")
+    return device, int(baud) if baud else 57600
+
+
 @dataclass(frozen=True, slots=True)
 class ServerConfig:
     base_port: int = 5760
@@ -300,6 +382,8 @@ class ServerConfig:
     tlog_dir: Path | None = None
     host: str = "127.0.0.1"
     duration_s: float | None = None  # stop after this much simulated time (tests, benchmarks)
+    serial: tuple[tuple[str, int], ...] = ()
+    """(device, baud): one per vehicle in order, or one for every vehicle."""
 
 
 async def pace(
@@ -360,18 +444,40 @@ async def serve(
                 )
                 stack.callback(transport.close)
             ready(f"vehicle {ap.sysid}: tcp:{cfg.host}:{port}")
+        lines = serial_lines(links, cfg.serial)
+        serials = [asyncio.create_task(serve_serial(on, dev, baud)) for dev, baud, on in lines]
+        for device, baud, on in lines:
+            ids = ", ".join(str(link.sysid) for link in on)
+            ready(f"vehicle{'s' if len(on) > 1 else ''} {ids}: serial:{device}:{baud}")
         ready(f"sitl ready: {len(links)} vehicles, speedup {cfg.speedup:g}")
         clock = asyncio.create_task(pace(sim, links, cfg.speedup, stop, cfg.duration_s))
         try:
             await stop.wait()
         finally:
             stop.set()
-            clock.cancel()
-            with contextlib.suppress(asyncio.CancelledError):
-                await clock
+            for task in (clock, *serials):
+                task.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await task
             for link in links:
                 for peer in list(link.peers):
                     peer.close()
+
+
+def serial_lines(
+    links: list[VehicleLink], serial: tuple[tuple[str, int], ...]
+) -> list[tuple[str, int, list[VehicleLink]]]:
+    """Which vehicles go on which device: one device each, or all on the one given."""
+    if not serial:
+        return []
+    if len(serial) == 1:
+        return [(serial[0][0], serial[0][1], list(links))]
+    if len(serial) != len(links):
+        raise ValueError(
+            f"--serial: {len(serial)} devices for {len(links)} vehicles; give one per "
+            "vehicle, or one for all"
+        )
+    return [(dev, baud, [link]) for (dev, baud), link in zip(serial, links, strict=True)]
 
 
 async def _close_server(server: asyncio.Server) -> None:

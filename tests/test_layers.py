@@ -22,7 +22,8 @@ IO = frozenset(
         "httpx", "requests", "fastapi", "starlette", "uvicorn", "pymavlink", "mavsdk",
         "subprocess", "multiprocessing", "threading", "concurrent", "signal", "shutil",
         "tempfile", "os", "sys", "io", "time", "datetime", "logging", "random", "csv",
-        "matplotlib", "tqdm", "pydantic_settings", "api", "sitl",
+        "matplotlib", "tqdm", "pydantic_settings", "api", "sitl", "serial",
+        "serial_asyncio_fast",
     }
 )  # fmt: skip
 """Modules a pure layer may not import: I/O, clocks, processes, the network, the database,

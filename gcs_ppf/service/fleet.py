@@ -163,7 +163,7 @@ class Fleet:
             allow_unsigned = url in self.settings.unsigned_links
         try:
             parse_link_url(url)
-        except (ValueError, NotImplementedError) as exc:
+        except ValueError as exc:
             raise ServiceError(f"url: {exc}") from None
         if any(e.url == url for e in self._links.values()):
             raise Conflict(f"url: a link to {url} exists already")

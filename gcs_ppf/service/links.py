@@ -1,10 +1,14 @@
-"""asyncio MAVLink links (TCP client, UDP server, UDP client) that reconnect, with a tlog.
+"""asyncio MAVLink links (TCP client, UDP server, UDP client, serial device) that reconnect,
+with a tlog.
 
 A ``MavlinkLink`` owns one transport, one ``Codec`` and optionally one tlog file.  ``run()``
 connects, reads and hands every decoded message to ``on_message``; when the connection fails or
 ends it waits (exponential backoff) and connects again, until ``close()``.  URLs use pymavlink's
 syntax: ``tcp:HOST:PORT`` (client), ``udpin:HOST:PORT`` and ``udp:HOST:PORT`` (listen, answer the
-last sender: ``udp:`` listens in pymavlink too), ``udpout:HOST:PORT`` (send to HOST:PORT).
+last sender: ``udp:`` listens in pymavlink too), ``udpout:HOST:PORT`` (send to HOST:PORT), and a
+serial device at a baud rate: ``serial:/dev/ttyUSB0:57600``, or pymavlink's ``/dev/ttyUSB0,57600``
+(a telemetry radio; pyserial-asyncio-fast's transport; a device that goes away, a radio
+unplugged, is opened again as a TCP peer is connected again).
 
 The tlog is the format MAVProxy writes and ``mavlogdump.py`` reads: every frame in and out,
 each preceded by its UNIX time in microseconds as an 8-byte big-endian integer.
@@ -24,6 +28,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import IO
+
+import serial_asyncio_fast
 
 from gcs_ppf.mavlink.ardupilot import GCS_COMPONENT_ID, GCS_SYSTEM_ID
 from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage, signing_timestamp
@@ -48,7 +54,7 @@ class LinkKind(enum.StrEnum):
     UDP_OUT = "udpout"
     """UDP client: sends to HOST:PORT and reads its answers."""
     SERIAL = "serial"
-    """Serial device at a baud rate (needs pyserial, not installed: not supported)."""
+    """Serial device at a baud rate (a telemetry radio on USB: ``serial:/dev/ttyUSB0:57600``)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -61,7 +67,7 @@ class LinkUrl:
 
     def __str__(self) -> str:
         if self.kind is LinkKind.SERIAL:
-            return f"{self.host}:{self.port}"
+            return f"serial:{self.host}:{self.port}"
         host = f"[{self.host}]" if ":" in self.host else self.host
         return f"{self.kind}:{host}:{self.port}"
 
@@ -75,22 +81,26 @@ _SCHEMES = {
 
 
 def parse_link_url(url: str) -> LinkUrl:
-    """Parse ``tcp:HOST:PORT``, ``udpin:HOST:PORT``, ``udp:HOST:PORT``, ``udpout:HOST:PORT``.
+    """Parse ``tcp:HOST:PORT``, ``udpin:HOST:PORT``, ``udp:HOST:PORT``, ``udpout:HOST:PORT``,
+    ``serial:DEVICE[:BAUD]`` and pymavlink's ``DEVICE[,BAUD]`` (``/dev/ttyUSB0,57600``,
+    ``COM3,115200``; baud 57600, a SiK radio's, when not given).
 
-    IPv6 hosts go in brackets (``tcp:[::1]:5760``).  Raises ValueError naming what is wrong;
-    a serial device (``/dev/ttyUSB0:57600``, ``COM3,115200``) raises NotImplementedError.
+    IPv6 hosts go in brackets (``tcp:[::1]:5760``).  Raises ValueError naming what is wrong.
     """
     text = url.strip()
     if not text:
         raise ValueError("link URL is empty; expected e.g. tcp:127.0.0.1:5760")
+    if text.lower().startswith("serial:"):
+        return _serial(url, text[len("serial:") :])
     if text.startswith("/dev/") or text.upper().startswith("COM"):
-        return _serial(text)
+        return _serial(url, text)
     scheme, sep, rest = text.partition(":")
     kind = _SCHEMES.get(scheme.lower())
     if not sep or kind is None:
         raise ValueError(
             f"link URL {url!r}: unknown scheme {scheme!r}; expected one of "
-            "tcp:HOST:PORT, udpin:HOST:PORT, udp:HOST:PORT, udpout:HOST:PORT"
+            "tcp:HOST:PORT, udpin:HOST:PORT, udp:HOST:PORT, udpout:HOST:PORT, "
+            "serial:DEVICE:BAUD"
         )
     host, sep, port_text = rest.rpartition(":")
     if not sep or not host:
@@ -106,18 +116,22 @@ def parse_link_url(url: str) -> LinkUrl:
     return LinkUrl(kind, host, int(port_text))
 
 
-def _serial(text: str) -> LinkUrl:
+SERIAL_BAUD_DEFAULT = 57600
+"""A SiK / RFD900 telemetry radio's serial rate, as MAVProxy and QGroundControl assume."""
+
+
+def _serial(url: str, text: str) -> LinkUrl:
+    """``DEVICE``, ``DEVICE:BAUD`` or ``DEVICE,BAUD`` (``serial:`` already taken off)."""
     device, _, baud_text = text.replace(",", ":").partition(":")
-    baud = 115200
+    device = device.strip()
+    if not device or any(c.isspace() for c in device):
+        raise ValueError(f"link URL {url!r}: device {device!r} is not a serial device path")
+    baud = SERIAL_BAUD_DEFAULT
     if baud_text:
-        if not baud_text.isdigit() or int(baud_text) <= 0:
-            raise ValueError(f"serial link {text!r}: baud {baud_text!r} is not a positive number")
+        if not baud_text.isdigit() or not 0 < int(baud_text) <= 20_000_000:
+            raise ValueError(f"link URL {url!r}: baud {baud_text!r} is not a number in 1..20000000")
         baud = int(baud_text)
-    raise NotImplementedError(
-        f"serial link {device} at {baud} baud: serial ports need pyserial, which is not "
-        "installed; bridge the port to UDP or TCP (e.g. mavproxy.py --master "
-        f"{device} --out udpout:127.0.0.1:14550) and use that URL"
-    )
+    return LinkUrl(LinkKind.SERIAL, device, baud)
 
 
 @dataclass(frozen=True, slots=True)
@@ -305,6 +319,8 @@ class MavlinkLink:
             return await self._tcp_session()
         if self.url.kind in (LinkKind.UDP_IN, LinkKind.UDP_OUT):
             return await self._udp_session()
+        if self.url.kind is LinkKind.SERIAL:
+            return await self._serial_session()
         raise NotImplementedError(f"link kind {self.url.kind} is not supported")
 
     async def _tcp_session(self) -> bool:
@@ -313,6 +329,22 @@ class MavlinkLink:
         sock = writer.get_extra_info("socket")
         if sock is not None:
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        return await self._stream_session(reader, writer)
+
+    async def _serial_session(self) -> bool:
+        """The device opened raw at the baud rate (8N1, no flow control, as SiK radios ship);
+        a device that cannot be opened, or goes away, raises ``SerialException`` (an OSError):
+        ``run`` opens it again after its backoff."""
+        async with asyncio.timeout(self._connect_timeout_s):
+            reader, writer = await serial_asyncio_fast.open_serial_connection(
+                url=self.url.host, baudrate=self.url.port, exclusive=True
+            )
+        return await self._stream_session(reader, writer)
+
+    async def _stream_session(
+        self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter
+    ) -> bool:
+        """Read a byte stream (TCP, serial) until it ends; True if any message came."""
         self._writer = writer
         self._connected_once()
         heard = False

@@ -118,6 +118,13 @@ def test_loopback_and_the_link_allow_list() -> None:
     assert link_allowed("192.168.1.5", allow)
     assert not link_allowed("192.168.1.6", allow)
     assert not link_allowed("0.0.0.0", allow)
+    # serial devices: only those named, or matched by a pattern
+    assert not link_allowed("/dev/ttyUSB0", allow)
+    radios = ["/dev/ttyUSB*", "/dev/serial/by-id/usb-SiK-if00"]
+    assert link_allowed("/dev/ttyUSB0", radios)
+    assert link_allowed("/dev/serial/by-id/usb-SiK-if00", radios)
+    assert not link_allowed("/dev/ttyACM0", radios)
+    assert not link_allowed("/dev/sda", ["/dev/ttyUSB*"])
 
 
 def test_what_the_audit_log_keeps_of_bodies_and_answers() -> None:

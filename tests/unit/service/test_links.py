@@ -8,9 +8,11 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import os
 import random
 import re
 import time
+import tty
 from collections.abc import Callable, Coroutine
 from pathlib import Path
 from typing import Any
@@ -141,6 +143,10 @@ async def running(link: MavlinkLink) -> Any:
         ("udpout:10.0.0.2:14555", LinkUrl(LinkKind.UDP_OUT, "10.0.0.2", 14555)),
         ("TCP:sitl.local:5762", LinkUrl(LinkKind.TCP, "sitl.local", 5762)),
         ("tcp:[::1]:5760", LinkUrl(LinkKind.TCP, "::1", 5760)),
+        ("serial:/dev/ttyUSB0:57600", LinkUrl(LinkKind.SERIAL, "/dev/ttyUSB0", 57600)),
+        ("/dev/ttyUSB0,115200", LinkUrl(LinkKind.SERIAL, "/dev/ttyUSB0", 115200)),
+        ("/dev/ttyACM0", LinkUrl(LinkKind.SERIAL, "/dev/ttyACM0", 57600)),
+        ("COM3,115200", LinkUrl(LinkKind.SERIAL, "COM3", 115200)),
     ],
 )
 def test_parse_link_url(url: str, expected: LinkUrl) -> None:
@@ -162,16 +168,12 @@ def test_parse_link_url(url: str, expected: LinkUrl) -> None:
         ("tcp:localhost:0", "port '0'"),
         ("tcp:::1:5760", "IPv6"),
         ("/dev/ttyUSB0:fast", "baud 'fast'"),
+        ("serial:/dev/ttyUSB0:0", "baud '0'"),
+        ("serial::57600", "device ''"),
     ],
 )
 def test_parse_link_url_errors_name_the_problem(url: str, complaint: str) -> None:
     with pytest.raises(ValueError, match=complaint):
-        parse_link_url(url)
-
-
-@pytest.mark.parametrize("url", ["/dev/ttyUSB0:57600", "/dev/ttyACM0", "COM3,115200"])
-def test_serial_is_not_supported_without_pyserial(url: str) -> None:
-    with pytest.raises(NotImplementedError, match="pyserial"):
         parse_link_url(url)
 
 
@@ -517,3 +519,64 @@ def test_setup_signing_is_sent_but_never_written_to_the_tlog(tmp_path: Path) -> 
     data = tlog.read_bytes()
     assert key not in data
     assert len(data) > 0  # the heartbeat is there
+
+
+# -- serial -------------------------------------------------------------------------------
+def test_serial_heartbeat_in_command_out_on_a_pseudo_terminal() -> None:
+    """The link opens a pty's device end at 57,600 baud as a radio's USB port; the test
+    is the radio on the other end."""
+    radio, device = os.openpty()
+    tty.setraw(device)  # as the link will set it: no echo of what comes before it opens
+    os.set_blocking(radio, False)
+    mav = mavlink2.MAVLink(None, srcSystem=1, srcComponent=1)
+
+    async def body() -> None:
+        inbox = Inbox()
+        link = MavlinkLink(f"serial:{os.ttyname(device)}:57600", inbox)
+        received = bytearray()
+        async with running(link):
+            for _ in range(100):
+                os.write(radio, vehicle_heartbeat(mav))
+                await asyncio.sleep(0.02)
+                if inbox.count("HEARTBEAT"):
+                    break
+            assert link.connected
+            assert await link.send(commands.set_mode(1, PlaneMode.LOITER))
+            parser = mavlink2.MAVLink(None)
+            parser.robust_parsing = True
+            got: list[Any] = []
+            for _ in range(100):
+                with contextlib.suppress(BlockingIOError):
+                    received.extend(os.read(radio, 4096))
+                got = [m for m in parser.parse_buffer(bytes(received)) or []]
+                received.clear()
+                if got:
+                    break
+                await asyncio.sleep(0.02)
+            assert [(m.get_type(), m.command, m.param2) for m in got] == [
+                ("COMMAND_LONG", 176, 12.0)
+            ]
+        assert inbox.count("HEARTBEAT") >= 1
+        assert link.stats.connects == 1
+
+    try:
+        run(body())
+    finally:
+        os.close(radio)
+        os.close(device)
+
+
+def test_a_serial_device_that_is_not_there_is_tried_again() -> None:
+    async def body() -> None:
+        link = MavlinkLink(
+            "serial:/dev/gcs-ppf-no-such-radio:57600",
+            Inbox(),
+            backoff_initial_s=0.05,
+            backoff_max_s=0.1,
+        )
+        async with running(link):
+            await wait_until(lambda: link.stats.connect_attempts >= 3)
+            assert not link.connected
+        assert link.stats.connects == 0
+
+    run(body())
