@@ -93,7 +93,7 @@ bench: install
 # The reduced closed-loop campaign (Table 3 at x10 and on a lossy link, observer-checked),
 # the service killed mid-run, and the vehicles' fences: seven flights, too slow for `make test`.
 campaign-check: install
-	$(VENV)/bin/pytest -m campaign tests/integration/test_campaign.py tests/integration/test_crash_recovery.py tests/integration/test_fences.py
+	$(VENV)/bin/pytest -m campaign tests/integration/test_campaign.py tests/integration/test_crash_recovery.py tests/integration/test_fences.py tests/integration/test_serial.py
 
 # The operator's page with 50 vehicles at 10 Hz in headless chromium: fps and JS heap
 # (WEB_BENCH="--minutes 1" for a short run).

@@ -178,9 +178,7 @@ def link_allowed(host: str, allow: list[str]) -> bool:
     a serial device (a path) only if ``allow`` names it or a pattern of it matches
     (``/dev/ttyUSB*``): the service would open whatever device it is told."""
     if host.startswith("/"):
-        return any(
-            entry.startswith("/dev/") and fnmatch.fnmatchcase(host, entry) for entry in allow
-        )
+        return any(entry.startswith("/") and fnmatch.fnmatchcase(host, entry) for entry in allow)
     if is_loopback(host):
         return True
     host = host.strip("[]").lower()

@@ -224,6 +224,9 @@ class Fleet:
             "allow_unsigned": entry.link.codec.accept_unsigned,
             "refused_unsigned": stats.refused_unsigned,
             "refused_bad_signature": stats.refused_bad_signature,
+            "reconnects": stats.reconnects,
+            "bytes_in": stats.bytes_in,
+            "bytes_out": stats.bytes_out,
         }
 
     # Vehicles ----------------------------------------------------------------------------

@@ -120,6 +120,11 @@ SERIAL_BAUD_DEFAULT = 57600
 """A SiK / RFD900 telemetry radio's serial rate, as MAVProxy and QGroundControl assume."""
 
 
+SERIAL_BACKOFF_MAX_S = 1.0
+"""The longest wait between attempts to open a serial device: a radio plugged back in is
+talking again within a second (a network peer keeps the links' 5 s)."""
+
+
 def _serial(url: str, text: str) -> LinkUrl:
     """``DEVICE``, ``DEVICE:BAUD`` or ``DEVICE,BAUD`` (``serial:`` already taken off)."""
     device, _, baud_text = text.replace(",", ":").partition(":")
@@ -204,6 +209,9 @@ class MavlinkLink:
         accept_unsigned: bool = False,
     ) -> None:
         self.url = parse_link_url(url)
+        if self.url.kind is LinkKind.SERIAL:  # a local device: trying it again costs nothing
+            backoff_max_s = min(backoff_max_s, SERIAL_BACKOFF_MAX_S)
+            backoff_initial_s = min(backoff_initial_s, backoff_max_s)
         if not (0 < backoff_initial_s <= backoff_max_s and math.isfinite(backoff_max_s)):
             raise ValueError(
                 "backoff must satisfy 0 < backoff_initial_s <= backoff_max_s < inf, got "

@@ -134,8 +134,8 @@ class Settings(BaseSettings):
     link_allow: list[str] = Field(
         default_factory=list,
         description="hosts (names or addresses) and networks (CIDR) that POST /links may "
-        "connect to besides loopback, and serial devices it may open (paths under /dev, "
-        "shell patterns allowed: /dev/ttyUSB*); none by default",
+        "connect to besides loopback, and serial devices it may open (absolute paths, shell "
+        "patterns allowed: /dev/ttyUSB*); none by default",
     )
     audit_log: Path | None = Field(
         default=None,
@@ -150,8 +150,8 @@ class Settings(BaseSettings):
     @classmethod
     def _allowed_hosts(cls, entries: list[str]) -> list[str]:
         for entry in entries:
-            if entry.startswith("/dev/"):
-                continue  # a serial device, or a pattern of them
+            if entry.startswith("/"):
+                continue  # a serial device's path, or a pattern of them
             if "/" in entry:
                 try:
                     ipaddress.ip_network(entry, strict=False)

@@ -58,8 +58,10 @@ class Flight:
 def fly(tmp_path: Path, mission_doc: dict[str, Any], *, sitl_extra: Sequence[str] = (),
         env_extra: dict[str, str] | None = None,
         during: Callable[[str, int], None] | None = None,
-        after: Callable[[str, int], None] | None = None) -> Flight:  # fmt: skip
-    """Start SITL and service, fly ``mission_doc`` to its end, record it independently."""
+        after: Callable[[str, int], None] | None = None,
+        links: Sequence[str] | None = None) -> Flight:  # fmt: skip
+    """Start SITL and service, fly ``mission_doc`` to its end, record it independently.
+    ``links``: the URLs the service is given (default: each vehicle's TCP port)."""
     mission = Mission.model_validate(mission_doc)
     path = tmp_path / "mission.json"
     path.write_text(json.dumps(mission_doc))
@@ -79,8 +81,9 @@ def fly(tmp_path: Path, mission_doc: dict[str, Any], *, sitl_extra: Sequence[str
         wait_for(lambda: _up(api), 60, "the service")
         with process(sitl, tmp_path / "sitl.log"):
             wait_for(lambda: "sitl ready" in _text(tmp_path / "sitl.log"), 60, "the SITL")
-            for port in ports.values():
-                status, body = http("POST", f"{api}/links", {"url": f"tcp:127.0.0.1:{port}"})
+            urls = [f"tcp:127.0.0.1:{port}" for port in ports.values()] if links is None else links
+            for url in urls:
+                status, body = http("POST", f"{api}/links", {"url": url})
                 assert status == 201, body
             mid, final, tracks, clocks = _fly_started(
                 api, mission, mission_doc, ports, during, after
