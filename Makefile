@@ -91,7 +91,8 @@ bench: install
 	$(PY) -m gcs_ppf.offline.benchmark
 
 # The reduced closed-loop campaign (Table 3 at x10 and on a lossy link, observer-checked),
-# the service killed mid-run, and the vehicles' fences: seven flights, too slow for `make test`.
+# the service killed mid-run, the vehicles' fences, a radio unplugged: eight flights, too slow
+# for `make test`.
 campaign-check: install
 	$(VENV)/bin/pytest -m campaign tests/integration/test_campaign.py tests/integration/test_crash_recovery.py tests/integration/test_fences.py tests/integration/test_serial.py
 

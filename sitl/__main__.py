@@ -89,6 +89,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="also serve on a serial device (57600 baud unless given): once per vehicle, in "
         "order, or once for every vehicle on one line (repeatable)",
     )
+    p.add_argument(
+        "--radio",
+        action="store_true",
+        help="each --serial line carries only what a telemetry radio at its baud rate does "
+        "(BAUD/10 bytes a second each way, 8N1; the rest dropped), in simulated time",
+    )
     p.add_argument("--duration", type=float, default=None, help="stop after this many sim seconds")
     return p
 
@@ -166,6 +172,7 @@ def main(argv: list[str] | None = None) -> int:
         tlog_dir=args.tlog,
         duration_s=args.duration,
         serial=serial,
+        radio=args.radio,
     )
 
     def ready(line: str) -> None:

@@ -36,6 +36,7 @@ from sitl.autopilot import Outbox
 from sitl.engine import Simulation
 from sitl.messages import Message, statustext
 from sitl.physics import DT_S
+from sitl.radio import RadioBudget
 
 #: Write buffer above which a slow client's telemetry is dropped (bytes).
 MAX_BUFFERED = 1 << 20
@@ -298,11 +299,16 @@ class _UdpOut(asyncio.DatagramProtocol):
 class _SerialLine(asyncio.Protocol):
     """One serial device carrying one or more vehicles (their links)."""
 
-    def __init__(self, links: list[VehicleLink], label: str) -> None:
+    def __init__(
+        self, links: list[VehicleLink], label: str, radio_baud: int | None = None
+    ) -> None:
         self.links = links
         self.label = label
         self.peers: list[Peer] = []
         self.lost: asyncio.Future[None] = asyncio.get_event_loop().create_future()
+        # the radio's budget each way (None: the line carries whatever is written)
+        self.down = None if radio_baud is None else RadioBudget(radio_baud)
+        self.up = None if radio_baud is None else RadioBudget(radio_baud)
 
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
@@ -315,10 +321,15 @@ class _SerialLine(asyncio.Protocol):
             self.peers.append(peer)
 
     def _write(self, data: bytes) -> None:
-        if not self.transport.is_closing():
-            self.transport.write(data)
+        if self.transport.is_closing():
+            return
+        if self.down is not None and not self.down.admit(len(data), self.links[0].sim.sim_s):
+            return  # the radio's buffer is full: lost in the air
+        self.transport.write(data)
 
     def data_received(self, data: bytes) -> None:
+        if self.up is not None and not self.up.admit(len(data), self.links[0].sim.sim_s):
+            return
         for peer in self.peers:
             peer.link.receive(peer, data)
 
@@ -334,13 +345,16 @@ SERIAL_RETRY_S = 0.5
 """Wall seconds between attempts to open a serial device that is not there (yet)."""
 
 
-async def serve_serial(links: list[VehicleLink], device: str, baud: int) -> None:
+async def serve_serial(
+    links: list[VehicleLink], device: str, baud: int, radio_baud: int | None = None
+) -> None:
     """Keep ``links``' vehicles on ``device`` at ``baud``: open it, serve it until it goes
-    away (a radio unplugged, a pseudo-terminal closed), open it again; until cancelled."""
+    away (a radio unplugged, a pseudo-terminal closed), open it again; until cancelled.
+    ``radio_baud``: the bytes a second the radio carries each way (``sitl.radio``)."""
     loop = asyncio.get_running_loop()
     said = False
     while True:
-        line = _SerialLine(links, f"serial:{device}")
+        line = _SerialLine(links, f"serial:{device}", radio_baud)
         try:
             transport, _ = await serial_asyncio_fast.create_serial_connection(
                 loop, functools.partial(_same, line), device, baudrate=baud
@@ -384,6 +398,8 @@ class ServerConfig:
     duration_s: float | None = None  # stop after this much simulated time (tests, benchmarks)
     serial: tuple[tuple[str, int], ...] = ()
     """(device, baud): one per vehicle in order, or one for every vehicle."""
+    radio: bool = False
+    """Each serial line carries only what a radio at its baud rate does (``sitl.radio``)."""
 
 
 async def pace(
@@ -445,7 +461,10 @@ async def serve(
                 stack.callback(transport.close)
             ready(f"vehicle {ap.sysid}: tcp:{cfg.host}:{port}")
         lines = serial_lines(links, cfg.serial)
-        serials = [asyncio.create_task(serve_serial(on, dev, baud)) for dev, baud, on in lines]
+        serials = [
+            asyncio.create_task(serve_serial(on, dev, baud, baud if cfg.radio else None))
+            for dev, baud, on in lines
+        ]
         for device, baud, on in lines:
             ids = ", ".join(str(link.sysid) for link in on)
             ready(f"vehicle{'s' if len(on) > 1 else ''} {ids}: serial:{device}:{baud}")
