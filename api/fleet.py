@@ -44,6 +44,14 @@ async def list_links(service: Service) -> list[dict[str, Any]]:
     return service.fleet.links()
 
 
+@router.get("/forwards", dependencies=READ_ONLY)
+async def list_forwards(service: Service) -> list[dict[str, Any]]:
+    """The other ground stations the vehicles' frames are relayed to (``--forward``): each
+    endpoint's URL, whether a GCS is there, frames in and out, frames dropped."""
+    forwarding = service.fleet.forwarding
+    return [] if forwarding is None else forwarding.info()
+
+
 @router.delete(
     "/links/{link_id}",
     status_code=status.HTTP_204_NO_CONTENT,

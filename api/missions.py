@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 from fastapi import APIRouter, Body, status
 
-from api.deps import AUTH_ERRORS, COMMANDS, ERRORS, READ_ONLY, MissionId, Service
+from api.deps import AUTH_ERRORS, COMMANDS, ERRORS, READ_ONLY, MissionId, Service, SystemId
 from api.models import MissionDetail, MissionSummary, mission_detail, mission_summary
 from gcs_ppf.mission import Mission, Obstacle
 from gcs_ppf.service.errors import TooLarge, Unprocessable
@@ -133,6 +133,20 @@ async def resume(mission_id: MissionId, service: Service) -> dict[str, Any]:
     where its record left it; 409 unless its last run is interrupted, or with a vehicle
     it had not lost unheard."""
     return await service.resume(mission_id)
+
+
+@router.post(
+    "/missions/{mission_id}/vehicles/{vehicle_id}/hand-back",
+    responses=ERRORS,
+    dependencies=COMMANDS,
+)
+async def hand_back(
+    mission_id: MissionId, vehicle_id: SystemId, service: Service
+) -> dict[str, Any]:
+    """A vehicle another ground station took over (``vehicle_taken_over``) given back to
+    the run: switched to GUIDED, confirmed, and commanded again; the run's status.  409
+    unless the run flies and the vehicle was taken over."""
+    return await service.hand_back(mission_id, vehicle_id)
 
 
 @router.post("/missions/{mission_id}/abort", responses=ERRORS, dependencies=COMMANDS)

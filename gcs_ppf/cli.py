@@ -59,6 +59,14 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="URL",
         help="MAVLink connection, pymavlink syntax (tcp:127.0.0.1:5760); repeat",
     )
+    serve.add_argument(
+        "--forward",
+        action="append",
+        metavar="URL",
+        help="relay every vehicle to another ground station and back, as mavlink-router "
+        "does: udpout:127.0.0.1:14550 (QGroundControl), udpin:HOST:PORT, tcpin:HOST:PORT; "
+        "repeat",
+    )
     serve.add_argument("--host", help="address to serve the API on (default 127.0.0.1)")
     serve.add_argument("--port", type=int, help="port of the API (default 8000)")
     serve.add_argument("--db", type=Path, help="SQLite file (default gcs_ppf.db)")
@@ -127,6 +135,7 @@ def serve_command(args: argparse.Namespace) -> int:
 
     given = {
         "links": args.link,
+        "forward": args.forward,
         "host": args.host,
         "port": args.port,
         "db": args.db,

@@ -299,9 +299,7 @@ class _UdpOut(asyncio.DatagramProtocol):
 class _SerialLine(asyncio.Protocol):
     """One serial device carrying one or more vehicles (their links)."""
 
-    def __init__(
-        self, links: list[VehicleLink], label: str, radio_baud: int | None = None
-    ) -> None:
+    def __init__(self, links: list[VehicleLink], label: str, radio_baud: int | None = None) -> None:
         self.links = links
         self.label = label
         self.peers: list[Peer] = []

@@ -73,6 +73,7 @@ async def hold(station: Station, run: Run, states: dict[int, VehicleState], stac
     command confirmed (``confirmation.confirm_all``), then the safety watch for the rest of
     its time after the end."""
     heard = {i for i, v in station.fleet.by_id.items() if not v.lost}
+    heard -= run.taken_over  # another ground station flies them: not ours to hold
     ids = {v.id for v in run.mission.vehicles}
     grounded = sorted(i for i in heard if i in ids and on_ground(station, i))
     if grounded:  # a failed start: those that never took off are left alone, not commanded

@@ -34,6 +34,7 @@ from gcs_ppf.mavlink.codec import signing_timestamp
 from gcs_ppf.mavlink.telemetry import AIRFRAME_PARAMS, VehicleTelemetry, apply
 from gcs_ppf.mission import Mission
 from gcs_ppf.service.errors import Conflict, NotFound, ServiceError
+from gcs_ppf.service.forwarding import Forwarding
 from gcs_ppf.service.links import MavlinkLink, parse_link_url
 from gcs_ppf.service.settings import Settings
 
@@ -145,6 +146,8 @@ class Fleet:
         self.by_id: dict[int, Vehicle] = {}
         self.telemetry_event = asyncio.Event()
         self.telemetry_received_s = 0.0  # perf_counter of the latest position message
+        self.forwarding: Forwarding | None = None
+        """Other ground stations the vehicles' frames are relayed to (``service.forwarding``)."""
 
     def close(self) -> None:
         """Close every link (the service is stopping)."""
@@ -230,9 +233,28 @@ class Fleet:
         }
 
     # Vehicles ----------------------------------------------------------------------------
+    def relay(self, target_system: int | None, frame: bytes) -> None:
+        """A frame from another ground station, unchanged, to the link of the vehicle it
+        addresses (the one it is commanded on), or to every link when it addresses none
+        of ours."""
+        vehicle = None if target_system is None else self.by_id.get(target_system)
+        entry = None if vehicle is None else self._links.get(vehicle.link_id)
+        for e in [entry] if entry is not None else list(self._links.values()):
+            e.link.forward_frame(frame)
+
+    def _forward(self, link_id: int, sysid: int, msg: Any) -> None:
+        """Relay what a link heard to the other ground stations: once per vehicle (from the
+        link it is commanded on), never our own frames."""
+        if self.forwarding is None or sysid == self.settings.system_id:
+            return
+        vehicle = self.by_id.get(sysid)
+        if vehicle is None or vehicle.link_id == link_id:
+            self.forwarding.from_vehicles(bytes(msg.get_msgbuf()))
+
     def _on_message(self, link_id: int, msg: Any) -> None:
         sysid = int(msg.get_srcSystem())
         if sysid == self.settings.system_id or msg.get_srcComponent() != 1:
+            self._forward(link_id, sysid, msg)
             return  # our own echo, or a component that is not the autopilot
         now = time.monotonic()
         vehicle = self.by_id.get(sysid)
@@ -251,6 +273,7 @@ class Fleet:
             vehicle.link_id = link_id  # a vehicle that moved links is followed...
         # ...but not one heard on two at once: commands stay on the link first heard.
         vehicle.last_heard_s = now
+        self._forward(link_id, sysid, msg)
         boot_ms = getattr(msg, "time_boot_ms", None)
         if isinstance(boot_ms, int):
             vehicle.clock.observe(now, boot_ms)

@@ -266,12 +266,12 @@ async def losses(station: Station, run: Run) -> bool:
 
 
 def hand_over(station: Station, run: Run, why: str) -> bool:
-    """The leader lost (``why``: ``lost`` or ``not_responding``): the wingman of highest
-    priority leads and the slots move to it (``planning.succession``), a
+    """The leader lost (``why``: ``lost``, ``not_responding`` or ``taken_over``): the
+    wingman of highest priority leads and the slots move to it (``planning.succession``), a
     ``leader_succeeded`` event; False when no wingman is left to lead.  What the ticks
     carried from one to the next about the old leader's plan starts again."""
     out = run.mission.leader.id
-    unable = run.lost_ids | run.obedience.not_responding | {out}
+    unable = run.lost_ids | run.obedience.not_responding | run.taken_over | {out}
     mission = succession.succeed(run.mission, unable)
     if mission is None:
         return False
@@ -415,7 +415,12 @@ async def tick(station: Station, run: Run) -> bool:
             return False
         end(station, run, RunState.FAILED, "leader not responding")
         return True
-    uncontrolled = run.obedience.not_responding & set(states)
+    if run.mission.leader.id in run.taken_over:  # another GCS flies it: not ours to lead
+        if hand_over(station, run, "taken_over"):
+            return False
+        end(station, run, RunState.FAILED, "leader taken over by another ground station")
+        return True
+    uncontrolled = (run.obedience.not_responding | run.taken_over) & set(states)
     active -= uncontrolled  # not planned for, not commanded: avoided as traffic
     if uncontrolled:
         traffic = obedience.as_obstacles(states, uncontrolled, traffic_radius_m(mission))

@@ -40,6 +40,8 @@ _READ_SIZE = 65536
 _SETUP_SIGNING_ID = 256
 """SETUP_SIGNING carries a signing key: never written to a tlog."""
 _TLOG_FLUSH_S = 1.0
+FORWARD_BUFFER_BYTES = 1 << 18
+"""Unsent bytes to a peer beyond which forwarded frames are dropped (it is not reading)."""
 REFUSED_LOG_PERIOD_S = 10.0
 """Frames refused for their signature are logged at the first, then at most this often..."""
 REFUSED_NEWS_LOG_PERIOD_S = 1.0
@@ -114,6 +116,20 @@ def parse_link_url(url: str) -> LinkUrl:
     if not port_text.isdigit() or not 1 <= int(port_text) <= 65535:
         raise ValueError(f"link URL {url!r}: port {port_text!r} is not a number in 1..65535")
     return LinkUrl(kind, host, int(port_text))
+
+
+def parse_forward_url(url: str) -> LinkUrl:
+    """``udpout:HOST:PORT``, ``udpin:HOST:PORT`` or ``tcpin:HOST:PORT``; ValueError otherwise."""
+    text = url.strip()
+    if text.lower().startswith("tcpin:"):
+        parsed = parse_link_url("tcp:" + text[len("tcpin:") :])
+        return LinkUrl(LinkKind.TCP, parsed.host, parsed.port)  # TCP here: we listen
+    parsed = parse_link_url(text)
+    if parsed.kind not in (LinkKind.UDP_OUT, LinkKind.UDP_IN):
+        raise ValueError(
+            f"forward {url!r}: expected udpout:HOST:PORT, udpin:HOST:PORT or tcpin:HOST:PORT"
+        )
+    return parsed
 
 
 SERIAL_BAUD_DEFAULT = 57600
@@ -478,10 +494,26 @@ class MavlinkLink:
             return False
         if self._codec.signing:
             self._codec.advance_signing_clock(signing_timestamp(time.time()))
-        frame = self._codec.encode(msg)
+        return await self._send_frame(self._codec.encode(msg))
+
+    def forward_frame(self, frame: bytes) -> bool:
+        """Hand a whole frame, as another system encoded it, to the transport unchanged (its
+        sequence number and signature are its sender's), without waiting: dropped, and
+        counted, when the link is down or a TCP peer has ``FORWARD_BUFFER_BYTES`` unread."""
         writer = self._writer
-        if writer is not None:
-            writer.write(frame)
+        behind = writer is not None and writer.transport.get_write_buffer_size() > (
+            FORWARD_BUFFER_BYTES
+        )
+        if not self.connected or behind:
+            self._stats = replace(self._stats, dropped_out=self._stats.dropped_out + 1)
+            return False
+        self._put(frame)
+        return True
+
+    def _put(self, frame: bytes) -> None:
+        """Write ``frame`` to the live transport, tlog and count it."""
+        if self._writer is not None:
+            self._writer.write(frame)
         elif self._udp is not None and self._peer is not None:
             if self.url.kind is LinkKind.UDP_OUT:
                 self._udp.sendto(frame)
@@ -493,6 +525,10 @@ class MavlinkLink:
             bytes_out=self._stats.bytes_out + len(frame),
             messages_out=self._stats.messages_out + 1,
         )
+
+    async def _send_frame(self, frame: bytes) -> bool:
+        writer = self._writer
+        self._put(frame)
         if writer is not None and writer.transport.get_write_buffer_size() > 0:
             # Only a peer that is behind is waited for (the rest is written already); a
             # timeout armed on every send cost a twentieth of a tick at ×10.

@@ -101,6 +101,9 @@ class Run:
     the reported positions every tick, formed or broken, the run's formation figures."""
     abort: asyncio.Event = field(default_factory=asyncio.Event)
     lost_ids: set[int] = field(default_factory=set)
+    taken_over: set[int] = field(default_factory=set)
+    """Vehicles another ground station commanded (``vehicle_taken_over``), out of the run's
+    command until handed back."""
     duplicates: dict[int, tuple[int, ...]] = field(default_factory=dict)
     """Vehicle id → the links it was heard on at once (``duplicate_system_id`` told)."""
     commanded_speed: dict[int, float] = field(default_factory=dict)
@@ -213,6 +216,7 @@ def status(run: Run) -> dict[str, Any]:
                     "formed": g.formed[i] if i else None,
                     "local_target_distance_m": g.local_target_distance_m[i],
                     "lost": vid in run.lost_ids,
+                    "taken_over": vid in run.taken_over,
                 }
             )
     return {

@@ -25,10 +25,12 @@ from collections.abc import AsyncIterator
 from typing import Any
 
 from gcs_ppf.guidance import start_check
+from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mission import CylinderZone, Mission, Obstacle, PolygonZone
-from gcs_ppf.service import commanding, ending, flight, resumption, vehicle_fences
+from gcs_ppf.service import commanding, ending, flight, launch, resumption, vehicle_fences
 from gcs_ppf.service.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.service.fleet import Fleet
+from gcs_ppf.service.forwarding import Forwarding
 from gcs_ppf.service.kernels import load_kernels
 from gcs_ppf.service.run import FINISHED, Run, RunState
 from gcs_ppf.service.run import status as run_status
@@ -87,6 +89,14 @@ class FormationService:
             for url, allow_unsigned in self.store.links():  # added over the API before
                 if url not in self.settings.links:
                     await self.fleet.add_link(url, allow_unsigned=allow_unsigned)
+            if self.settings.forward:
+                self.fleet.forwarding = Forwarding(
+                    self.settings.forward,
+                    system_id=self.settings.system_id,
+                    to_vehicles=self.fleet.relay,
+                    on_takeover=self._taken_over,
+                )
+                background.append(tg.create_task(self.fleet.forwarding.run()))
             self._kernels = tg.create_task(
                 asyncio.to_thread(load_kernels, self.settings.planner_dt_s)
             )
@@ -95,6 +105,8 @@ class FormationService:
             finally:
                 await self._hand_over_holds()
                 self.fleet.close()
+                if self.fleet.forwarding is not None:
+                    self.fleet.forwarding.close()
                 for task in background:
                     task.cancel()
                 self._tasks = None
@@ -245,6 +257,35 @@ class FormationService:
         )
         run.task = self._spawn(flight.fly(self._station, run))
         return self.status(mission_id)
+
+    def _taken_over(self, vehicle_id: int, what: str, by: tuple[int, int]) -> None:
+        """Another ground station sent ``vehicle_id`` a command of flight (``what``): in a
+        run, the vehicle leaves the run's command until ``hand_back`` (it is avoided as
+        traffic meanwhile; a leader hands the lead on); ``vehicle_taken_over``."""
+        run = self._active_run()
+        if run is None or vehicle_id in run.taken_over:
+            return
+        if vehicle_id not in {v.id for v in run.mission.vehicles}:
+            return
+        run.taken_over.add(vehicle_id)
+        detail = {"by_system": by[0], "by_component": by[1], "message": what}
+        self._station.event(run, "vehicle_taken_over", vehicle_id, **detail)
+
+    async def hand_back(self, mission_id: int, vehicle_id: int) -> dict[str, Any]:
+        """The operator gives a vehicle taken over back to the run: switched to GUIDED
+        (confirmed) and commanded again; ``vehicle_handed_back``.  409 unless the mission's
+        run is flying and the vehicle was taken over."""
+        run = self._runs.get(mission_id)
+        if run is None or run.state != RunState.RUNNING:
+            raise Conflict(f"mission {mission_id}: no run is flying")
+        if vehicle_id not in run.taken_over:
+            raise Conflict(f"vehicle {vehicle_id} was not taken over in this run")
+        await launch.set_mode(
+            self.fleet, vehicle_id, PlaneMode.GUIDED, self._station.events_of(run)
+        )
+        run.taken_over.discard(vehicle_id)
+        self._station.event(run, "vehicle_handed_back", vehicle_id)
+        return run_status(run)
 
     def _check_startable(self, ids: list[int]) -> None:
         """No other run active, every one of ``ids`` heard and on one link only (409)."""

@@ -11,6 +11,7 @@ from pydantic import Field, PrivateAttr, SecretStr, field_validator, model_valid
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from gcs_ppf.mavlink.codec import signing_key_from_text
+from gcs_ppf.service.links import parse_forward_url
 from gcs_ppf.tokens import TokenEntry, load_token_file
 
 HOST = re.compile(r"[A-Za-z0-9_.:-]{1,253}")  # a name, an IPv4 or an IPv6 address
@@ -28,6 +29,12 @@ class Settings(BaseSettings):
     port: int = Field(default=8000, ge=1, le=65535)
     db: Path = Path("gcs_ppf.db")
     links: list[str] = Field(default_factory=list)
+    forward: list[str] = Field(
+        default_factory=list,
+        description="other ground stations to relay every vehicle's frames to and theirs "
+        "from, as mavlink-router does: udpout:HOST:PORT (QGroundControl listens on udp 14550), "
+        "udpin:HOST:PORT, tcpin:HOST:PORT (ground stations connect)",
+    )
     system_id: int = Field(default=255, ge=1, le=255, description="the GCS's MAVLink id")
     tick_hz: float = Field(default=10.0, gt=0.0, le=100.0, description="per vehicle second")
     lookahead_s: float = Field(default=3.0, gt=0.0, le=30.0)
@@ -145,6 +152,13 @@ class Settings(BaseSettings):
     max_body_bytes: int = Field(default=1_000_000, ge=1_000, description="request bodies (413)")
     max_vehicles: int = Field(default=100, ge=1, le=1000, description="vehicles of a mission")
     max_obstacles: int = Field(default=1000, ge=0, le=10_000, description="obstacles of one")
+
+    @field_validator("forward")
+    @classmethod
+    def _forward_urls(cls, urls: list[str]) -> list[str]:
+        for url in urls:
+            parse_forward_url(url)  # its ValueError names the URL
+        return urls
 
     @field_validator("link_allow")
     @classmethod
