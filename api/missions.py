@@ -9,7 +9,14 @@ from typing import TYPE_CHECKING, Annotated, Any
 from fastapi import APIRouter, Body, status
 
 from api.deps import AUTH_ERRORS, COMMANDS, ERRORS, READ_ONLY, MissionId, Service, SystemId
-from api.models import MissionDetail, MissionSummary, mission_detail, mission_summary
+from api.models import (
+    ErrorBody,
+    FieldErrors,
+    MissionDetail,
+    MissionSummary,
+    mission_detail,
+    mission_summary,
+)
 from gcs_ppf.mission import Mission, Obstacle
 from gcs_ppf.service.errors import TooLarge, Unprocessable
 from gcs_ppf.service.settings import Settings
@@ -93,7 +100,18 @@ async def put_obstacles(
     return mission_detail(service.replace_obstacles(mission_id, obstacles))
 
 
-@router.post("/missions/{mission_id}/zones", responses=ERRORS, dependencies=COMMANDS)
+UNREADABLE: dict[int | str, dict[str, Any]] = {
+    422: {
+        "model": ErrorBody | FieldErrors,
+        "description": "a body that does not validate (field errors), or a document whose "
+        "zones cannot be read (the feature and the field named)",
+    }
+}
+
+
+@router.post(
+    "/missions/{mission_id}/zones", responses={**ERRORS, **UNREADABLE}, dependencies=COMMANDS
+)
 async def post_zones(
     mission_id: MissionId, document: Annotated[dict[str, Any], Body()], service: Service
 ) -> MissionDetail:

@@ -47,6 +47,12 @@ class ErrorBody(BaseModel):
     info: dict[str, Any] = Field(default_factory=dict)
 
 
+class FieldErrors(BaseModel):
+    """FastAPI's 422 for a body or path that does not validate: pydantic's field errors."""
+
+    detail: list[dict[str, Any]]
+
+
 def mission_summary(m: StoredMission) -> MissionSummary:
     return MissionSummary(
         id=m.id, name=m.name, created_s=m.created_s, vehicle_ids=[v.id for v in m.mission.vehicles]
