@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import fnmatch
 import ipaddress
+import os
 from dataclasses import dataclass
 from typing import Annotated
 
@@ -172,13 +173,22 @@ def check_exposure(settings: Settings, keyring: Keyring) -> None:
         )
 
 
+SERIAL_DEVICES = ("/dev/tty*", "/dev/pts/*", "/dev/serial/*", "/dev/rfcomm*")
+"""Serial devices ``POST /links`` may open without ``link_allow`` naming them: terminals
+(USB radios are /dev/ttyUSB*, /dev/ttyACM*), pseudo-terminals, udev's /dev/serial links,
+Bluetooth serial."""
+
+
 def link_allowed(host: str, allow: list[str]) -> bool:
     """May ``POST /links`` connect to (or listen on) ``host``: loopback, a name or address
     of ``allow`` (case-insensitive, not resolved), or an address in one of its networks;
-    a serial device (a path) only if ``allow`` names it or a pattern of it matches
-    (``/dev/ttyUSB*``): the service would open whatever device it is told."""
+    a serial device (a path) if it is, or links to, a terminal of ``SERIAL_DEVICES``, or
+    ``allow`` names it or a pattern of it: the service opens whatever device it is told,
+    and no other device file is a radio."""
     if host.startswith("/"):
-        return any(entry.startswith("/") and fnmatch.fnmatchcase(host, entry) for entry in allow)
+        paths = (host, os.path.realpath(host))
+        patterns = [*SERIAL_DEVICES, *(e for e in allow if e.startswith("/"))]
+        return any(fnmatch.fnmatchcase(p, pattern) for p in paths for pattern in patterns)
     if is_loopback(host):
         return True
     host = host.strip("[]").lower()

@@ -27,8 +27,8 @@ async def add_link(body: LinkRequest, service: Service) -> dict[str, Any]:
     if host is not None and not link_allowed(host, service.settings.link_allow):
         if host.startswith("/"):
             raise Forbidden(
-                f"url: serial device {host} is not in the service's link_allow "
-                "(GCS_PPF_LINK_ALLOW='[\"/dev/ttyUSB*\"]')",
+                f"url: {host} is not a serial terminal (/dev/tty*, /dev/pts/*, /dev/serial/*) nor "
+                "in the service's link_allow (GCS_PPF_LINK_ALLOW='[\"/opt/radio*\"]')",
                 {"host": host},
             )
         raise Forbidden(

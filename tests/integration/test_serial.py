@@ -87,7 +87,6 @@ def test_table3_on_one_radio_carrying_every_vehicle(tmp_path: Path) -> None:
             tmp_path,
             json.loads(MISSION.read_text()),
             sitl_extra=["--serial", f"{r['fleet'].air}:{BAUD}"],
-            env_extra={"GCS_PPF_LINK_ALLOW": json.dumps([str(tmp_path / "*")])},
             links=[f"serial:{r['fleet'].ground}:{BAUD}"],
             after=after,
         )
@@ -131,7 +130,6 @@ def test_a_radio_unplugged_for_5_s_mid_run_reconnects(tmp_path: Path) -> None:
             doc,
             sitl_extra=[a for n in names for a in ("--serial", f"{r[n].air}:{BAUD}")]
             + ["--speedup", "1"],
-            env_extra={"GCS_PPF_LINK_ALLOW": json.dumps([str(tmp_path / "*")])},
             links=[f"serial:{r[n].ground}:{BAUD}" for n in names],
             during=during,
             after=after,

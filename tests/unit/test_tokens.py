@@ -118,13 +118,21 @@ def test_loopback_and_the_link_allow_list() -> None:
     assert link_allowed("192.168.1.5", allow)
     assert not link_allowed("192.168.1.6", allow)
     assert not link_allowed("0.0.0.0", allow)
-    # serial devices: only those named, or matched by a pattern
-    assert not link_allowed("/dev/ttyUSB0", allow)
-    radios = ["/dev/ttyUSB*", "/dev/serial/by-id/usb-SiK-if00"]
-    assert link_allowed("/dev/ttyUSB0", radios)
-    assert link_allowed("/dev/serial/by-id/usb-SiK-if00", radios)
-    assert not link_allowed("/dev/ttyACM0", radios)
-    assert not link_allowed("/dev/sda", ["/dev/ttyUSB*"])
+    # serial devices: terminals, or those named (or matched by a pattern) in the list
+    for device in ("/dev/ttyUSB0", "/dev/ttyACM0", "/dev/pts/3", "/dev/serial/by-id/usb-SiK"):
+        assert link_allowed(device, []), device
+    for device in ("/dev/sda", "/dev/mem", "/etc/passwd", "/tmp/radio"):
+        assert not link_allowed(device, allow), device
+    assert link_allowed("/tmp/radio", ["/tmp/radio*"])
+    assert link_allowed("/opt/radios/sik0", ["/opt/radios/*"])
+
+
+def test_a_link_to_a_terminal_is_a_terminal(tmp_path: Path) -> None:
+    """socat's ``link=`` names (and udev's) point at the terminal: judged by where they lead."""
+    (tmp_path / "radio").symlink_to("/dev/pts/7")
+    (tmp_path / "disk").symlink_to("/dev/sda")
+    assert link_allowed(str(tmp_path / "radio"), [])
+    assert not link_allowed(str(tmp_path / "disk"), [])
 
 
 def test_what_the_audit_log_keeps_of_bodies_and_answers() -> None:
