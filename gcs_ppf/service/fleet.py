@@ -240,7 +240,7 @@ class Fleet:
         vehicle = None if target_system is None else self.by_id.get(target_system)
         entry = None if vehicle is None else self._links.get(vehicle.link_id)
         for e in [entry] if entry is not None else list(self._links.values()):
-            e.link.forward_frame(frame)
+            e.link.forward_frame(frame, target_system)
 
     def _forward(self, link_id: int, sysid: int, msg: Any) -> None:
         """Relay what a link heard to the other ground stations: once per vehicle (from the

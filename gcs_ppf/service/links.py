@@ -4,8 +4,9 @@ with a tlog.
 A ``MavlinkLink`` owns one transport, one ``Codec`` and optionally one tlog file.  ``run()``
 connects, reads and hands every decoded message to ``on_message``; when the connection fails or
 ends it waits (exponential backoff) and connects again, until ``close()``.  URLs use pymavlink's
-syntax: ``tcp:HOST:PORT`` (client), ``udpin:HOST:PORT`` and ``udp:HOST:PORT`` (listen, answer the
-last sender: ``udp:`` listens in pymavlink too), ``udpout:HOST:PORT`` (send to HOST:PORT), and a
+syntax: ``tcp:HOST:PORT`` (client), ``udpin:HOST:PORT`` and ``udp:HOST:PORT`` (listen; answer each
+system where it was heard from, the last sender for one not heard: ``udp:`` listens in
+pymavlink too), ``udpout:HOST:PORT`` (send to HOST:PORT), and a
 serial device at a baud rate: ``serial:/dev/ttyUSB0:57600``, or pymavlink's ``/dev/ttyUSB0,57600``
 (a telemetry radio; pyserial-asyncio-fast's transport; a device that goes away, a radio
 unplugged, is opened again as a TCP peer is connected again).
@@ -259,6 +260,9 @@ class MavlinkLink:
         self._writer: asyncio.StreamWriter | None = None
         self._udp: asyncio.DatagramTransport | None = None
         self._peer: tuple[str, int] | None = None
+        self._peers: dict[int, tuple[str, int]] = {}
+        """``udpin``: each system's address, where it was last heard from (several vehicles
+        each streaming from a socket of its own to one port, as SITL instances do)."""
         self._running = False
         self.receiving_s = 0.0
         """Our seconds spent decoding what was received and handing it on (perf_counter)."""
@@ -403,10 +407,13 @@ class MavlinkLink:
                 if item is None:
                     return heard
                 data, addr = item
-                if self.url.kind is LinkKind.UDP_IN:
-                    self._peer = addr  # answer whoever spoke last
                 start = time.perf_counter()
-                heard = self._received(self._codec.parse_datagram(data), len(data)) or heard
+                messages = self._codec.parse_datagram(data)
+                if self.url.kind is LinkKind.UDP_IN:
+                    self._peer = addr  # answer whoever spoke last...
+                    for msg in messages:  # ...and each system where it speaks from
+                        self._peers[int(msg.get_srcSystem())] = addr
+                heard = self._received(messages, len(data)) or heard
                 self.receiving_s += time.perf_counter() - start
             return heard
         finally:
@@ -424,6 +431,7 @@ class MavlinkLink:
         self._writer = None
         self._udp = None
         self._peer = None
+        self._peers = {}
         if writer is not None:
             writer.close()
         if udp is not None:
@@ -494,12 +502,14 @@ class MavlinkLink:
             return False
         if self._codec.signing:
             self._codec.advance_signing_clock(signing_timestamp(time.time()))
-        return await self._send_frame(self._codec.encode(msg))
+        target = int(getattr(msg, "target_system", 0)) or None
+        return await self._send_frame(self._codec.encode(msg), target)
 
-    def forward_frame(self, frame: bytes) -> bool:
+    def forward_frame(self, frame: bytes, target_system: int | None = None) -> bool:
         """Hand a whole frame, as another system encoded it, to the transport unchanged (its
         sequence number and signature are its sender's), without waiting: dropped, and
-        counted, when the link is down or a TCP peer has ``FORWARD_BUFFER_BYTES`` unread."""
+        counted, when the link is down or a TCP peer has ``FORWARD_BUFFER_BYTES`` unread.
+        ``target_system``: the system it addresses (``udpin`` sends it there)."""
         writer = self._writer
         behind = writer is not None and writer.transport.get_write_buffer_size() > (
             FORWARD_BUFFER_BYTES
@@ -507,18 +517,23 @@ class MavlinkLink:
         if not self.connected or behind:
             self._stats = replace(self._stats, dropped_out=self._stats.dropped_out + 1)
             return False
-        self._put(frame)
+        self._put(frame, target_system)
         return True
 
-    def _put(self, frame: bytes) -> None:
-        """Write ``frame`` to the live transport, tlog and count it."""
+    def _put(self, frame: bytes, target_system: int | None = None) -> None:
+        """Write ``frame`` to the live transport, tlog and count it.  On ``udpin``, to the
+        address ``target_system`` was last heard from; a frame for every system (none
+        named) to every address heard; one for a system not heard to the last sender."""
         if self._writer is not None:
             self._writer.write(frame)
         elif self._udp is not None and self._peer is not None:
             if self.url.kind is LinkKind.UDP_OUT:
                 self._udp.sendto(frame)
+            elif target_system is None:
+                for address in {self._peer, *self._peers.values()}:
+                    self._udp.sendto(frame, address)
             else:
-                self._udp.sendto(frame, self._peer)
+                self._udp.sendto(frame, self._peers.get(target_system, self._peer))
         self._tlog_write(frame)
         self._stats = replace(
             self._stats,
@@ -526,9 +541,9 @@ class MavlinkLink:
             messages_out=self._stats.messages_out + 1,
         )
 
-    async def _send_frame(self, frame: bytes) -> bool:
+    async def _send_frame(self, frame: bytes, target_system: int | None = None) -> bool:
         writer = self._writer
-        self._put(frame)
+        self._put(frame, target_system)
         if writer is not None and writer.transport.get_write_buffer_size() > 0:
             # Only a peer that is behind is waited for (the rest is written already); a
             # timeout armed on every send cost a twentieth of a tick at ×10.

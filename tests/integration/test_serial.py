@@ -41,10 +41,16 @@ class Radio:
     def plug(self) -> None:
         with self.log.open("a") as out:
             self.process = subprocess.Popen(
-                ["socat", "-d", "-d", f"pty,raw,echo=0,link={self.air}",
-                 f"pty,raw,echo=0,link={self.ground}"],
-                stdout=out, stderr=subprocess.STDOUT,
-            )  # fmt: skip
+                [
+                    "socat",
+                    "-d",
+                    "-d",
+                    f"pty,raw,echo=0,link={self.air}",
+                    f"pty,raw,echo=0,link={self.ground}",
+                ],
+                stdout=out,
+                stderr=subprocess.STDOUT,
+            )
         wait_for(lambda: self.air.exists() and self.ground.exists(), 10, f"socat's {self.air}")
 
     def unplug(self) -> None:
@@ -96,9 +102,11 @@ def test_table3_on_one_radio_carrying_every_vehicle(tmp_path: Path) -> None:
     assert link["vehicles"] == [1, 2, 3, 4, 5]
     _, separation, clearance = check_safety(flight)
     seconds = flight.final["mission_time_s"]
-    print(f"\none serial line, five vehicles: completed at {seconds:.1f} s, separation "
-          f"{separation:.1f} m, clearance {clearance:.1f} m; {link['bytes_in']} bytes in, "
-          f"{link['bytes_out']} out")  # fmt: skip
+    print(
+        f"\none serial line, five vehicles: completed at {seconds:.1f} s, separation "
+        f"{separation:.1f} m, clearance {clearance:.1f} m; {link['bytes_in']} bytes in, "
+        f"{link['bytes_out']} out"
+    )
 
 
 @pytest.mark.integration
@@ -145,9 +153,11 @@ def test_a_radio_unplugged_for_5_s_mid_run_reconnects(tmp_path: Path) -> None:
     assert kinds.index(("vehicle_lost", 3)) < kinds.index(("vehicle_back", 3))
     assert not any(v["lost"] for v in flight.final["vehicles"])
     _, separation, clearance = check_safety(flight)
-    print(f"\nradio 3 unplugged 5 s: {radio3['reconnects']} reconnect(s), completed at "
-          f"{flight.final['mission_time_s']:.1f} s, separation {separation:.1f} m, "
-          f"clearance {clearance:.1f} m")  # fmt: skip
+    print(
+        f"\nradio 3 unplugged 5 s: {radio3['reconnects']} reconnect(s), completed at "
+        f"{flight.final['mission_time_s']:.1f} s, separation {separation:.1f} m, "
+        f"clearance {clearance:.1f} m"
+    )
 
 
 def _mission_time(api: str, mid: int) -> float:

@@ -28,6 +28,7 @@ from gcs_ppf.tools.demo import http_json as http
 from gcs_ppf.tools.observer import (
     Observer,
     closest_pass,
+    free_port,
     free_port_block,
     resample,
     tracks_enu,
@@ -451,3 +452,33 @@ def _finished(api: str, mid: int) -> dict[str, Any] | None:
     except OSError:
         return None
     return s if status == 200 and s["state"] in FINISHED else None
+
+
+@pytest.mark.integration
+def test_table3_with_every_vehicle_on_one_udp_port(tmp_path: Path) -> None:
+    """The SITL's five vehicles each stream from a socket of their own to one UDP port
+    (``--out``, as SITL instances stream to a GCS's 14550); the service listens there on one
+    ``udpin`` link: five vehicles discovered on it, each commanded where it speaks from, and
+    the observer finds the run safe."""
+    port = free_port()
+    seen: dict[str, Any] = {}
+
+    def after(api: str, mid: int) -> None:
+        seen["links"] = http("GET", f"{api}/links")[1]
+
+    flight = fly(
+        tmp_path,
+        json.loads(MISSION.read_text()),
+        sitl_extra=["--out", f"udp:127.0.0.1:{port}"],
+        links=[f"udpin:127.0.0.1:{port}"],
+        after=after,
+    )
+    assert flight.final["state"] == "completed", flight.final
+    (link,) = seen["links"]
+    assert link["vehicles"] == [1, 2, 3, 4, 5]
+    _, separation, clearance = check_safety(flight)
+    seconds = flight.final["mission_time_s"]
+    print(
+        f"\none udpin port, five vehicles: completed at {seconds:.1f} s, separation "
+        f"{separation:.1f} m, clearance {clearance:.1f} m"
+    )

@@ -416,6 +416,42 @@ def test_udpin_answers_the_last_sender() -> None:
     run(body())
 
 
+def test_udpin_answers_each_vehicle_where_it_speaks_from() -> None:
+    """Two vehicles, each streaming from a socket of its own to one port (as SITL
+    instances do with --out): a command goes to the vehicle it addresses only, whichever
+    spoke last; a heartbeat (addressed to none) to both."""
+
+    async def body() -> None:
+        port = free_port()
+        inbox = Inbox()
+        link = MavlinkLink(f"udpin:127.0.0.1:{port}", inbox)
+        one, vehicle_1 = await udp_peer(remote_addr=("127.0.0.1", port))
+        two, vehicle_2 = await udp_peer(remote_addr=("127.0.0.1", port))
+        vehicle_2.mav.srcSystem = 2
+        try:
+            async with running(link):
+                while {m.get_srcSystem() for m in inbox.messages} != {1, 2}:
+                    one.sendto(vehicle_heartbeat(vehicle_1.mav))
+                    two.sendto(vehicle_heartbeat(vehicle_2.mav))
+                    await asyncio.sleep(HEARTBEAT_PERIOD_S)
+                one.sendto(vehicle_heartbeat(vehicle_1.mav))  # vehicle 1 spoke last
+                await asyncio.sleep(0.05)
+                assert await link.send(commands.change_speed(2, 25.0))
+                assert await link.send(commands.gcs_heartbeat())
+                await wait_until(lambda: len(vehicle_2.received) >= 2)
+                await wait_until(lambda: len(vehicle_1.received) >= 1)
+                await asyncio.sleep(0.05)
+        finally:
+            one.close()
+            two.close()
+        kinds_1 = [m.get_type() for m, _ in vehicle_1.received]
+        kinds_2 = [m.get_type() for m, _ in vehicle_2.received]
+        assert kinds_1 == ["HEARTBEAT"]
+        assert kinds_2 == ["COMMAND_LONG", "HEARTBEAT"]
+
+    run(body())
+
+
 def test_udpout_sends_first_and_reads_answers() -> None:
     async def body() -> None:
         transport, vehicle = await udp_peer(local_addr=("127.0.0.1", 0))
