@@ -35,7 +35,7 @@ from gcs_ppf.mavlink.telemetry import AIRFRAME_PARAMS, VehicleTelemetry, apply
 from gcs_ppf.mission import Mission
 from gcs_ppf.service.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.service.forwarding import Forwarding
-from gcs_ppf.service.links import MavlinkLink, parse_link_url
+from gcs_ppf.service.links import LinkKind, MavlinkLink, parse_link_url
 from gcs_ppf.service.settings import Settings
 
 log = logging.getLogger("gcs_ppf.service.fleet")
@@ -75,6 +75,11 @@ MISSION_REPLIES = frozenset(
     {"MISSION_REQUEST_INT", "MISSION_REQUEST", "MISSION_ACK", "MISSION_COUNT", "MISSION_ITEM_INT"}
 )
 """A vehicle's side of the mission protocol, handed to a transfer in progress."""
+TRAFFIC_SAMPLES = 6
+"""Heartbeats over which a serial link's load is measured (5 of its seconds at 1 Hz)."""
+RADIO_FULL = 0.9
+"""A radio link carrying more than this fraction of its baud rate either way is told in the
+log: beyond it, a radio's buffer fills and it drops what does not fit."""
 UNMEASURED_HEARTBEAT_HZ = 10.0
 """Our heartbeats per second of ours while a vehicle's clock rate is not yet measured."""
 HEARTBEAT_POLL_S = 0.05
@@ -129,6 +134,24 @@ class LinkEntry:
     url: str
     link: MavlinkLink
     task: asyncio.Task[None] | None = None
+    traffic: deque[tuple[float, int, int]] = field(
+        default_factory=lambda: deque(maxlen=TRAFFIC_SAMPLES)
+    )
+    """(our monotonic s, bytes in, bytes out) at each of our heartbeats: the link's rate."""
+    warned_full: bool = False
+
+    def radio_load(self, clock_rate: float) -> tuple[float, float] | None:
+        """A serial link's bytes a second down and up over its last samples, per vehicle
+        second, as fractions of what its baud rate carries (8N1); None for other links or
+        before two samples."""
+        if self.link.url.kind is not LinkKind.SERIAL or len(self.traffic) < 2:
+            return None
+        (t0, in0, out0), (t1, in1, out1) = self.traffic[0], self.traffic[-1]
+        seconds = (t1 - t0) * clock_rate
+        if seconds <= 0.0:
+            return None
+        capacity = self.link.url.port / 10.0
+        return (in1 - in0) / seconds / capacity, (out1 - out0) / seconds / capacity
 
 
 class Fleet:
@@ -218,6 +241,7 @@ class Fleet:
     def _link_info(self, entry: LinkEntry) -> dict[str, Any]:
         vehicles = sorted(v.system_id for v in self.by_id.values() if v.link_id == entry.id)
         stats = entry.link.stats
+        load = entry.radio_load(self.clock_rate())
         return {
             "id": entry.id,
             "url": entry.url,
@@ -230,6 +254,9 @@ class Fleet:
             "reconnects": stats.reconnects,
             "bytes_in": stats.bytes_in,
             "bytes_out": stats.bytes_out,
+            "radio_load": None
+            if load is None
+            else {"down": round(load[0], 3), "up": round(load[1], 3)},
         }
 
     # Vehicles ----------------------------------------------------------------------------
@@ -427,12 +454,37 @@ class Fleet:
             for entry in list(self._links.values()):
                 await entry.link.send(commands.gcs_heartbeat())
                 await entry.link.send(commands.timesync_request(time.monotonic_ns()))
+                self._sample_traffic(entry)
             if time.monotonic() - asked >= 1.0 / self.settings.heartbeat_hz:
                 asked = time.monotonic()
                 for vehicle in list(self.by_id.values()):
                     if vehicle.param_asks < PARAM_ASKS and not vehicle.lost:
                         vehicle.param_asks += 1
                         await self.request_airframe_params(vehicle.system_id, missing_only=True)
+
+    def _sample_traffic(self, entry: LinkEntry) -> None:
+        """The link's byte counts now; a radio over ``RADIO_FULL`` of its rate is logged (once
+        until it is under again)."""
+        stats = entry.link.stats
+        entry.traffic.append((time.monotonic(), stats.bytes_in, stats.bytes_out))
+        load = entry.radio_load(self.clock_rate())
+        if load is None:
+            return
+        full = max(load) > RADIO_FULL
+        if full and not entry.warned_full:
+            vehicles = sum(1 for v in self.by_id.values() if v.link_id == entry.id)
+            log.warning(
+                "link %d (%s): %.0f %% of its %d baud down, %.0f %% up, %d vehicles: a radio "
+                "this full drops what does not fit (fewer vehicles on it, a faster radio, or "
+                "GCS_PPF_STREAM_RATE_HZ / GCS_PPF_TICK_HZ lower)",
+                entry.id,
+                entry.url,
+                100 * load[0],
+                entry.link.url.port,
+                100 * load[1],
+                vehicles,
+            )
+        entry.warned_full = full
 
     def _heartbeat_period_s(self) -> float:
         """``heartbeat_hz`` of the fastest vehicle clock; while a vehicle heard is not yet

@@ -100,12 +100,15 @@ def test_table3_on_one_radio_carrying_every_vehicle(tmp_path: Path) -> None:
     (link,) = seen["links"]
     assert link["url"] == f"serial:{r['fleet'].ground}:{BAUD}"
     assert link["vehicles"] == [1, 2, 3, 4, 5]
+    load = link["radio_load"]  # a pty carries it all; a 57,600-baud radio could not
+    assert load["down"] > 0.0
+    assert load["up"] > 0.0
     _, separation, clearance = check_safety(flight)
     seconds = flight.final["mission_time_s"]
     print(
         f"\none serial line, five vehicles: completed at {seconds:.1f} s, separation "
         f"{separation:.1f} m, clearance {clearance:.1f} m; {link['bytes_in']} bytes in, "
-        f"{link['bytes_out']} out"
+        f"{link['bytes_out']} out; at 57,600 baud {load['down']:.0%} down, {load['up']:.0%} up"
     )
 
 

@@ -24,6 +24,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink2
 from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.codec import MAVLinkMessage
+from gcs_ppf.service.fleet import LinkEntry
 from gcs_ppf.service.links import LinkKind, LinkUrl, MavlinkLink, parse_link_url
 from gcs_ppf.tools.observer import free_port
 
@@ -616,3 +617,16 @@ def test_a_serial_device_that_is_not_there_is_tried_again() -> None:
         assert link.stats.connects == 0
 
     run(body())
+
+
+def test_a_serial_links_radio_load_is_its_bytes_against_its_baud() -> None:
+    entry = LinkEntry(
+        1, "serial:/dev/ttyUSB0:57600", MavlinkLink("serial:/dev/ttyUSB0:57600", Inbox())
+    )
+    assert entry.radio_load(1.0) is None  # no samples yet
+    entry.traffic.extend([(100.0, 0, 0), (105.0, 5760 * 5, 2880 * 5)])
+    assert entry.radio_load(1.0) == pytest.approx((1.0, 0.5))
+    assert entry.radio_load(10.0) == pytest.approx((0.1, 0.05))  # five s of ours, 50 of theirs
+    tcp = LinkEntry(2, "tcp:127.0.0.1:5760", MavlinkLink("tcp:127.0.0.1:5760", Inbox()))
+    tcp.traffic.extend([(100.0, 0, 0), (105.0, 10**6, 10**6)])
+    assert tcp.radio_load(1.0) is None
