@@ -466,13 +466,17 @@ class Fleet:
         """The link's byte counts now; a radio over ``RADIO_FULL`` of its rate is logged (once
         until it is under again)."""
         stats = entry.link.stats
+        on_it = [v for v in self.by_id.values() if v.link_id == entry.id and not v.lost]
+        if not on_it or not all(v.clock.measured for v in on_it):
+            entry.traffic.clear()  # per vehicle second: only once their clocks are known
+            return
         entry.traffic.append((time.monotonic(), stats.bytes_in, stats.bytes_out))
         load = entry.radio_load(self.clock_rate())
         if load is None:
             return
         full = max(load) > RADIO_FULL
         if full and not entry.warned_full:
-            vehicles = sum(1 for v in self.by_id.values() if v.link_id == entry.id)
+            vehicles = len(on_it)
             log.warning(
                 "link %d (%s): %.0f %% of its %d baud down, %.0f %% up, %d vehicles: a radio "
                 "this full drops what does not fit (fewer vehicles on it, a faster radio, or "
