@@ -357,16 +357,18 @@ def _guided_points(scene: Scene, aim: _Aim, carrot_m: float) -> FloatArray:
 
 
 def _slot_distances_m(scene: Scene) -> list[float]:
-    """Each wingman's distance from its slot behind the leader now (its local target)."""
+    """Each wingman's distance from its slot behind the leader now (its local target).
+
+    By ``math.dist``, the same to the bit on every machine: numpy's norm sums by the SIMD
+    the processor has, and the recorded ticks' plans (``tests/data/ticks``) differed in
+    the last bit on a processor without AVX-512."""
     fleet = scene.fleet
     return [
-        float(
-            np.linalg.norm(
-                local_target_point(
-                    fleet.pos[0], float(fleet.pitch[0]), float(fleet.yaw[0]), fleet.slot[i]
-                )
-                - fleet.pos[i]
-            )
+        math.dist(
+            local_target_point(
+                fleet.pos[0], float(fleet.pitch[0]), float(fleet.yaw[0]), fleet.slot[i]
+            ).tolist(),
+            fleet.pos[i].tolist(),
         )
         for i in range(1, len(fleet.ids))
     ]
