@@ -161,7 +161,7 @@ class VehicleLink:
     # ---- faults --------------------------------------------------------------------------
     def _blocked(self) -> bool:
         f = self.ap.faults
-        if f.dead or f.link_cut(self.sim.sim_s):
+        if f.dead or (f.cuts and f.link_cut(self.sim.sim_s)):  # (a frame: no cuts, no call)
             return True
         return f.loss_pct > 0 and self.rng.random() * 100.0 < f.loss_pct
 
