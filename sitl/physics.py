@@ -406,7 +406,7 @@ def climb_demand_m_s(
 
 def step(state: FleetState, env: Envelope, guid: Guidance, dt: float) -> FleetState:
     """Advance the fleet by ``dt`` seconds (pure; returns a new state): ``step_reference``
-    compiled (``sitl.compiled``), the same numbers in a hundredth of the time."""
+    compiled (``sitl.compiled``): the same numbers, ~20× faster (five vehicles: ~20 µs)."""
     s, e, g = state, env, guid
     out = compiled.step_fleet(
         s.pos_enu_m, s.pitch_rad, s.yaw_rad, s.speed_m_s, s.roll_rad, s.climb_m_s,
