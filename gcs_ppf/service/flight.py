@@ -45,18 +45,6 @@ COURSE_COMMAND = {  # the command each guidance mode flies by
 }
 RECENT_TICKS = 20  # the tick's own work is the median of this many latest
 SENT_COURSES_KEPT = 100  # courses kept per vehicle for the obedience check (10 s at 10 Hz)
-TICK_SPACING = 0.75
-"""A tick comes with the first position of the leader at least this share of a period
-after the one the last tick planned from (``due``).  A 10 Hz stream's positions are
-stamped on the autopilot's loop, 0.08 and 0.12 s apart by turns (the built-in SITL's 50 Hz
-steps, ArduPlane's scheduler): waiting a whole period of the leader's clock (any message
-of its moves it) passed over the early ones, commands came 0.1 and 0.2 s apart in a
-pattern, and the altitude demand, held twice as long every half second, swung every
-vehicle's flight path by ±1° at 2 Hz, the slots 600 m behind by ±10 m (Table 2 at 1×,
-observer: in formation 73–77 % of the flight after forming, held 4 s at most; ticking on
-every position, 98–99 %, held 23 s)."""
-TICK_FALLBACK = 2.0
-"""Periods of the leader's clock after which a tick comes without a new position of its."""
 
 
 async def fly(station: Station, run: Run) -> None:
@@ -183,41 +171,14 @@ def vehicle_time_s(station: Station, run: Run) -> float | None:
     return leader.telemetry.time_boot_ms / 1000.0
 
 
-def leader_fix_s(station: Station, run: Run) -> float | None:
-    """When the leader's latest position was taken (seconds of its clock)."""
-    leader = station.fleet.by_id.get(run.mission.leader.id)
-    if leader is None or leader.telemetry.position_boot_ms is None:
-        return None
-    return leader.telemetry.position_boot_ms / 1000.0
-
-
-def due(
-    since_tick_s: float, fix_s: float | None, last_fix_s: float | None, period_s: float
-) -> bool:
-    """Whether a tick is due: the leader's position ``fix_s`` new and ``TICK_SPACING`` of a
-    period after the one the last tick planned from (``last_fix_s``); or, its positions
-    missing, ``TICK_FALLBACK`` periods of its clock since the last tick (``since_tick_s``).
-    Its other messages move its clock too, some stamped just before a position: ticking
-    on those ticked twice a period."""
-    if (
-        fix_s is not None
-        and last_fix_s is not None
-        and fix_s - last_fix_s >= (period_s * TICK_SPACING)
-    ):
-        return True
-    return since_tick_s >= period_s * TICK_FALLBACK
-
-
 async def tick_loop(station: Station, run: Run) -> None:
-    """A tick at ``tick_hz`` of the leader's clock, or with a position of the leader's
-    (``due``), woken by fresh telemetry, until the run is aborted or ends; a telemetry
-    sample at ``telemetry_sample_hz`` of mission time.  A new leader's clock carries the
-    mission time on from where the last one left it."""
+    """A tick at ``tick_hz`` of the leader's clock, woken by fresh telemetry, until the run
+    is aborted or ends; a telemetry sample at ``telemetry_sample_hz`` of mission time.  A
+    new leader's clock carries the mission time on from where the last one left it."""
     fleet = station.fleet
     period = 1.0 / station.settings.tick_hz
     sample_period = 1.0 / station.settings.telemetry_sample_hz
     last_tick: float | None = None
-    last_fix: float | None = None
     last_sample = -math.inf
     run.tick_rate = TickRate(station.settings.tick_hz)
     clock_of = run.mission.leader.id
@@ -239,13 +200,12 @@ async def tick_loop(station: Station, run: Run) -> None:
         if run.mission.leader.id != clock_of:  # a new leader: mission time goes on, on its clock
             clock_of = run.mission.leader.id
             run.start_vehicle_time_s = now_v - run.mission_time_s
-            last_tick = last_fix = None
-        fix = leader_fix_s(station, run)
-        if last_tick is not None and not due(now_v - last_tick, fix, last_fix, period):
+            last_tick = None
+        if last_tick is not None and now_v - last_tick < period * 0.999:
             continue
         if last_tick is not None:
             run.tick_gaps_s.append(now_v - last_tick)
-        last_tick, last_fix = now_v, fix
+        last_tick = now_v
         run.mission_time_s = now_v - run.start_vehicle_time_s
         phases = run.phases
         phases.begin_tick()
