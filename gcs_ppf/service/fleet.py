@@ -16,7 +16,7 @@ import math
 import statistics
 import time
 from collections import deque
-from collections.abc import Callable, Coroutine, Iterator
+from collections.abc import Callable, Coroutine, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -528,6 +528,14 @@ class Fleet:
             period = max(0.01, WATCHDOG_PERIOD_S / self.clock_rate())
             expected = time.monotonic() + period
             await asyncio.sleep(period)
+
+    def on_radio(self, vehicle_ids: Iterable[int]) -> bool:
+        """Whether any of these vehicles is commanded over a radio (a serial link)."""
+        links = {v.link_id for vid in vehicle_ids if (v := self.by_id.get(vid)) is not None}
+        return any(
+            (entry := self._links.get(lid)) is not None and entry.link.url.kind is LinkKind.SERIAL
+            for lid in links
+        )
 
     def clock_rate(self) -> float:
         """The fastest vehicle clock's seconds per ours (a SITL's speed-up; 1 if none)."""

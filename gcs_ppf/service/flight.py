@@ -45,6 +45,18 @@ COURSE_COMMAND = {  # the command each guidance mode flies by
 }
 RECENT_TICKS = 20  # the tick's own work is the median of this many latest
 SENT_COURSES_KEPT = 100  # courses kept per vehicle for the obedience check (10 s at 10 Hz)
+TICK_SPACING = 0.75
+"""A tick comes with the first position of the leader at least this share of a period
+after the one the last tick planned from (``due``).  A 10 Hz stream's positions are
+stamped on the autopilot's loop, 0.08 and 0.12 s apart by turns (the built-in SITL's 50 Hz
+steps, ArduPlane's scheduler): waiting a whole period of the leader's clock (any message
+of its moves it) passed over the early ones, commands came 0.1 and 0.2 s apart in a
+pattern, and the altitude demand, held twice as long every half second, swung every
+vehicle's flight path by ±1° at 2 Hz, the slots 600 m behind by ±10 m (Table 2 at 1×,
+observer: in formation 73–77 % of the flight after forming, held 4 s at most; ticking on
+every position, 98–99 %, held 23 s)."""
+TICK_FALLBACK = 2.0
+"""Periods of the leader's clock after which a tick comes without a new position of its."""
 
 
 async def fly(station: Station, run: Run) -> None:
@@ -171,14 +183,54 @@ def vehicle_time_s(station: Station, run: Run) -> float | None:
     return leader.telemetry.time_boot_ms / 1000.0
 
 
+def leader_fix_s(station: Station, run: Run) -> float | None:
+    """When the leader's latest position was taken (seconds of its clock)."""
+    leader = station.fleet.by_id.get(run.mission.leader.id)
+    if leader is None or leader.telemetry.position_boot_ms is None:
+        return None
+    return leader.telemetry.position_boot_ms / 1000.0
+
+
+def due(
+    since_tick_s: float,
+    fix_s: float | None,
+    last_fix_s: float | None,
+    period_s: float,
+    spacing: float = TICK_SPACING,
+) -> bool:
+    """Whether a tick is due: the leader's position ``fix_s`` new and ``spacing`` of a
+    period after the one the last tick planned from (``last_fix_s``); or, its positions
+    missing, ``TICK_FALLBACK`` periods of its clock since the last tick (``since_tick_s``).
+    Its other messages move its clock too, some stamped just before a position: ticking
+    on those ticked twice a period.  ``spacing`` 1: a whole period of its clock, a
+    position or not (``radio_spacing``)."""
+    if spacing >= 1.0:
+        return since_tick_s >= period_s * 0.999
+    if fix_s is not None and last_fix_s is not None and fix_s - last_fix_s >= period_s * spacing:
+        return True
+    return since_tick_s >= period_s * TICK_FALLBACK
+
+
+def radio_spacing(on_radio: bool) -> float:
+    """``due``'s spacing: ``TICK_SPACING``, or whole periods where a vehicle of the run is
+    commanded over a radio.  A radio's uplink is budgeted at a tick a period
+    (docs/service.md#telemetry-radios: 1.0 kB/s a vehicle); ticking with every position
+    sends a third more, and five vehicles on one 57,600-baud radio (83 % busy up at whole
+    periods) lost commands and missed their target time (tests/integration/test_serial.py,
+    2 runs of 2)."""
+    return 1.0 if on_radio else TICK_SPACING
+
+
 async def tick_loop(station: Station, run: Run) -> None:
-    """A tick at ``tick_hz`` of the leader's clock, woken by fresh telemetry, until the run
-    is aborted or ends; a telemetry sample at ``telemetry_sample_hz`` of mission time.  A
-    new leader's clock carries the mission time on from where the last one left it."""
+    """A tick at ``tick_hz`` of the leader's clock, or with a position of the leader's
+    (``due``), woken by fresh telemetry, until the run is aborted or ends; a telemetry
+    sample at ``telemetry_sample_hz`` of mission time.  A new leader's clock carries the
+    mission time on from where the last one left it."""
     fleet = station.fleet
     period = 1.0 / station.settings.tick_hz
     sample_period = 1.0 / station.settings.telemetry_sample_hz
     last_tick: float | None = None
+    last_fix: float | None = None
     last_sample = -math.inf
     run.tick_rate = TickRate(station.settings.tick_hz)
     clock_of = run.mission.leader.id
@@ -200,12 +252,14 @@ async def tick_loop(station: Station, run: Run) -> None:
         if run.mission.leader.id != clock_of:  # a new leader: mission time goes on, on its clock
             clock_of = run.mission.leader.id
             run.start_vehicle_time_s = now_v - run.mission_time_s
-            last_tick = None
-        if last_tick is not None and now_v - last_tick < period * 0.999:
+            last_tick = last_fix = None
+        fix = leader_fix_s(station, run)
+        spacing = radio_spacing(fleet.on_radio(v.id for v in run.mission.vehicles))
+        if last_tick is not None and not due(now_v - last_tick, fix, last_fix, period, spacing):
             continue
         if last_tick is not None:
             run.tick_gaps_s.append(now_v - last_tick)
-        last_tick = now_v
+        last_tick, last_fix = now_v, fix
         run.mission_time_s = now_v - run.start_vehicle_time_s
         phases = run.phases
         phases.begin_tick()

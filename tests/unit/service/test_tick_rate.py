@@ -9,7 +9,7 @@ from typing import Any, cast
 
 import pytest
 
-from gcs_ppf.service.flight import keep_rate
+from gcs_ppf.service.flight import TICK_FALLBACK, TICK_SPACING, due, keep_rate, radio_spacing
 from gcs_ppf.service.run import status
 from gcs_ppf.service.station import Station
 from gcs_ppf.service.tick_phases import PHASES, TickPhases
@@ -89,3 +89,40 @@ def test_phases_count_their_own_time_and_a_tick_only_its_own() -> None:
     assert done["decoding"] == 0.005
     summary = cast(dict[str, Any], phases.summary_ms())
     assert summary["assurance"]["p50"] >= 30.0
+
+
+def ticked_fixes(fixes_s: list[float], period_s: float = 0.1) -> list[float]:
+    """The leader's positions (its clock) a tick plans from, each message read as it comes."""
+    ticks: list[float] = []
+    for fix in fixes_s:
+        if not ticks or due(fix - ticks[-1], fix, ticks[-1], period_s):
+            ticks.append(fix)
+    return ticks
+
+
+def test_a_tick_comes_with_every_position_of_a_stream_stamped_on_the_autopilots_loop() -> None:
+    # 10 Hz on a 50 Hz loop: 0.08 and 0.12 s apart every half second (the built-in SITL's).
+    fixes = [0.02, 0.12, 0.22, 0.32, 0.40, 0.52, 0.62, 0.72, 0.82, 0.90, 1.02]
+    assert ticked_fixes(fixes) == fixes
+    # A whole period after the last tick, every early position was passed over.
+    assert ticked_fixes(fixes, period_s=0.1 / TICK_SPACING * 0.999) != fixes
+
+
+def test_a_tick_waits_for_a_new_position_and_comes_without_one_only_after_the_fallback() -> None:
+    assert not due(0.05, 1.0, 1.0, 0.1)  # the same position again
+    assert not due(0.15, 1.0, 1.0, 0.1)  # its other messages moved the clock a period on
+    assert due(0.1 * TICK_FALLBACK, 1.0, 1.0, 0.1)  # no position for two periods
+    assert not due(0.05, 1.05, 1.0, 0.1)  # a position too soon: a stream faster than asked
+    assert due(0.05, 1.08, 1.0, 0.1)
+    assert not due(0.05, None, 1.0, 0.1)
+
+
+def test_vehicles_on_a_radio_tick_a_whole_period_apart() -> None:
+    fixes = [0.02, 0.12, 0.22, 0.32, 0.40, 0.52, 0.62, 0.72, 0.82, 0.90, 1.02]
+    spacing = radio_spacing(on_radio=True)
+    ticks: list[float] = []
+    for fix in fixes:
+        if not ticks or due(fix - ticks[-1], fix, ticks[-1], 0.1, spacing):
+            ticks.append(fix)
+    assert ticks == [0.02, 0.12, 0.22, 0.32, 0.52, 0.62, 0.72, 0.82, 1.02]
+    assert radio_spacing(on_radio=False) == TICK_SPACING
