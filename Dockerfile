@@ -32,7 +32,7 @@ COPY --from=build /opt/venv /opt/venv
 ENV PATH=/opt/venv/bin:$PATH PYTHONUNBUFFERED=1
 WORKDIR /app
 COPY examples ./examples
-# The planner's and the assurance's kernels (and the SITL's physics step) compiled into
-# numba's cache now, so that no container waits 1-2 min for them at its first run.
-RUN python -m gcs_ppf.service.kernels && python -m sitl.compiled
+# The planner's and the assurance's kernels compiled into numba's cache now, so that no
+# container waits 1-2 min for them at its first run.
+RUN python -m gcs_ppf.service.kernels
 CMD ["gcs-ppf", "--help"]

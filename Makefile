@@ -3,7 +3,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 KERNELS := $(VENV)/.kernels-stamp
-SOURCES := $(shell find gcs_ppf sitl -name '*.py')
+SOURCES := $(shell find gcs_ppf -name '*.py')
 OUT    := out/paper_table3
 SPEEDUP ?= 1
 
@@ -29,11 +29,9 @@ $(STAMP): pyproject.toml $(LOCK)
 
 # The compiled kernels built into numba's cache, again whenever a source file changed (a
 # pull): otherwise the first run after it waited minutes for them, its vehicles flying on
-# their last commands meanwhile. Seconds when the cache is still good. The SITL's physics
-# step too (sitl/compiled.py: a few seconds to compile).
+# their last commands meanwhile. Seconds when the cache is still good.
 $(KERNELS): $(STAMP) $(SOURCES)
 	$(PY) -m gcs_ppf.service.kernels
-	$(PY) -m sitl.compiled
 	touch $(KERNELS)
 
 install: $(STAMP) $(KERNELS) chromium socat

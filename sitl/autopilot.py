@@ -8,7 +8,6 @@ The autopilot steers by writing its row of the fleet ``Guidance`` arrays (``writ
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from gcs_ppf import geodesy
@@ -158,13 +157,6 @@ class Autopilot:
         self.guided_altitude: GuidedAltitude | None = None
         self.takeoff: TakeoffStage | None = None
         self.reboot_requested = False
-        # Where the vehicle is on WGS-84 now, from its simulation's conversion of the whole
-        # fleet at this step (``Simulation.fleet_geodetic``: one pymap3d call a step, shared
-        # by telemetry, commands and the fence); None: converted here.
-        self.locate: Callable[[int], Vec3] | None = None
-        # The last navigation target reported and its geodetic position (POSITION_TARGET_
-        # GLOBAL_INT at 1 Hz: a target held for minutes is converted once).
-        self._target_geo: tuple[Vec3, Vec3] | None = None
 
     # ---- geometry ------------------------------------------------------------------------
     def location_to_enu(self, frame: int, lat_e7: int, lon_e7: int, z_m: float) -> Vec3 | None:
@@ -182,12 +174,6 @@ class Autopilot:
             )
             return (math.nan, math.nan, up)
         return geodesy.geodetic_to_enu(lat_e7 * 1e-7, lon_e7 * 1e-7, alt_amsl, self.origin)
-
-    def geodetic_here(self, kin: Kinematics) -> Vec3:
-        """(lat_deg, lon_deg, alt_m) of the vehicle at ``kin`` (its state now)."""
-        if self.locate is not None:
-            return self.locate(self.index)
-        return geodesy.enu_to_geodetic(*kin.pos_enu_m, self.origin)
 
     def rtl_point(self, kin: Kinematics) -> Vec3:
         rtl_alt = self.params["RTL_ALTITUDE"]
@@ -458,7 +444,7 @@ class Autopilot:
         if not self.fence_enabled:
             self.fence_breached = False
             return None
-        lat, lon, _ = self.geodetic_here(kin)
+        lat, lon, _ = geodesy.enu_to_geodetic(*kin.pos_enu_m, self.origin)
         now = bool(fence.breached(self.fence_areas, lat, lon))
         if now == self.fence_breached:
             return None
@@ -544,8 +530,6 @@ class Autopilot:
     def position_target(self, clock: Clock) -> Message | None:
         if self.mode == PlaneMode.MANUAL:
             return None
-        target = self.nav.pos_enu_m
-        if self._target_geo is None or self._target_geo[0] != target:
-            self._target_geo = (target, geodesy.enu_to_geodetic(*target, self.origin))
-        lat, lon, alt = self._target_geo[1]
+        x, y, z = self.nav.pos_enu_m
+        lat, lon, alt = geodesy.enu_to_geodetic(x, y, z, self.origin)
         return mb.position_target_global_int(clock.time_boot_ms, lat, lon, alt)

@@ -51,7 +51,7 @@ def real_time_factor(n: int, sim_seconds: float) -> tuple[float, int]:
         links = []
         for i in range(n):
             link = VehicleLink(sim, i, 1.0, 0, None, None)
-            link.peers.append(Peer(link, counter, "bench", stream=True))
+            link.peers.append(Peer(link, counter, "bench"))
             links.append(link)
         steps = round(sim_seconds / 0.02)
         t0 = time.perf_counter()

@@ -133,14 +133,7 @@ class Simulation:
             mode = mode_from_number(table["INITIAL_MODE"]) or PlaneMode.MANUAL
             ap.set_mode(mode, self.kinematics(i), self.clock(0.0), Outbox())
             self.autopilots.append(ap)
-        self._geo: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-        self._geo_of: FleetState | None = None
-        for ap in self.autopilots:
-            ap.locate = self._locate
         self._sync_commands()
-        # The compiled step loaded from numba's cache now (~0.2 s), not at the first step of
-        # a paced flight (pure: the state is not changed).
-        step(self.state, self.env, self.guid, DT_S)
 
     # ---- views ---------------------------------------------------------------------------
     def clock(self, link_s: float) -> Clock:
@@ -226,32 +219,12 @@ class Simulation:
                     out.broadcast.append(msg)
             outputs.append((i, out))
 
-    def fleet_geodetic(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(lat_deg, lon_deg, alt_m) of every vehicle's true position now, each [n]: one
-        pymap3d call for the whole fleet at most once a step (~0.3 ms whatever the number of
-        vehicles), shared by the telemetry of the step and the commands and fence checks
-        that need where a vehicle is (each used to convert its own)."""
-        if self._geo is None or self._geo_of is not self.state:
-            p = self.state.pos_enu_m
-            o = self.origin
-            lat, lon, alt = pymap3d.enu2geodetic(p[:, 0], p[:, 1], p[:, 2], o.lat, o.lon, o.alt)
-            self._geo = (np.asarray(lat), np.asarray(lon), np.asarray(alt))
-            self._geo_of = self.state
-        return self._geo
-
-    def _locate(self, i: int) -> tuple[float, float, float]:
-        lat, lon, alt = self.fleet_geodetic()
-        return float(lat[i]), float(lon[i]), float(alt[i])
-
     def _geodetic(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """What the vehicles' GPS reports: the true positions, or with SIM_GPS_NOISE."""
-        noisy = [i for i, ap in enumerate(self.autopilots) if ap.faults.noise_m > 0]
-        if not noisy:
-            return self.fleet_geodetic()
         pos = self.state.pos_enu_m
         noise = np.zeros_like(pos)
-        for i in noisy:
-            noise[i] = self.rngs[i].normal(0.0, self.autopilots[i].faults.noise_m, 3)
+        for i, ap in enumerate(self.autopilots):
+            if ap.faults.noise_m > 0:
+                noise[i] = self.rngs[i].normal(0.0, ap.faults.noise_m, 3)
         p = pos + noise
         o = self.origin
         lat, lon, alt = pymap3d.enu2geodetic(p[:, 0], p[:, 1], p[:, 2], o.lat, o.lon, o.alt)

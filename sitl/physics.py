@@ -53,7 +53,6 @@ from gcs_ppf.mavlink.ardupilot import (
     ROLL_RATE_MAX_RAD_S,
     TURN_EFFICIENCY,
 )
-from sitl import compiled
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -405,27 +404,7 @@ def climb_demand_m_s(
 
 
 def step(state: FleetState, env: Envelope, guid: Guidance, dt: float) -> FleetState:
-    """Advance the fleet by ``dt`` seconds (pure; returns a new state): ``step_reference``
-    compiled (``sitl.compiled``): the same numbers, ~20× faster (five vehicles: ~20 µs)."""
-    s, e, g = state, env, guid
-    out = compiled.step_fleet(
-        s.pos_enu_m, s.pitch_rad, s.yaw_rad, s.speed_m_s, s.roll_rad, s.climb_m_s,
-        s.height_demand_m, s.landed,
-        e.v_min_m_s, e.v_max_m_s, e.accel_m_s2, e.decel_m_s2, e.max_pitch_rate_rad_s,
-        e.max_yaw_rate_rad_s, e.pitch_min_rad, e.pitch_max_rad, e.ground_z_m, e.roll_limit_rad,
-        e.heading_gain, e.climb_max_m_s, e.sink_max_m_s, e.l1_period_s, e.l1_damping,
-        e.takeoff_climb_m_s, e.rotate_speed_m_s, e.speed_height_coupling, e.roll_lag_s,
-        e.climb_lag_s, e.height_gain_1_s,
-        g.kind, g.target_enu_m, g.radius_m, g.direction, g.speed_cmd_m_s, g.thrust,
-        g.course_rad, g.lateral_accel_m_s2, g.alt_slew_m_s, g.takeoff,
-        float(dt),
-    )  # fmt: skip
-    return FleetState(*out)
-
-
-def step_reference(state: FleetState, env: Envelope, guid: Guidance, dt: float) -> FleetState:
-    """Advance the fleet by ``dt`` seconds (pure; returns a new state). The model as numpy
-    over the fleet; ``step`` runs it compiled."""
+    """Advance the fleet by ``dt`` seconds (pure; returns a new state)."""
     v = state.speed_m_s
     airborne = ~state.landed
 

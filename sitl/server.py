@@ -68,16 +68,10 @@ def signing_now() -> int:
 class Peer:
     """One client of one vehicle: its codec and how to write to it."""
 
-    def __init__(
-        self, link: VehicleLink, write: Callable[[bytes], None], label: str, stream: bool = False
-    ) -> None:
+    def __init__(self, link: VehicleLink, write: Callable[[bytes], None], label: str) -> None:
         self.link = link
         self.write = write
         self.label = label
-        # A byte stream (TCP): the frames of one event go out in one write, one system call
-        # (frame by frame, ~2,000 sends a second at ×10 with five vehicles, each waking the
-        # client). Datagrams and radio lines keep one frame a write.
-        self.stream = stream
         self.mav = mavlink.MAVLink(None, srcSystem=link.sysid, srcComponent=1)
         self.mav.robust_parsing = True
         self.buffered: Callable[[], int] = lambda: 0
@@ -161,7 +155,7 @@ class VehicleLink:
     # ---- faults --------------------------------------------------------------------------
     def _blocked(self) -> bool:
         f = self.ap.faults
-        if f.dead or (f.cuts and f.link_cut(self.sim.sim_s)):  # (a frame: no cuts, no call)
+        if f.dead or f.link_cut(self.sim.sim_s):
             return True
         return f.loss_pct > 0 and self.rng.random() * 100.0 < f.loss_pct
 
@@ -222,36 +216,21 @@ class VehicleLink:
 
     # ---- outbound ------------------------------------------------------------------------
     def send(self, out: Outbox, reply_to: Peer | None) -> None:
-        """Every message of ``out`` to its peers, each decided (faults, a full buffer) and
-        packed in turn as before; a stream peer's frames then leave in one write."""
-        held: dict[Peer, list[bytes]] = {}
         for msg in out.broadcast:
             self._log_out(msg)
             for peer in self.peers:
-                self._write(peer, msg, held)
+                self._write(peer, msg)
         for msg in out.reply:
             self._log_out(msg)
             if reply_to is not None:
-                self._write(reply_to, msg, held)
-        for peer, frames in held.items():
-            self._emit(peer, b"".join(frames))
+                self._write(reply_to, msg)
 
-    def _write(self, peer: Peer, msg: Message, held: dict[Peer, list[bytes]]) -> None:
-        frames = held.get(peer)
-        pending = sum(map(len, frames)) if frames else 0
-        if self._blocked() or peer.buffered() + pending > MAX_BUFFERED:
+    def _write(self, peer: Peer, msg: Message) -> None:
+        if self._blocked() or peer.buffered() > MAX_BUFFERED:
             self.stats.dropped += 1
             return
         data = peer.pack(msg)
         self.stats.tx_msgs += 1
-        if not peer.stream:
-            self._emit(peer, data)
-        elif frames is None:
-            held[peer] = [data]
-        else:
-            frames.append(data)
-
-    def _emit(self, peer: Peer, data: bytes) -> None:
         delay = self._delay_s()
         if delay > 0:
             self.loop.call_later(delay, peer.write, data)
@@ -277,8 +256,7 @@ class _TcpClient(asyncio.Protocol):
     def connection_made(self, transport: asyncio.BaseTransport) -> None:
         assert isinstance(transport, asyncio.Transport)
         self.transport = transport
-        label = str(transport.get_extra_info("peername"))
-        self.peer = Peer(self.link, self._write, label, stream=True)
+        self.peer = Peer(self.link, self._write, str(transport.get_extra_info("peername")))
         self.peer.buffered = transport.get_write_buffer_size
         self.peer.close = transport.close
         self.link.peers.append(self.peer)

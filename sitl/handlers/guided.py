@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from gcs_ppf import geodesy
 from gcs_ppf.mavlink import enums
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.enums import (
@@ -132,7 +133,7 @@ def _change_speed(ap: Autopilot, msg: Any) -> int:
 def _change_altitude(ap: Autopilot, msg: Any, kin: Kinematics) -> int:
     if not finite(msg.z) or msg.z in (0.0, -1.0):
         return MAV_RESULT_DENIED
-    lat, lon, _ = ap.geodetic_here(kin)  # the altitude here
+    lat, lon, _ = geodesy.enu_to_geodetic(*kin.pos_enu_m, ap.origin)  # the altitude here
     target = ap.location_to_enu(msg.frame, round(lat * 1e7), round(lon * 1e7), float(msg.z))
     if target is None:
         return MAV_RESULT_DENIED

@@ -4,7 +4,6 @@ TECS loops, takeoff, and the airframe's limits under any command."""
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -17,14 +16,12 @@ from sitl.physics import (
     GRAVITY_M_S2,
     Envelope,
     FleetState,
-    Guidance,
     GuidanceKind,
     default_envelope,
     effective_radius_m,
     hold_guidance,
     initial_state,
     step,
-    step_reference,
 )
 
 W = math.pi / 6
@@ -324,70 +321,3 @@ def test_limits_hold_for_any_command(
         assert -env.decel_m_s2[0] * DT_S - 1e-9 <= dv <= env.accel_m_s2[0] * DT_S + 1e-9
         assert env.v_min_m_s[0] <= n.speed_m_s[0] <= env.v_max_m_s[0]
         s = n
-
-
-def _random_fleet(seed: int, n: int) -> tuple[FleetState, Envelope, Guidance]:
-    """A fleet in every situation the step distinguishes: each guidance kind, on the ground
-    or flying, taking off, with and without thrust, loitering either way, slewing, near
-    the ground; on either airframe's gains."""
-    rng = np.random.default_rng(seed)
-    landed = rng.random(n) < 0.2
-    pos = np.column_stack(
-        (rng.uniform(-5000, 5000, n), rng.uniform(-5000, 5000, n), rng.uniform(0.0, 800.0, n))
-    )
-    v = rng.uniform(5.0, 300.0, n)
-    s = initial_state(pos, rng.uniform(-0.5, 0.5, n), rng.uniform(-4, 4, n), v, landed)
-    s = replace(
-        s,
-        roll_rad=np.where(landed, 0.0, rng.uniform(-1.0, 1.0, n)),
-        climb_m_s=np.where(landed, 0.0, rng.uniform(-20, 20, n)),
-        height_demand_m=pos[:, 2] + rng.uniform(-50, 50, n),
-    )
-    env = envelope(n, v_min=10.0, v_max=300.0) if seed % 2 else arduplane_envelope(n)
-    env.ground_z_m[:] = rng.uniform(0.0, 100.0, n)
-    env.speed_height_coupling[:] = rng.uniform(0.0, 0.5, n)
-    g = hold_guidance(s)
-    g.kind[:] = rng.integers(0, 5, n)
-    g.target_enu_m[:] = pos + rng.uniform(-3000, 3000, (n, 3))
-    near = rng.random(n) < 0.1  # on the point itself
-    g.target_enu_m[near, :2] = pos[near, :2]
-    g.radius_m[:] = rng.uniform(-400, 400, n)
-    g.direction[:] = rng.choice([-1.0, 0.0, 1.0], n)
-    g.speed_cmd_m_s[:] = rng.uniform(0, 350, n)
-    g.thrust[:] = rng.random(n) < 0.85
-    g.course_rad[:] = rng.uniform(-7, 7, n)
-    g.lateral_accel_m_s2[:] = np.where(rng.random(n) < 0.3, np.inf, rng.uniform(0.05, 50, n))
-    g.alt_slew_m_s[:] = np.where(rng.random(n) < 0.5, np.inf, rng.uniform(0.1, 20, n))
-    g.takeoff[:] = rng.random(n) < 0.2
-    return s, env, g
-
-
-@pytest.mark.parametrize("seed", range(6))
-def test_compiled_step_is_the_reference_step(seed: int) -> None:
-    """``step`` (compiled) flies what ``step_reference`` (numpy) says, step after step, for
-    every kind of guidance, on the ground and in the air: the same arithmetic in the same
-    order (bit for bit where numpy's sin/cos/atan are the C library's, as on x86-64
-    without AVX-512)."""
-    s, env, g = _random_fleet(seed, 64)
-    a = b = s
-    for _ in range(200):
-        a, b = step(a, env, g, DT_S), step_reference(b, env, g, DT_S)
-        for name in FleetState.__slots__:
-            x, y = getattr(a, name), getattr(b, name)
-            assert x.dtype == y.dtype, name
-            assert x.shape == y.shape, name
-            np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-9, err_msg=name)
-
-
-def test_compiled_constants_are_the_models() -> None:
-    import sitl.compiled as c
-    import sitl.physics as p
-
-    for name in (
-        "GRAVITY_M_S2", "TAU_TAKEOFF_CLIMB_S", "TAU_SPEED_S", "GUIDED_ALT_UPDATE_S",
-        "TAKEOFF_SPEED_FACTOR", "GROUND_ACCEL_M_S2", "ORBIT_MARGIN", "GLIDE_PITCH_RAD",
-        "MIN_TURN_SPEED_M_S",
-    ):  # fmt: skip
-        assert getattr(c, name) == getattr(p, name), name
-    for kind in GuidanceKind:
-        assert getattr(c, kind.name) == int(kind)
