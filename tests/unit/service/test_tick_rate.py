@@ -9,7 +9,7 @@ from typing import Any, cast
 
 import pytest
 
-from gcs_ppf.service.flight import TICK_FALLBACK, TICK_SPACING, due, keep_rate, radio_spacing
+from gcs_ppf.service.flight import TICK_FALLBACK, TICK_SPACING, due, keep_rate, tick_spacing
 from gcs_ppf.service.run import status
 from gcs_ppf.service.station import Station
 from gcs_ppf.service.tick_phases import PHASES, TickPhases
@@ -117,12 +117,13 @@ def test_a_tick_waits_for_a_new_position_and_comes_without_one_only_after_the_fa
     assert not due(0.05, None, 1.0, 0.1)
 
 
-def test_vehicles_on_a_radio_tick_a_whole_period_apart() -> None:
+def test_vehicles_on_a_radio_or_an_overrunning_tick_keep_whole_periods() -> None:
     fixes = [0.02, 0.12, 0.22, 0.32, 0.40, 0.52, 0.62, 0.72, 0.82, 0.90, 1.02]
-    spacing = radio_spacing(on_radio=True)
+    spacing = tick_spacing(on_radio=True, overrunning=False)
     ticks: list[float] = []
     for fix in fixes:
         if not ticks or due(fix - ticks[-1], fix, ticks[-1], 0.1, spacing):
             ticks.append(fix)
     assert ticks == [0.02, 0.12, 0.22, 0.32, 0.52, 0.62, 0.72, 0.82, 1.02]
-    assert radio_spacing(on_radio=False) == TICK_SPACING
+    assert tick_spacing(on_radio=False, overrunning=False) == TICK_SPACING
+    assert tick_spacing(on_radio=False, overrunning=True) == 1.0
