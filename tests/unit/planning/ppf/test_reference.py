@@ -89,6 +89,22 @@ def test_one_step_agrees_while_a_vehicle_gives_way_back() -> None:
     _agree_at(scene, tr, mission.planner.dt, near)
 
 
+@pytest.mark.parametrize(
+    ("name", "start", "end"),
+    [("overtake_24_1m.json", 3350, 3700), ("feasible_ground_49_6m.json", 0, 1500)],
+)
+def test_one_step_agrees_while_giving_way_to_a_teammate_first(
+    name: str, start: int, end: int
+) -> None:
+    """The kept breaches: a vehicle in a teammate conflict inside an obstacle's influence
+    (``teammates_first``: wingman 2 overtaking wingman 4 round the sphere, 33.5–37 s) and
+    one in a conflict above the ground (no room); the reference agrees on those steps."""
+    mission = load_mission_file(BREACHES / name)
+    scene = scene_from_mission(mission)
+    tr = advance(scene, mission.planner.dt, end + 1).trajectory
+    _agree_at(scene, tr, mission.planner.dt, np.arange(start, end, 5))
+
+
 def _gives_way_back(scene: Scene, tr: Trajectory, k: int, dt: float) -> bool:
     """Whether wingman 2 (index 1) gives way back to wingman 3 (index 2) in record ``k``."""
     lim, speed = scene.limits, tr.speed[k]
