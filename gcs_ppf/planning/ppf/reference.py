@@ -433,12 +433,17 @@ def _turn_trends(
 ) -> tuple[FloatArray, FloatArray]:
     """Eq. 19 (erratum 2), saturated: the pitch and yaw entries of the trend matrix, the
     yaw never turning further towards a repelling obstacle when the other sense does not
-    (the kernel's ``away_from_obstacles``); ``yaw_rate`` [N] each vehicle's ω_ψ."""
+    (the kernel's ``away_from_obstacles``), the pitch for the wanted elevation in the ICS
+    where the kernel's ``trend_matrix`` takes it; ``yaw_rate`` [N] each vehicle's ω_ψ."""
     fvx, fvy, fvz = fv.T
     elevation = np.arctan2(fvz, np.hypot(fvx, fvy))
     behind = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1])) - pitch
     ics = (fvx < 0) | (np.abs(pitch) > MAX_FOLLOW_PITCH) | (lowest > -1.0)
     ics |= airframe_limited(lim)
+    # Repelled, F_v^z steepening it away from the wanted elevation (the kernel's
+    # ``trend_matrix``): the wanted elevation in the ICS instead.
+    vcs = np.clip(elevation / (lim.max_pitch_rate * dt), -1, 1)
+    ics |= (r.rep != 0).any(1) & (vcs * pitch > 0) & (vcs * behind < 0)
     elevation = np.where(ics, behind, elevation)
     wanted = np.sqrt(fvx**2 + fvy**2 + fvz**2)
     azimuth = np.where(np.abs(fvy) > SIDEWAYS_EPS * wanted, np.arctan2(fvy, fvx), 0.0)
