@@ -2,6 +2,7 @@
 saturated trend, the braking speed, and the flight-path limits.
 
 * ``influence_radius``      Eq. 10–11, corrected (CONVENTIONS §2 erratum 4)
+* ``room_to_turn_away``     the same geometry off the axis: room left to turn away
 * ``to_vcs``                Eq. 16–18 (ICS → VCS)
 * ``slot_to_ics``           Eq. 6–8 (VCS → ICS, erratum 1: the pitch matrix transposed)
 * ``trend``                 Eq. 19 (one entry of the trend matrix f, erratum 2)
