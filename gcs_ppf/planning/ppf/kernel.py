@@ -10,6 +10,8 @@ one module per group:
   (``repulsion``)
 * ``teammate_conflicts``    Eq. 12–13 with teammates of higher priority as moving obstacles
   (``repulsion``)
+* ``teammates_first``       a teammate conflict before the obstacles while they leave room
+  (``repulsion``)
 * ``yielding_back``         Eq. 12–13 the other way round: giving way back to a teammate of
   lower priority that has not solved a conflict alone (``repulsion``)
 * ``attraction``            Eq. 14–15: towards the target point while nothing repels
@@ -94,6 +96,7 @@ from gcs_ppf.planning.ppf.repulsion import (
     obstacle_repulsion,
     teammate_conflict,
     teammate_conflicts,
+    teammates_first,
     yielding_back,
 )
 from gcs_ppf.planning.ppf.steering import (
@@ -151,6 +154,7 @@ __all__ = [
     "steer",
     "teammate_conflict",
     "teammate_conflicts",
+    "teammates_first",
     "to_vcs",
     "trend",
     "trend_matrix",
@@ -346,11 +350,13 @@ def fleet_step(
             sy,
         )
         # Repulsion (Eq. 12–13): the obstacles', then the teammates' of higher priority,
-        # never pushing the vehicle into an obstacle (``obstacles_first``).
-        ox, oy, oz, moving_obstacle = obstacle_repulsion(
+        # never pushing the vehicle into an obstacle (``obstacles_first``) unless it has
+        # room to give way to the teammates first (``teammates_first``).
+        ox, oy, oz, moving_obstacle, room = obstacle_repulsion(
             i,
             pos,
             speed,
+            direction,
             obs_center,
             obs_radius,
             obs_velocity,
@@ -361,11 +367,12 @@ def fleet_step(
         )
         zx, zy, zz = zone_repulsion(i, pos, speed, direction, zones, lim, dt)
         ox, oy, oz = ox + zx, oy + zy, oz + zz
-        rx, ry, rz, mate, hold_course = teammate_conflicts(
+        room = room and zx == 0.0 and zy == 0.0 and zz == 0.0
+        px, py, pz, mate, hold_course = teammate_conflicts(
             i,
-            ox,
-            oy,
-            oz,
+            0.0,
+            0.0,
+            0.0,
             fx,
             fy,
             fz,
@@ -379,7 +386,7 @@ def fleet_step(
             lim,
             dt,
         )
-        rx, ry, rz = obstacles_first(rx, ry, rz, ox, oy, oz)
+        rx, ry, rz, ox, oy, oz = teammates_first(px, py, pz, mate, ox, oy, oz, room)
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0
         avoiding[i] = repelled
         # The field (Eq. 15): the repulsion alone while repelled (Eq. 14: |F_g| = 0).

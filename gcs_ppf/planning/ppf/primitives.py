@@ -2,6 +2,7 @@
 saturated trend, the braking speed, and the flight-path limits.
 
 * ``influence_radius``      Eq. 10–11, corrected (CONVENTIONS §2 erratum 4)
+* ``room_to_turn_away``     the same geometry off the axis: room left to turn away
 * ``to_vcs``                Eq. 16–18 (ICS → VCS)
 * ``slot_to_ics``           Eq. 6–8 (VCS → ICS, erratum 1: the pitch matrix transposed)
 * ``trend``                 Eq. 19 (one entry of the trend matrix f, erratum 2)
@@ -427,3 +428,36 @@ def closing_speed(
         return 0.0
     c = (ux * dx + uy * dy + uz * dz) / d
     return c if c > 0.0 else 0.0
+
+
+@njit(cache=True)
+def room_to_turn_away(
+    dx: float,
+    dy: float,
+    dz: float,
+    ux: float,
+    uy: float,
+    uz: float,
+    travel: float,
+    rho: float,
+    keep_out: float,
+) -> bool:
+    """Whether a vehicle at offset (dx, dy, dz) from a static obstacle's centre, flying
+    along the unit u, still clears the keep-out sphere (radius ``keep_out``) by a full-rate
+    turn away from it on a circle of radius ρ begun ``travel`` metres further on (Fig. 2's
+    geometry, as ``influence_radius``).
+
+    The circle's centre lies ρ from the vehicle, normal to u in the plane of u and the
+    offset, on the side away from the obstacle; with l the offset's part normal to u and
+    d' the distance after the straight ``travel``, it keeps the keep-out if
+    √(d'² + 2ρl + ρ²) − ρ ≥ keep_out, i.e. d'² + 2ρl ≥ keep_out·(keep_out + 2ρ).  Head-on
+    (l = 0) that is d' ≥ R of ``influence_radius``; a vehicle not closing on the obstacle
+    has room.
+    """
+    s = dx * ux + dy * uy + dz * uz  # < 0: closing
+    if s >= 0.0:
+        return True
+    d2 = dx * dx + dy * dy + dz * dz
+    lateral = math.sqrt(max(d2 - s * s, 0.0))
+    after2 = d2 + 2.0 * travel * s + travel * travel
+    return after2 + 2.0 * rho * lateral >= keep_out * (keep_out + 2.0 * rho)

@@ -63,9 +63,10 @@ class Formation(NamedTuple):
 
 
 class Repulsion(NamedTuple):
-    """Eq. 12–13: the total repulsion, the obstacles' part, whether a moving threat (a
-    moving obstacle or a teammate) repels, and whether to hold course (just clear of a
-    teammate conflict that following would turn into one)."""
+    """Eq. 12–13: the total repulsion, the obstacles' part steering keeps away from (none
+    while a vehicle gives way to a teammate first), whether a moving threat (a moving
+    obstacle or a teammate) repels, and whether to hold course (just clear of a teammate
+    conflict that following would turn into one)."""
 
     rep: FloatArray
     obstacles: FloatArray
@@ -113,13 +114,18 @@ def _formation(
 def _obstacle_repulsion(
     pos: FloatArray,
     speed: FloatArray,
+    u: FloatArray,
     obs_center: FloatArray,
     obs_radius: FloatArray,
     obs_velocity: FloatArray,
     lim: KernelLimits,
     dt: float,
-) -> tuple[FloatArray, BoolArray]:
-    """Eq. 10–13: obstacles inside the influence radius repel with ε₁."""
+) -> tuple[FloatArray, BoolArray, BoolArray]:
+    """Eq. 10–13: obstacles inside the influence radius repel with ε₁.  Also [N] whether
+    every repelling obstacle is static and leaves room for a full-rate turn away from it
+    begun a few steps later (the kernel's ``room_to_turn_away``; ``u`` [N,3] the flight
+    directions; never for an ``airframe_limited`` airframe, nor where the ground limits
+    dives: the kernel's ``lowest_climb`` above −1)."""
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     d_obs = pos[:, None, :] - obs_center[None]  # [N,M,3]
     dist = np.linalg.norm(d_obs, axis=-1)
@@ -134,7 +140,18 @@ def _obstacle_repulsion(
     inside = (dist <= radius) & (dist > 0)
     rep = EPSILON_1 * (_unit(d_obs) * inside[..., None]).sum(1)
     moving = (inside & (u_obs[None] > 0)).any(1)
-    return rep, moving
+    s = (d_obs * u[:, None, :]).sum(-1)  # < 0: closing
+    lateral = np.sqrt(np.maximum(dist**2 - s**2, 0.0))
+    travel = (INFLUENCE_STEPS * speed * dt)[:, None]
+    after2 = dist**2 + 2.0 * travel * s + travel**2
+    turns_away = (s >= 0) | (after2 + 2.0 * rho * lateral >= keep * (keep + 2.0 * rho))
+    leaves_room = turns_away & (u_obs[None] == 0)
+    height = pos[:, 2] - lim.ground - lim.safe_distance_obstacle - INFLUENCE_STEPS * speed * dt
+    quarter_turn = AVOIDANCE_TURN_ANGLE / lim.max_pitch_rate
+    rho_up = np.minimum(speed + lim.accel * quarter_turn, lim.v_max) / lim.max_pitch_rate
+    free = (height >= rho_up) & (not airframe_limited(lim))  # the ground does not limit dives
+    room = ~(inside & ~leaves_room).any(1) & free
+    return rep, moving, room
 
 
 def _conflicts(
@@ -194,7 +211,7 @@ def _repulsion(
     rank: IntArray,
     active: BoolArray,
     formed: BoolArray,
-    obstacles: tuple[FloatArray, BoolArray],
+    obstacles: tuple[FloatArray, BoolArray, BoolArray],
     lim: KernelLimits,
     dt: float,
 ) -> Repulsion:
@@ -203,9 +220,10 @@ def _repulsion(
     obstacle (the kernel's ``obstacles_first``).  Just clear of a conflict a vehicle holds
     course if flying ``follow`` (unit, [N,3]) at its speed would make it a conflict.  A
     conflict [i,k] within ``YIELD_BACK_TURNS`` quarter turns also pushes k, the other way
-    (the kernel's ``yielding_back``)."""
+    (the kernel's ``yielding_back``).  A vehicle in a teammate conflict with room among
+    the obstacles gives way to its teammates alone (the kernel's ``teammates_first``)."""
     n = pos.shape[0]
-    rep, moving = obstacles
+    rep, moving, room = obstacles
     near, threat, push = _conflicts(pos, a.vel, a.vel, speed, rank, active, formed, lim, dt)
     _, threat_after, _ = _conflicts(
         pos, speed[:, None] * follow, a.vel, speed, rank, active, formed, lim, dt
@@ -216,11 +234,15 @@ def _repulsion(
     late = late & active[:, None]
     hold: BoolArray = np.any(near & ~threat & threat_after, axis=1)
     back = -(push_late * late[..., None]).sum(0)
-    total = rep + EPSILON_1 * (push * threat[..., None]).sum(1) + EPSILON_1 * back
+    mates = EPSILON_1 * (push * threat[..., None]).sum(1) + EPSILON_1 * back
+    total = rep + mates
     o2 = (rep**2).sum(1)
     into = np.divide(((total - rep) * rep).sum(1), o2, out=np.zeros(n), where=o2 > 0)
     total = total - np.minimum(into, 0.0)[:, None] * rep
-    return Repulsion(total, rep, moving | threat.any(1) | late.any(0), hold)
+    mate = threat.any(1) | late.any(0)
+    first = (mate & room & (mates != 0).any(1))[:, None]
+    total, rep = np.where(first, mates, total), np.where(first, 0.0, rep)
+    return Repulsion(total, rep, moving | mate, hold)
 
 
 def _crossing(
@@ -411,12 +433,17 @@ def _turn_trends(
 ) -> tuple[FloatArray, FloatArray]:
     """Eq. 19 (erratum 2), saturated: the pitch and yaw entries of the trend matrix, the
     yaw never turning further towards a repelling obstacle when the other sense does not
-    (the kernel's ``away_from_obstacles``); ``yaw_rate`` [N] each vehicle's ω_ψ."""
+    (the kernel's ``away_from_obstacles``), the pitch for the wanted elevation in the ICS
+    where the kernel's ``trend_matrix`` takes it; ``yaw_rate`` [N] each vehicle's ω_ψ."""
     fvx, fvy, fvz = fv.T
     elevation = np.arctan2(fvz, np.hypot(fvx, fvy))
     behind = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1])) - pitch
     ics = (fvx < 0) | (np.abs(pitch) > MAX_FOLLOW_PITCH) | (lowest > -1.0)
     ics |= airframe_limited(lim)
+    # Repelled, F_v^z steepening it away from the wanted elevation (the kernel's
+    # ``trend_matrix``): the wanted elevation in the ICS instead.
+    vcs = np.clip(elevation / (lim.max_pitch_rate * dt), -1, 1)
+    ics |= (r.rep != 0).any(1) & (vcs * pitch > 0) & (vcs * behind < 0)
     elevation = np.where(ics, behind, elevation)
     wanted = np.sqrt(fvx**2 + fvy**2 + fvz**2)
     azimuth = np.where(np.abs(fvy) > SIDEWAYS_EPS * wanted, np.arctan2(fvy, fvx), 0.0)
@@ -544,7 +571,7 @@ def reference_step(
     """One step Δt of the whole fleet (Eq. 3–24), in numpy."""
     a = _attitude(pitch, yaw, speed)
     f = _formation(pos, slot, active, a, lim)
-    obstacles = _obstacle_repulsion(pos, speed, obs_center, obs_radius, obs_velocity, lim, dt)
+    obstacles = _obstacle_repulsion(pos, speed, a.u, obs_center, obs_radius, obs_velocity, lim, dt)
     aim = _aims(pos, target, speed, a, f, rank, active, lim, dt)
     follow = _follow(pos, aim, speed, a, lim)
     r = _repulsion(pos, speed, a, follow, rank, active, f.formed, obstacles, lim, dt)

@@ -11,6 +11,8 @@ import pytest
 
 from gcs_ppf.mission import load_mission_file
 from gcs_ppf.offline.plan import PlanRun
+from gcs_ppf.offline.sweep.families import FEASIBLE
+from gcs_ppf.offline.sweep.scenes import draw_scene
 from gcs_ppf.planning.planner import Trajectory, advance
 from gcs_ppf.planning.ppf.kernel import YIELD_BACK_TURNS, influence_radius, teammate_conflict
 from gcs_ppf.planning.ppf.reference import reference_step
@@ -87,6 +89,30 @@ def test_one_step_agrees_while_a_vehicle_gives_way_back() -> None:
     near = near[near < len(tr) - 1]
     assert any(_gives_way_back(scene, tr, int(k), mission.planner.dt) for k in near)
     _agree_at(scene, tr, mission.planner.dt, near)
+
+
+@pytest.mark.parametrize(
+    ("name", "start", "end"),
+    [("overtake_24_1m.json", 3350, 3700), ("feasible_ground_49_6m.json", 0, 1500)],
+)
+def test_one_step_agrees_while_giving_way_to_a_teammate_first(
+    name: str, start: int, end: int
+) -> None:
+    """The kept breaches: a vehicle in a teammate conflict inside an obstacle's influence
+    (``teammates_first``: wingman 2 overtaking wingman 4 round the sphere, 33.5–37 s) and
+    one in a conflict above the ground (no room); the reference agrees on those steps."""
+    mission = load_mission_file(BREACHES / name)
+    scene = scene_from_mission(mission)
+    tr = advance(scene, mission.planner.dt, end + 1).trajectory
+    _agree_at(scene, tr, mission.planner.dt, np.arange(start, end, 5))
+
+
+def test_one_step_agrees_while_a_diving_vehicle_turns_round_an_obstacle() -> None:
+    """Feasible sweep, seed 2, scene 84105: wingman 4, diving at 45°, turns sideways round
+    an obstacle and pitches for the wanted elevation (``trend_matrix``), 81–86 s."""
+    scene = scene_from_mission(draw_scene(FEASIBLE, 2, 84105))
+    tr = advance(scene, 0.01, 8601).trajectory
+    _agree_at(scene, tr, 0.01, np.arange(8100, 8600, 4))
 
 
 def _gives_way_back(scene: Scene, tr: Trajectory, k: int, dt: float) -> bool:

@@ -1,4 +1,5 @@
-"""Teammate conflicts (Eq. 12–13 with teammates as moving obstacles): giving way back."""
+"""Teammate conflicts (Eq. 12–13 with teammates as moving obstacles): giving way back, and
+giving way to a teammate first while the obstacles leave room."""
 
 from __future__ import annotations
 
@@ -8,8 +9,14 @@ import numpy as np
 import pytest
 
 from gcs_ppf.mission import Mission
-from gcs_ppf.planning.ppf.primitives import AVOIDANCE_TURN_ANGLE, TRIG_COLUMNS, YIELD_BACK_TURNS
-from gcs_ppf.planning.ppf.repulsion import yielding_back
+from gcs_ppf.planning.ppf.primitives import (
+    AVOIDANCE_TURN_ANGLE,
+    TRIG_COLUMNS,
+    YIELD_BACK_TURNS,
+    influence_radius,
+    room_to_turn_away,
+)
+from gcs_ppf.planning.ppf.repulsion import teammates_first, yielding_back
 from gcs_ppf.planning.scene import scene_from_mission
 
 OMEGA = math.pi / 6
@@ -50,3 +57,41 @@ def test_no_giving_way_back_early_or_on_a_clear_miss(lateral: float) -> None:
     assert late < 2.0
     assert _overtaking(400.0, lateral)[:, 10].sum() == 0.0
     assert _overtaking(100.0, 300.0)[:, 10].sum() == 0.0
+
+
+@pytest.mark.parametrize("speed", [100.0, 300.0])
+@pytest.mark.parametrize("keep_out", [125.0, 900.0])
+def test_room_to_turn_away_head_on_ends_at_the_influence_radius(
+    speed: float, keep_out: float
+) -> None:
+    """Head-on (no lateral offset) the room ends where the influence radius says a full
+    turn just clears (Fig. 2), ``travel`` metres further out."""
+    rho = speed / OMEGA
+    r = influence_radius(speed, OMEGA, keep_out)
+    assert room_to_turn_away(r + 10.0 + 1e-6, 0.0, 0.0, -1.0, 0.0, 0.0, 10.0, rho, keep_out)
+    assert not room_to_turn_away(r + 10.0 - 1e-3, 0.0, 0.0, -1.0, 0.0, 0.0, 10.0, rho, keep_out)
+
+
+def test_room_to_turn_away_off_axis_and_when_not_closing() -> None:
+    """Abeam of the keep-out, or flying away from it, a vehicle has room; off the axis it
+    has room nearer than head-on: the circle turning away keeps ρ + keep-out from the centre."""
+    rho, keep = 300.0 / OMEGA, 500.0
+    r = influence_radius(300.0, OMEGA, keep)
+    assert room_to_turn_away(0.0, keep + 1.0, 0.0, 1.0, 0.0, 0.0, 9.0, rho, keep)  # abeam
+    assert room_to_turn_away(-600.0, 0.0, 0.0, -1.0, 0.0, 0.0, 9.0, rho, keep)  # flying away
+    off = math.radians(30.0)
+    d = 0.8 * r  # inside the head-on radius, 30° off the axis
+    pos = (d * math.cos(off), d * math.sin(off), 0.0)
+    centre = math.hypot(pos[0], pos[1] + rho)  # circle turning away (to +y)
+    assert room_to_turn_away(*pos, -1.0, 0.0, 0.0, 0.0, rho, keep) == (centre - rho >= keep)
+
+
+def test_teammates_first_only_with_room() -> None:
+    """With room a teammate's push alone repels and no obstacle is steered away from; without
+    room, or with no teammate repelling, the obstacles first (``obstacles_first``)."""
+    push, obstacle = (-0.5, 0.5, 0.0), (1.0, 0.0, 0.0)
+    assert teammates_first(*push, True, *obstacle, True) == (-0.5, 0.5, 0.0, 0.0, 0.0, 0.0)
+    assert teammates_first(*push, True, *obstacle, False) == pytest.approx(
+        (1.0, 0.5, 0.0, 1.0, 0.0, 0.0)
+    )
+    assert teammates_first(0.0, 0.0, 0.0, False, *obstacle, True) == (1.0, 0.0, 0.0, 1.0, 0.0, 0.0)
