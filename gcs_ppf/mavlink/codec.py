@@ -265,22 +265,25 @@ class Codec:
             if n - i < length:
                 break  # frame incomplete
             frame = bytearray(buf[i : i + length])
-            status = _check_frame(frame)
-            if status != _OK:
-                # Noise that looks like a start marker, or a frame we cannot verify: resume
-                # one byte on, so that no good frame hidden inside its claimed length is lost.
-                if status == _BAD:
-                    framing += 1
-                else:
-                    unknown += 1
-                i += 1
-                continue
-            i += length
             signed = frame[0] == STX_V2 and bool(frame[2] & _IFLAG_SIGNED)
             self._frame_signed = signed
             try:
-                out.append(self._mav.decode(frame))
+                # pymavlink checks the CRC before anything else (the signature's counters
+                # and timestamps included): a frame it decodes is whole, and only a frame
+                # it refuses needs telling apart from noise (``_check_frame``).
+                out.append(_decode(self._mav, frame))
             except Exception as exc:  # MAVError, struct.error, ...: all mean "drop it"
+                status = _check_frame(frame)
+                if status != _OK:
+                    # Noise that looks like a start marker, or a frame we cannot verify:
+                    # resume one byte on, so that no good frame hidden inside its claimed
+                    # length is lost.
+                    if status == _BAD:
+                        framing += 1
+                    else:
+                        unknown += 1
+                    i += 1
+                    continue
                 rejected += 1
                 if signing and str(exc) == "Invalid signature":
                     if signed:
@@ -288,6 +291,7 @@ class Codec:
                     else:
                         unsigned += 1
                     self.last_refused = _frame_ids(frame)
+            i += length
         del buf[:i]
         s = self._stats
         self._stats = CodecStats(
@@ -331,6 +335,15 @@ class Codec:
 
 
 _OK, _BAD, _UNKNOWN = 0, 1, 2
+
+
+def _decode(mav: Any, frame: bytearray) -> MAVLinkMessage:
+    """``mav.decode(frame)``, refusing a message id the dialect lacks (pymavlink returns
+    those as ``MAVLink_unknown`` without a CRC it could check)."""
+    msg_id = frame[7] | (frame[8] << 8) | (frame[9] << 16) if frame[0] == STX_V2 else frame[5]
+    if msg_id not in mavlink2.mavlink_map:
+        raise ValueError(f"unknown message id {msg_id}")
+    return mav.decode(frame)
 
 
 def _frame_ids(frame: bytearray) -> tuple[int, int, int]:

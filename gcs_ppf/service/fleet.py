@@ -284,9 +284,10 @@ class Fleet:
             self._forward(link_id, sysid, msg)
             return  # our own echo, or a component that is not the autopilot
         now = time.monotonic()
+        kind = msg.get_type()
         vehicle = self.by_id.get(sysid)
         if vehicle is None:
-            if msg.get_type() != "HEARTBEAT" or msg.type == 6:  # MAV_TYPE_GCS
+            if kind != "HEARTBEAT" or msg.type == 6:  # MAV_TYPE_GCS
                 return  # vehicles are discovered by their heartbeats
             vehicle = Vehicle(sysid, link_id, apply(None, msg, now), now)
             self.by_id[sysid] = vehicle
@@ -309,18 +310,18 @@ class Fleet:
                 h.clear()  # rebooted
             if not h or now - h[-1][0] >= BOOT_HISTORY_STEP_S:
                 h.append((now, boot_ms))
-        if vehicle.lost and msg.get_type() == "HEARTBEAT":
+        if vehicle.lost and kind == "HEARTBEAT":
             vehicle.lost = False
             log.info("vehicle %d is back", sysid)
-        if msg.get_type() == "TIMESYNC" and msg.tc1 != 0:  # an answer to ours
+        if kind == "TIMESYNC" and msg.tc1 != 0:  # an answer to ours
             rtt = (time.monotonic_ns() - int(msg.ts1)) / 1e9
             if 0.0 <= rtt <= MAX_ROUND_TRIP_S:
                 vehicle.round_trips_s.append(rtt)
-        if msg.get_type() == "GLOBAL_POSITION_INT":
+        if kind == "GLOBAL_POSITION_INT":
             self.telemetry_received_s = time.perf_counter()
             self.telemetry_event.set()
         inbox = self._inboxes.get(sysid)
-        if inbox is not None and msg.get_type() in MISSION_REPLIES:
+        if inbox is not None and kind in MISSION_REPLIES:
             inbox.put_nowait(msg)
 
     @contextlib.contextmanager
@@ -340,6 +341,8 @@ class Fleet:
         """Note (and log, when it starts and ends) a system id heard on more than one link
         within the lost-vehicle timeout (in the vehicle's seconds): two vehicles with one
         id, or one vehicle on two links.  A run does not start with it (``duplicates``)."""
+        if len(vehicle.heard_on) < 2 and not vehicle.duplicate_links:
+            return  # heard on one link only (every message comes here)
         timeout = self.settings.vehicle_timeout_s
         live = tuple(
             sorted(

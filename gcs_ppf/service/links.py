@@ -256,6 +256,10 @@ class MavlinkLink:
         self._closed = False
         self._close_event = asyncio.Event()
         self._stats = LinkStats()
+        # The counters every frame moves, kept apart from ``_stats`` (a frozen record
+        # rebuilt per frame cost a tenth of the decoding at 100 vehicles): (bytes,
+        # messages) in and out.
+        self._traffic = [0, 0, 0, 0]
         # The live connection: set by a session, cleared when it ends.
         self._writer: asyncio.StreamWriter | None = None
         self._udp: asyncio.DatagramTransport | None = None
@@ -282,8 +286,13 @@ class MavlinkLink:
     @property
     def stats(self) -> LinkStats:
         codec = self._codec.stats
+        bytes_in, messages_in, bytes_out, messages_out = self._traffic
         return replace(
             self._stats,
+            bytes_in=bytes_in,
+            messages_in=messages_in,
+            bytes_out=bytes_out,
+            messages_out=messages_out,
             parse_errors=codec.errors,
             bytes_skipped=codec.bytes_skipped,
             refused_unsigned=codec.refused_unsigned,
@@ -440,11 +449,9 @@ class MavlinkLink:
     def _received(self, messages: list[MAVLinkMessage], n_bytes: int) -> bool:
         """Log and deliver decoded messages; True if there were any."""
         self._log_refused()
-        self._stats = replace(
-            self._stats,
-            bytes_in=self._stats.bytes_in + n_bytes,
-            messages_in=self._stats.messages_in + len(messages),
-        )
+        traffic = self._traffic
+        traffic[0] += n_bytes
+        traffic[1] += len(messages)
         for msg in messages:
             self._tlog_write(bytes(msg.get_msgbuf()))
             try:
@@ -535,11 +542,9 @@ class MavlinkLink:
             else:
                 self._udp.sendto(frame, self._peers.get(target_system, self._peer))
         self._tlog_write(frame)
-        self._stats = replace(
-            self._stats,
-            bytes_out=self._stats.bytes_out + len(frame),
-            messages_out=self._stats.messages_out + 1,
-        )
+        traffic = self._traffic
+        traffic[2] += len(frame)
+        traffic[3] += 1
 
     async def _send_frame(self, frame: bytes, target_system: int | None = None) -> bool:
         writer = self._writer
