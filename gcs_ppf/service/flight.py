@@ -635,6 +635,7 @@ async def plan_and_command(
             run.climb_trims,
             phases=phases,
         )
+        station.fleet.flush()
     with phases.phase("confirmation"):
         for vid, v in verdicts.items():
             sent = run.sent_courses.setdefault(vid, deque(maxlen=SENT_COURSES_KEPT))

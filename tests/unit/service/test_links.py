@@ -219,6 +219,38 @@ def test_tcp_heartbeat_in_command_out() -> None:
     run(body())
 
 
+def test_frames_sent_together_go_out_in_one_write_in_order() -> None:
+    """A tick's commands to a vehicle leave in one write (one system call, one wakeup of
+    the vehicle's reader), by ``flush`` or as soon as the sender lets the loop run."""
+
+    async def body() -> None:
+        vehicle = FakeTcpVehicle()
+        await vehicle.start()
+        link = MavlinkLink(f"tcp:127.0.0.1:{vehicle.port}", Inbox())
+        async with running(link):
+            await wait_until(lambda: link.connected)
+            assert link._writer is not None
+            writes: list[bytes] = []
+            write = link._writer.write
+            link._writer.write = lambda data: (writes.append(bytes(data)), write(data))[1]  # type: ignore[method-assign]
+            modes = (PlaneMode.LOITER, PlaneMode.RTL, PlaneMode.GUIDED)
+            for mode in modes:
+                assert await link.send(commands.set_mode(1, mode))
+            assert writes == []  # queued while the sender runs on
+            link.flush()
+            assert len(writes) == 1
+            for mode in modes[:2]:
+                assert await link.send(commands.set_mode(1, mode))
+            await asyncio.sleep(0)  # the loop runs: written by itself
+            assert len(writes) == 2
+            await wait_until(lambda: len(vehicle.got(176)) == 5)
+            assert [m.param2 for m in vehicle.got(176)] == [float(m) for m in (*modes, *modes[:2])]
+        assert link.stats.messages_out == 5
+        await vehicle.stop()
+
+    run(body())
+
+
 def test_tcp_reconnects_with_exponential_backoff() -> None:
     async def body() -> None:
         vehicle = FakeTcpVehicle()
