@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from typing import Any
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
@@ -83,6 +84,22 @@ class KeepOut:
     zones: Zones = field(default_factory=no_zones)
     """Cylinders and polygons (exclusion and inclusion): kept out of by their surface plus
     ``safe_distance_obstacle`` on their free side, as spheres are."""
+    compiled: tuple[Any, ...] = field(init=False, repr=False, compare=False)
+    """All of it as ``prediction.score`` takes it (contiguous float64 and int64: one
+    compiled signature), made once: a tick scores thousands of commands against it."""
+
+    def __post_init__(self) -> None:
+        obs = self.obstacles
+        ground = math.nan if self.ground_z_m is None else float(self.ground_z_m)
+        compiled = (
+            _floats(obs.center),
+            _floats(obs.radius),
+            float(self.safe_distance_obstacle),
+            ground,
+            float(self.safe_distance_uav),
+            *_zone_arrays(self.zones),
+        )
+        object.__setattr__(self, "compiled", compiled)
 
 
 @dataclass(frozen=True, slots=True)
@@ -142,21 +159,23 @@ def _score(
     vector: FloatArray, c: Command, hold_s: float, keep: KeepOut, near: _Near
 ) -> tuple[float, str | None]:
     """A command's margin and the keep-out it is to."""
-    obs = keep.obstacles
-    ground = math.nan if keep.ground_z_m is None else float(keep.ground_z_m)
+    centers, radii, safe_obstacle, ground, safe_uav, zk, zg, zs, zv = keep.compiled
     s, reason = prediction.score(  # one signature: no compiling in flight
         vector,
         float(c.course_rad),
         float(c.z_m),
         float(hold_s),
-        _floats(obs.center),
-        _floats(obs.radius),
-        float(keep.safe_distance_obstacle),
+        centers,
+        radii,
+        safe_obstacle,
         ground,
         near.pool,
         near.which,
-        float(keep.safe_distance_uav),
-        *_zone_arrays(keep.zones),
+        safe_uav,
+        zk,
+        zg,
+        zs,
+        zv,
     )
     return float(s), REASONS.get(reason)
 
