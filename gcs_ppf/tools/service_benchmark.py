@@ -1,16 +1,18 @@
 """Tick latency of the service (telemetry received → commands sent), p50 / p99, and where the
 tick's time goes.
 
-``python -m gcs_ppf.tools.service_benchmark [--vehicles 5 50] [--seconds 20]`` flies a synthetic
-formation (a leader and wingmen in rows of ten, no obstacles) on the built-in SITL at 1×
-with the service at its default 10 Hz tick, and prints the latency percentiles the
-service measured, the tick's cost per vehicle, and each phase's p50 and mean
+``python -m gcs_ppf.tools.service_benchmark [--vehicles 5 50] [--seconds 20] [--burner]``
+flies a synthetic formation (a leader and wingmen in rows of ten, no obstacles) on the
+built-in SITL at 1× (with ``--burner``, beside a process that keeps one core busy) with
+the service at its default 10 Hz tick, and prints the latency percentiles the service
+measured, the tick's cost per vehicle, and each phase's p50 and mean
 (``gcs_ppf.service.tick_phases``; the status's ``tick_phases_ms``).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import subprocess
@@ -18,7 +20,7 @@ import sys
 import tempfile
 import time
 import urllib.error
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -112,8 +114,32 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--port", type=int, default=18500)
     parser.add_argument("--base-port", type=int, default=36760)
+    parser.add_argument(
+        "--burner", action="store_true", help="a CPU burner on one core throughout (a busy machine)"
+    )
     args = parser.parse_args(argv)
-    print("service tick latency, telemetry received → commands sent (10 Hz tick, SITL 1×)")
+    print(
+        "service tick latency, telemetry received → commands sent (10 Hz tick, SITL 1×"
+        + (", a CPU burner on one core)" if args.burner else ")")
+    )
+    with burning(args.burner):
+        rows = run_rows(args)
+    print(summary(rows))
+
+
+@contextlib.contextmanager
+def burning(on: bool) -> Iterator[None]:
+    """A process spinning on one core while the block runs (``on``), killed after."""
+    burner = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if on else None
+    try:
+        yield
+    finally:
+        if burner is not None:
+            burner.kill()
+            burner.wait()
+
+
+def run_rows(args: argparse.Namespace) -> list[dict[str, Any]]:
     rows = []
     for n in args.vehicles:
         r = measure(n, args.seconds, args.port, args.base_port)
@@ -124,7 +150,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         print(HEADER + "  target p99")
         print(row(r) + f"  {target(n)}")
         print_phases(r["phases"])
-    print(summary(rows))
+    return rows
 
 
 TARGETS_P99_MS = ((5, 10.0), (50, 20.0), (100, 50.0), (250, 100.0))
