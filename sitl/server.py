@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
 
-import serial_asyncio_fast
+import serial_asyncio
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from gcs_ppf.mavlink.codec import guard_stream_timestamps, signing_key_from_text
@@ -354,7 +354,7 @@ async def serve_serial(
     while True:
         line = _SerialLine(links, f"serial:{device}", radio_baud)
         try:
-            transport, _ = await serial_asyncio_fast.create_serial_connection(
+            transport, _ = await serial_asyncio.create_serial_connection(
                 loop, functools.partial(_same, line), device, baudrate=baud
             )
         except OSError as exc:  # serial.SerialException is one

@@ -23,7 +23,7 @@ IO = frozenset(
         "subprocess", "multiprocessing", "threading", "concurrent", "signal", "shutil",
         "tempfile", "os", "sys", "io", "time", "datetime", "logging", "random", "csv",
         "matplotlib", "tqdm", "pydantic_settings", "api", "sitl", "serial",
-        "serial_asyncio_fast",
+        "serial_asyncio",
     }
 )  # fmt: skip
 """Modules a pure layer may not import: I/O, clocks, processes, the network, the database,

@@ -23,9 +23,9 @@ from __future__ import annotations
 
 import itertools
 import math
-from typing import Any
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 

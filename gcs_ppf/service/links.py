@@ -8,7 +8,7 @@ syntax: ``tcp:HOST:PORT`` (client), ``udpin:HOST:PORT`` and ``udp:HOST:PORT`` (l
 system where it was heard from, the last sender for one not heard: ``udp:`` listens in
 pymavlink too), ``udpout:HOST:PORT`` (send to HOST:PORT), and a
 serial device at a baud rate: ``serial:/dev/ttyUSB0:57600``, or pymavlink's ``/dev/ttyUSB0,57600``
-(a telemetry radio; pyserial-asyncio-fast's transport; a device that goes away, a radio
+(a telemetry radio; pyserial-asyncio's transport; a device that goes away, a radio
 unplugged, is opened again as a TCP peer is connected again).
 
 The tlog is the format MAVProxy writes and ``mavlogdump.py`` reads: every frame in and out,
@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import IO
 
-import serial_asyncio_fast
+import serial_asyncio
 
 from gcs_ppf.mavlink.ardupilot import GCS_COMPONENT_ID, GCS_SYSTEM_ID
 from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage, signing_timestamp
@@ -377,7 +377,7 @@ class MavlinkLink:
         a device that cannot be opened, or goes away, raises ``SerialException`` (an OSError):
         ``run`` opens it again after its backoff."""
         async with asyncio.timeout(self._connect_timeout_s):
-            reader, writer = await serial_asyncio_fast.open_serial_connection(
+            reader, writer = await serial_asyncio.open_serial_connection(
                 url=self.url.host, baudrate=self.url.port, exclusive=True
             )
         return await self._stream_session(reader, writer)

@@ -635,6 +635,49 @@ def test_serial_heartbeat_in_command_out_on_a_pseudo_terminal() -> None:
         os.close(device)
 
 
+def test_a_serial_line_that_fills_up_drains_and_goes_quiet() -> None:
+    """Frames sent faster than the line takes them (a radio's buffer full) wait and go out
+    in order; once they are out the transport stops asking to write (pyserial-asyncio-fast
+    0.16 kept its writer after a partial write and raised "Write buffer should not be
+    empty" on every turn of the loop, a core spinning, until the next write)."""
+    radio, device = os.openpty()
+    tty.setraw(device)
+    tty.setraw(radio)
+    errors: list[dict[str, Any]] = []
+    frames = 3000  # 3000 x 41 bytes: more than a pty holds
+
+    def radio_reads(into: bytearray, until: float) -> None:
+        while time.monotonic() < until:
+            try:
+                into.extend(os.read(radio, 65536))
+            except BlockingIOError:
+                time.sleep(0.005)
+
+    async def body() -> None:
+        asyncio.get_running_loop().set_exception_handler(lambda _loop, ctx: errors.append(ctx))
+        link = MavlinkLink(f"serial:{os.ttyname(device)}:57600", Inbox())
+        received = bytearray()
+        async with running(link):
+            await wait_until(lambda: link.connected)
+            for k in range(frames):
+                await link.send(commands.set_mode(1, PlaneMode.LOITER if k % 2 else PlaneMode.RTL))
+            await asyncio.sleep(0.2)  # nobody reads yet: the line is full
+            os.set_blocking(radio, False)
+            reader = asyncio.to_thread(radio_reads, received, time.monotonic() + 1.5)
+            await reader
+            await asyncio.sleep(0.2)  # the loop turns with nothing left to write
+        parser = mavlink2.MAVLink(None)
+        got = parser.parse_buffer(bytes(received)) or []
+        assert [m.param2 for m in got] == [12.0 if k % 2 else 11.0 for k in range(frames)]
+        assert errors == []
+
+    try:
+        run(body())
+    finally:
+        os.close(radio)
+        os.close(device)
+
+
 def test_a_serial_device_that_is_not_there_is_tried_again() -> None:
     async def body() -> None:
         link = MavlinkLink(
