@@ -232,7 +232,12 @@ def test_frames_sent_together_go_out_in_one_write_in_order() -> None:
             assert link._writer is not None
             writes: list[bytes] = []
             write = link._writer.write
-            link._writer.write = lambda data: (writes.append(bytes(data)), write(data))[1]  # type: ignore[method-assign]
+
+            def counted(data: bytes) -> None:
+                writes.append(bytes(data))
+                write(data)
+
+            link._writer.write = counted  # type: ignore[method-assign]
             modes = (PlaneMode.LOITER, PlaneMode.RTL, PlaneMode.GUIDED)
             for mode in modes:
                 assert await link.send(commands.set_mode(1, mode))
