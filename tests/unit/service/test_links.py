@@ -233,7 +233,7 @@ def test_frames_sent_together_go_out_in_one_write_in_order() -> None:
             writes: list[bytes] = []
             write = link._writer.write
 
-            def counted(data: bytes) -> None:
+            def counted(data: bytes | bytearray | memoryview) -> None:
                 writes.append(bytes(data))
                 write(data)
 
