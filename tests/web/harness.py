@@ -79,11 +79,13 @@ def serve_args(port: int, db: Path, links: Sequence[str] = ()) -> list[str]:
     return args
 
 
-def http(method: str, url: str, body: Any = None) -> tuple[int, Any]:
-    """One JSON request; (status, decoded body)."""
+def http(method: str, url: str, body: Any = None, token: str | None = None) -> tuple[int, Any]:
+    """One JSON request (with ``token`` as its bearer, if any); (status, decoded body)."""
     data = None if body is None else json.dumps(body).encode()
-    request = urllib.request.Request(url, data=data, method=method,
-                                     headers={"Content-Type": "application/json"})  # fmt: skip
+    headers = {"Content-Type": "application/json"}
+    if token is not None:
+        headers["Authorization"] = f"Bearer {token}"
+    request = urllib.request.Request(url, data=data, method=method, headers=headers)
     try:
         with urllib.request.urlopen(request, timeout=10) as r:
             raw = r.read()

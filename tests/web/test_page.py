@@ -1,4 +1,6 @@
-"""The operator's page in headless chromium against the real service and the built-in SITL.
+"""The operator's page in headless chromium against the real service and the built-in SITL,
+the service with an API token as it is deployed (the page takes it from ``/#token=…``;
+``test_token.py`` covers the prompt for one).
 
 Screenshots (planning, mid-run, replay) go to ``out/test-artifacts/web/``
 (``GCS_PPF_TEST_ARTIFACTS`` to change it).
@@ -24,12 +26,12 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.remote.webelement import WebElement
 
 from gcs_ppf.planning.ppf.primitives import influence_radius
+from gcs_ppf.tokens import add_to_token_file, new_token
 from gcs_ppf.tools.observer import free_port_block
 from tests.web.harness import (
     ROOT,
     browser,
     free_port,
-    http,
     page_errors,
     process,
     screenshot,
@@ -37,6 +39,15 @@ from tests.web.harness import (
     wait_for,
     wait_serving,
 )
+from tests.web.harness import http as http_open
+
+TOKEN, TOKEN_ENTRY = new_token("operator")  # the command scope
+
+
+def http(method: str, url: str, body: Any = None) -> tuple[int, Any]:
+    """One JSON request with the operator's token."""
+    return http_open(method, url, body, TOKEN)
+
 
 MISSION = ROOT / "examples" / "paper_table3.json"
 SPEEDUP = 10
@@ -75,13 +86,17 @@ def sitl_service_and_page(tmp_path: Path) -> Iterator[Flying]:
     sitl = [sys.executable, "-m", "sitl", str(MISSION), "--speedup", str(SPEEDUP),
             "--base-port", str(base)]  # fmt: skip
     env = {"GCS_PPF_TLOG_DIR": str(tmp_path / "tlogs")}
+    tokens = tmp_path / "tokens.json"
+    add_to_token_file(tokens, TOKEN_ENTRY)
+    serve = [*serve_args(port, tmp_path / "gcs.db", links), "--token-file", str(tokens)]
     with (
         process(sitl, tmp_path / "sitl.log"),
-        process(serve_args(port, tmp_path / "gcs.db", links), tmp_path / "gcs.log", env) as gcs,
+        process(serve, tmp_path / "gcs.log", env) as gcs,
         browser() as driver,
     ):
         wait_serving(api, gcs, tmp_path / "gcs.log")
-        driver.get(f"{api}/")
+        assert http_open("GET", f"{api}/vehicles")[0] == 401  # the token is needed
+        driver.get(f"{api}/#token={TOKEN}")
         wait_for(lambda: text(driver, "conn") == "connected", 20, "the page's stream")
         wait_for(lambda: len(http("GET", f"{api}/vehicles")[1]) == len(ports), 60,
                  "every vehicle heard")  # fmt: skip
