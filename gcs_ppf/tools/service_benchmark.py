@@ -68,15 +68,24 @@ def measure(n: int, seconds: float, port: int, base_port: int) -> dict[str, Any]
                 ],
                 stdout=subprocess.DEVNULL,
                 stderr=subprocess.DEVNULL,
-                env={**os.environ, "GCS_PPF_TLOG_DIR": str(Path(tmp) / "tlogs")},
+                env={
+                    **os.environ,
+                    "GCS_PPF_TLOG_DIR": str(Path(tmp) / "tlogs"),
+                    "GCS_PPF_MAX_VEHICLES": str(max(n, 100)),  # its default takes 100
+                },
             ),
         ]
         api = f"http://127.0.0.1:{port}"
         try:
-            if not _wait_vehicles(api, n, 90.0):
-                raise RuntimeError("vehicles not discovered")
-            _, created = http_json("POST", f"{api}/missions", formation_mission(n))
-            http_json("POST", f"{api}/missions/{created['id']}/start")
+            if not _wait_vehicles(api, n, DISCOVERY_S + DISCOVERY_PER_VEHICLE_S * n):
+                heard = _heard(api)
+                return {"vehicles": n, "error": f"{heard} of {n} vehicles heard: not measured"}
+            code, created = http_json("POST", f"{api}/missions", formation_mission(n))
+            if code != 201:
+                return {"vehicles": n, "error": f"mission refused ({code}): {created}"}
+            code, started = http_json("POST", f"{api}/missions/{created['id']}/start")
+            if code != 202:
+                return {"vehicles": n, "error": f"start refused ({code}): {started}"}
             cpu_before = cpu_s(procs[1].pid)
             time.sleep(seconds)
             cpu = cpu_s(procs[1].pid) - cpu_before
@@ -98,6 +107,21 @@ def measure(n: int, seconds: float, port: int, base_port: int) -> dict[str, Any]
                 p.wait(timeout=10)
 
 
+DISCOVERY_S = 60.0
+DISCOVERY_PER_VEHICLE_S = 0.5
+"""How long the service may take to hear every vehicle: a minute, and half a second more a
+vehicle (the SITL's and the service's start, 250 links opened)."""
+
+
+def _heard(api: str) -> int | str:
+    """How many vehicles the service has heard ("?" if it does not answer)."""
+    try:
+        _, vehicles = http_json("GET", f"{api}/vehicles")
+        return len(vehicles)
+    except (OSError, ValueError):
+        return "?"
+
+
 def cpu_s(pid: int) -> float:
     """The CPU seconds (user + system) process ``pid`` has used (Linux's /proc; NaN
     elsewhere): what the service costs, whatever else the machine runs meanwhile."""
@@ -113,7 +137,13 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--vehicles", type=int, nargs="+", default=[5, 50])
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--port", type=int, default=18500)
-    parser.add_argument("--base-port", type=int, default=36760)
+    parser.add_argument(
+        "--base-port",
+        type=int,
+        default=21760,
+        help="the SITL's first port (below Linux's ephemeral 32768-60999: 250 vehicles' ports "
+        "there met one a connection had taken)",
+    )
     parser.add_argument(
         "--burner", action="store_true", help="a CPU burner on one core throughout (a busy machine)"
     )
