@@ -20,7 +20,9 @@ BREACHES = Path(__file__).resolve().parents[1] / "data" / "breaches"
 # 1411 of seed 1 with session 6's overtaking rule (left out); of the 100,000 of seed 2,
 # 52599 (17.8 m) and 97954 (48.9 m: a vehicle turned into a teammate by an obstacle's
 # influence) and 84105 (17.7 m from an obstacle: a 45° dive that nodded at 45° while it
-# turned sideways round it).
+# turned sideways round it); with the rule of giving way to a teammate first, 38269
+# (20.9 m) and 47127 (20.1 m from an obstacle: the hand-back to the obstacles,
+# ``primitives.HAND_BACK_TURNS``).
 SWEPT = [
     (0, 7198),
     (1, 3361),
@@ -32,6 +34,8 @@ SWEPT = [
     (2, 52599),
     (2, 97954),
     (2, 84105),
+    (2, 38269),
+    (2, 47127),
 ]
 
 

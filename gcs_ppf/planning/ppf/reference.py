@@ -18,6 +18,7 @@ from gcs_ppf.planning.ppf.kernel import (
     AVOIDANCE_TURN_ANGLE,
     CONFLICT_HORIZON_TURNS,
     EPSILON_1,
+    HAND_BACK_TURNS,
     INFLUENCE_STEPS,
     LOCAL_MINIMUM_ANGLE,
     MAX_FOLLOW_PITCH,
@@ -123,9 +124,10 @@ def _obstacle_repulsion(
 ) -> tuple[FloatArray, BoolArray, BoolArray]:
     """Eq. 10–13: obstacles inside the influence radius repel with ε₁.  Also [N] whether
     every repelling obstacle is static and leaves room for a full-rate turn away from it
-    begun a few steps later (the kernel's ``room_to_turn_away``; ``u`` [N,3] the flight
-    directions; never for an ``airframe_limited`` airframe, nor where the ground limits
-    dives: the kernel's ``lowest_climb`` above −1)."""
+    begun ``HAND_BACK_TURNS`` quarter turns and a few steps later (the kernel's
+    ``room_to_turn_away``; ``u`` [N,3] the flight directions; never for an
+    ``airframe_limited`` airframe, nor where the ground limits dives: the kernel's
+    ``lowest_climb`` above −1)."""
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     d_obs = pos[:, None, :] - obs_center[None]  # [N,M,3]
     dist = np.linalg.norm(d_obs, axis=-1)
@@ -142,7 +144,8 @@ def _obstacle_repulsion(
     moving = (inside & (u_obs[None] > 0)).any(1)
     s = (d_obs * u[:, None, :]).sum(-1)  # < 0: closing
     lateral = np.sqrt(np.maximum(dist**2 - s**2, 0.0))
-    travel = (INFLUENCE_STEPS * speed * dt)[:, None]
+    hand_back = HAND_BACK_TURNS * AVOIDANCE_TURN_ANGLE * rho  # (the kernel's ``hand_back``)
+    travel = (INFLUENCE_STEPS * speed * dt)[:, None] + hand_back
     after2 = dist**2 + 2.0 * travel * s + travel**2
     turns_away = (s >= 0) | (after2 + 2.0 * rho * lateral >= keep * (keep + 2.0 * rho))
     leaves_room = turns_away & (u_obs[None] == 0)

@@ -19,6 +19,7 @@ from gcs_ppf.planning.ppf.primitives import (
     AVOIDANCE_TURN_ANGLE,
     CONFLICT_HORIZON_TURNS,
     EPSILON_1,
+    HAND_BACK_TURNS,
     INFLUENCE_STEPS,
     YIELD_BACK_TURNS,
     KernelLimits,
@@ -58,7 +59,8 @@ def obstacle_repulsion(
 
     Returns (F_r, whether a repelling obstacle moves, whether every repelling obstacle
     leaves vehicle i room to give way to a teammate first: static, and cleared by a
-    full-rate turn away begun a few steps later, ``room_to_turn_away``; never for an
+    full-rate turn away begun ``HAND_BACK_TURNS`` quarter turns and ``INFLUENCE_STEPS``
+    steps of travel later, ``room_to_turn_away``; never for an
     ``airframe_limited`` vehicle, which needs its half turn, nor one whose dives the
     ground limits, ``lowest_climb``: either may not be able to turn away).
     """
@@ -72,6 +74,8 @@ def obstacle_repulsion(
     height = pz - lim.ground - lim.safe_distance_obstacle - INFLUENCE_STEPS * vi * dt
     room = not airframe_limited(lim) and lowest_climb(height, vi, lim) == -1.0
     ux, uy, uz = direction[i, 0], direction[i, 1], direction[i, 2]
+    # What a vehicle giving way to a teammate first keeps in hand (``HAND_BACK_TURNS``).
+    hand_back = INFLUENCE_STEPS * vi * dt + HAND_BACK_TURNS * AVOIDANCE_TURN_ANGLE * rho
     for c in range(near_start[i], near_start[i + 1]):
         j = near_obstacles[c]
         dx = px - obs_center[j, 0]
@@ -105,9 +109,7 @@ def obstacle_repulsion(
             room = (
                 room
                 and u_max == 0.0
-                and room_to_turn_away(
-                    dx, dy, dz, ux, uy, uz, INFLUENCE_STEPS * vi * dt, rho, keep_out
-                )
+                and room_to_turn_away(dx, dy, dz, ux, uy, uz, hand_back, rho, keep_out)
             )
     return rx, ry, rz, moving_threat, room
 
@@ -303,15 +305,17 @@ def teammates_first(
 
     A vehicle in a teammate conflict and an obstacle's influence at once gives way to the
     teammate alone while the obstacles leave it ``room`` (``obstacle_repulsion``: a
-    full-rate turn away from them begun a few steps later still clears them); without
-    room, the obstacles first (``obstacles_first``).  The teammate is then the nearer
-    danger (its closest approach within a quarter turn), and the obstacle's radial push
-    added to it, stripped of its part towards the obstacle, left a field that pointed
-    back at the vehicle, whose turn then went round whichever way a few per cent of it
-    said, or was reversed away from the obstacle: into the teammate.  The feasible sweep
-    of 100,000 scenes (seed 2) drew three such: a vehicle at 220–300 m/s, entering an
-    obstacle's influence 300–430 m from its surface, turned into a teammate and passed
-    it at 17.8 m and 48.9 m (safe 50 m), as did an overtaking wingman at 24.1 m.
+    full-rate turn away from them begun ``HAND_BACK_TURNS`` quarter turns later still
+    clears them, for the field handed back, the teammate's push still in it, does not
+    turn the vehicle away at once); without room, the obstacles first
+    (``obstacles_first``).  The teammate is then the nearer danger (its closest approach
+    within a quarter turn), and the obstacle's radial push added to it, stripped of its
+    part towards the obstacle, left a field that pointed back at the vehicle, whose turn
+    then went round whichever way a few per cent of it said, or was reversed away from
+    the obstacle: into the teammate.  The feasible sweep of 100,000 scenes (seed 2) drew
+    three such: a vehicle at 220–300 m/s, entering an obstacle's influence 300–430 m from
+    its surface, turned into a teammate and passed it at 17.8 m and 48.9 m (safe 50 m),
+    as did an overtaking wingman at 24.1 m.
     """
     if mate and room and (px != 0.0 or py != 0.0 or pz != 0.0):
         return px, py, pz, 0.0, 0.0, 0.0

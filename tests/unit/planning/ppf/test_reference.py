@@ -115,6 +115,15 @@ def test_one_step_agrees_while_a_diving_vehicle_turns_round_an_obstacle() -> Non
     _agree_at(scene, tr, 0.01, np.arange(8100, 8600, 4))
 
 
+def test_one_step_agrees_while_handing_back_to_the_obstacles() -> None:
+    """Feasible sweep, seed 2, scene 47127: wingman 3 gives way to wingman 2 inside an
+    obstacle's influence until the room runs out (``HAND_BACK_TURNS``), then the obstacles
+    first, 19–23 s."""
+    scene = scene_from_mission(draw_scene(FEASIBLE, 2, 47127))
+    tr = advance(scene, 0.01, 2301).trajectory
+    _agree_at(scene, tr, 0.01, np.arange(1900, 2300, 2))
+
+
 def _gives_way_back(scene: Scene, tr: Trajectory, k: int, dt: float) -> bool:
     """Whether wingman 2 (index 1) gives way back to wingman 3 (index 2) in record ``k``."""
     lim, speed = scene.limits, tr.speed[k]
