@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -77,6 +78,13 @@ class Condition:
     burn_cpus: bool = False
     event: str | None = None
     expect: str = "completed"
+    radios: bool = False
+    """Each vehicle on a telemetry radio of its own: a pty pair (Debian's socat) at
+    ``RADIO_BAUD``, carrying what such a radio does (the SITL's ``--radio``), the service
+    linked by ``serial:``; the observer stays on the vehicles' TCP ports."""
+
+
+RADIO_BAUD = 57600
 
 
 FAILSAFE = ("--param", "FS_GCS_ENABL=1")  # ArduPlane's GCS failsafe: RTL after 5 s of silence
@@ -122,6 +130,8 @@ CONDITIONS: dict[str, Condition] = {
         event="crash_fenced",
         expect="fenced",
     ),
+    # issue 30: what a 57,600-baud radio carries, one a vehicle
+    "n": Condition("n", "x10, each vehicle on its own 57,600-baud radio", 10.0, radios=True),
 }
 
 
@@ -154,6 +164,21 @@ def stop(p: subprocess.Popen[bytes]) -> None:
         except subprocess.TimeoutExpired:
             p.kill()
             p.wait()
+
+
+@contextmanager
+def radio(directory: Path, name: str) -> Iterator[tuple[Path, Path]]:
+    """A pty pair standing in for two telemetry radios (socat): (the vehicle's end, the
+    ground's end), for the block's duration."""
+    if shutil.which("socat") is None:
+        raise RuntimeError("the radio conditions need Debian's socat (make install adds it)")
+    air, ground = directory / f"{name}-air", directory / f"{name}-ground"
+    args = ["socat", f"pty,raw,echo=0,link={air}", f"pty,raw,echo=0,link={ground}"]
+    with process(args, directory / f"{name}-socat.log") as p:
+        wait_for(lambda: (air.exists() and ground.exists()) or p.poll() is not None, 10, "socat")
+        if p.poll() is not None:
+            raise RuntimeError(f"socat exited ({p.returncode}): see {name}-socat.log")
+        yield air, ground
 
 
 @contextmanager
@@ -245,7 +270,13 @@ def fly_once(
     t_total = time.monotonic()
     url = f"http://127.0.0.1:{api_port}"
     with ExitStack() as stack, httpx.Client(base_url=url, timeout=5.0) as api:
-        obs, service = _start_processes(stack, api, sitl, serve, workdir, ports)
+        links = [f"tcp:127.0.0.1:{p}" for p in ports.values()]
+        if cond.radios:
+            pairs = [stack.enter_context(radio(workdir, f"radio{vid}")) for vid in ports]
+            sitl += [a for air, _ in pairs for a in ("--serial", f"{air}:{RADIO_BAUD}")]
+            sitl.append("--radio")
+            links = [f"serial:{ground}:{RADIO_BAUD}" for _, ground in pairs]
+        obs, service = _start_processes(stack, api, sitl, serve, workdir, ports, links)
         flight = _fly(
             api, doc, mission, cond, ports, obs, service, budget_s, event_at_s, after_s, rec
         )
@@ -310,9 +341,11 @@ def _start_processes(
     serve: list[str],
     workdir: Path,
     ports: dict[int, int],
+    links: list[str],
 ) -> tuple[Observer, ServiceProcess]:
-    """Start the service and the SITL in ``stack``, link the service to every vehicle, and
-    the observer once the vehicles are discovered and heard."""
+    """Start the service and the SITL in ``stack``, link the service to every vehicle (by
+    ``links``), and the observer (on ``ports``) once the vehicles are discovered and
+    heard."""
     # The service first: the vehicles fly straight on from their start states until the
     # run starts, so the SITL starts only once the service is up (its first start may
     # compile the planner), and the service connects to it then.
@@ -323,8 +356,8 @@ def _start_processes(
     sitl_log = workdir / "sitl.log"
     stack.enter_context(process(sitl, sitl_log))
     wait_for(lambda: "sitl ready" in sitl_log.read_text(), 60, "the SITL")
-    for p in ports.values():
-        api.post("/links", json={"url": f"tcp:127.0.0.1:{p}"}).raise_for_status()
+    for link in links:
+        api.post("/links", json={"url": link}).raise_for_status()
     obs = stack.enter_context(Observer(ports))
     wait_for(lambda: len(get_json(api, "/vehicles") or []) == len(ports), 60, "vehicles discovered")
     wait_for(lambda: all(obs.latest_boot_ms().values()), 30, "the observer's first samples")
