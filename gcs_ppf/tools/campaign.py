@@ -78,10 +78,13 @@ class Condition:
     burn_cpus: bool = False
     event: str | None = None
     expect: str = "completed"
-    radios: bool = False
-    """Each vehicle on a telemetry radio of its own: a pty pair (Debian's socat) at
-    ``RADIO_BAUD``, carrying what such a radio does (the SITL's ``--radio``), the service
-    linked by ``serial:``; the observer stays on the vehicles' TCP ports."""
+    radios: str = ""
+    """``"each"``: each vehicle on a telemetry radio of its own, ``"one"``: one radio
+    carrying them all; a radio is a pty pair (Debian's socat) at ``RADIO_BAUD``, carrying
+    what such a radio does (the SITL's ``--radio``), the service linked by ``serial:``; the
+    observer stays on the vehicles' TCP ports."""
+    service_env: tuple[tuple[str, str], ...] = ()
+    """The service's settings for the condition (``GCS_PPF_…`` variables)."""
 
 
 RADIO_BAUD = 57600
@@ -131,7 +134,14 @@ CONDITIONS: dict[str, Condition] = {
         expect="fenced",
     ),
     # issue 30: what a 57,600-baud radio carries, one a vehicle
-    "n": Condition("n", "x10, each vehicle on its own 57,600-baud radio", 10.0, radios=True),
+    "n": Condition("n", "x10, each vehicle on its own 57,600-baud radio", 10.0, radios="each"),
+    "o": Condition(
+        "o",
+        "x10, every vehicle on one 57,600-baud radio, streams and ticks at 5 Hz",
+        10.0,
+        radios="one",
+        service_env=(("GCS_PPF_STREAM_RATE_HZ", "5"), ("GCS_PPF_TICK_HZ", "5")),
+    ),
 }
 
 
@@ -272,11 +282,14 @@ def fly_once(
     with ExitStack() as stack, httpx.Client(base_url=url, timeout=5.0) as api:
         links = [f"tcp:127.0.0.1:{p}" for p in ports.values()]
         if cond.radios:
-            pairs = [stack.enter_context(radio(workdir, f"radio{vid}")) for vid in ports]
+            names = [f"radio{vid}" for vid in ports] if cond.radios == "each" else ["radio"]
+            pairs = [stack.enter_context(radio(workdir, name)) for name in names]
             sitl += [a for air, _ in pairs for a in ("--serial", f"{air}:{RADIO_BAUD}")]
             sitl.append("--radio")
             links = [f"serial:{ground}:{RADIO_BAUD}" for _, ground in pairs]
-        obs, service = _start_processes(stack, api, sitl, serve, workdir, ports, links)
+        obs, service = _start_processes(
+            stack, api, sitl, serve, workdir, ports, links, dict(cond.service_env)
+        )
         flight = _fly(
             api, doc, mission, cond, ports, obs, service, budget_s, event_at_s, after_s, rec
         )
@@ -342,6 +355,7 @@ def _start_processes(
     workdir: Path,
     ports: dict[int, int],
     links: list[str],
+    service_env: dict[str, str],
 ) -> tuple[Observer, ServiceProcess]:
     """Start the service and the SITL in ``stack``, link the service to every vehicle (by
     ``links``), and the observer (on ``ports``) once the vehicles are discovered and
@@ -349,7 +363,7 @@ def _start_processes(
     # The service first: the vehicles fly straight on from their start states until the
     # run starts, so the SITL starts only once the service is up (its first start may
     # compile the planner), and the service connects to it then.
-    env = {"GCS_PPF_TLOG_DIR": str(workdir / "tlogs")}
+    env = {"GCS_PPF_TLOG_DIR": str(workdir / "tlogs"), **service_env}
     service = ServiceProcess(stack, lambda: process(serve, workdir / "serve.log", env))
     service.start()
     wait_for(lambda: get_json(api, "/missions") is not None, 180, "the service")
