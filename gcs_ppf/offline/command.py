@@ -144,6 +144,13 @@ def plan_command(args: argparse.Namespace) -> int:
         mission.limits.safe_distance_obstacle,
         m["collisions"],
     )
+    nearest = [
+        f"{vid} {row['nearest_keep_out']} ({fmt(row['min_obstacle_clearance_m'], 'm')})"
+        for vid, row in m["per_vehicle"].items()
+        if row.get("nearest_keep_out") is not None
+    ]
+    if nearest:
+        log.info("each vehicle's nearest keep-out: %s", ", ".join(nearest))
     log.info(
         "planning took %.2f ms for %.1f s of flight: %.0f× real time",
         run.wall_time_s * 1e3,

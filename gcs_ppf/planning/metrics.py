@@ -87,6 +87,9 @@ class Safety:
 
     separation: FloatArray
     clearance: FloatArray
+    nearest: list[str | None]
+    """Which keep-out each vehicle's ``clearance`` is to: ``"obstacles[j]"`` or
+    ``"zones[k]"`` (the mission document's lists, 0-based); None: none."""
     ground_clearance: FloatArray
     pair_contacts: FloatArray  # [N*N], each pair twice
     vehicle_contacts: FloatArray  # with teammates
@@ -111,17 +114,25 @@ def safety(trajectory: Trajectory, context: FlightContext) -> Safety:
         )  # [K,N,M]
         obstacle_contacts = _contacts(clear.reshape(k, n * m), context.collision_radius)
         obstacle_contacts_per_vehicle = obstacle_contacts.reshape(n, m).sum(axis=1)
-        clearance = clear.min(axis=(0, 2))
+        per_obstacle = clear.min(axis=0)  # [N,M]
+        clearance = per_obstacle.min(axis=1)
+        nearest: list[str | None] = [f"obstacles[{j}]" for j in per_obstacle.argmin(axis=1)]
     else:
         obstacle_contacts_per_vehicle = np.zeros(n)
         clearance = np.full(n, np.inf)
+        nearest = [None] * n
     z = len(context.zones)
     if z:  # the distance to each zone's nearest surface point, free side positive
         clear_z = zone_clearances(tr.pos.reshape(k * n, 3), context.zones).reshape(k, n * z)
         obstacle_contacts_per_vehicle = obstacle_contacts_per_vehicle + _contacts(
             clear_z, context.collision_radius
         ).reshape(n, z).sum(axis=1)
-        clearance = np.minimum(clearance, clear_z.reshape(k, n, z).min(axis=(0, 2)))
+        per_zone = clear_z.reshape(k, n, z).min(axis=0)  # [N,Z]
+        nearer = per_zone.min(axis=1) < clearance
+        nearest = [
+            f"zones[{int(per_zone[i].argmin())}]" if nearer[i] else nearest[i] for i in range(n)
+        ]
+        clearance = np.minimum(clearance, per_zone.min(axis=1))
     separation = gaps.min(axis=(0, 2)) if n > 1 else np.full(n, np.inf)
     if context.ground is not None:  # the ground is an obstacle too
         height = tr.pos[:, :, 2] - context.ground  # [K,N]
@@ -134,6 +145,7 @@ def safety(trajectory: Trajectory, context: FlightContext) -> Safety:
     return Safety(
         separation=separation,
         clearance=clearance,
+        nearest=nearest,
         ground_clearance=ground_clearance,
         pair_contacts=pair_contacts,
         vehicle_contacts=vehicle_contacts,
@@ -309,5 +321,8 @@ def compute_metrics(
         "simulated_time_s": flight,
         "leader_distance_to_target_m": leader_gap,
         "smoothness": smoothness(tr, turn, km, offsets),
-        "per_vehicle": per_vehicle_rows(tr, per, in_place),
+        "per_vehicle": {
+            vid: {**row, "nearest_keep_out": safe.nearest[i]}
+            for i, (vid, row) in enumerate(per_vehicle_rows(tr, per, in_place).items())
+        },
     }

@@ -168,7 +168,61 @@ def test_metrics_of_a_table3_flight_are_those_computed_before_the_split() -> Non
     assert _agrees(m["smoothness"], FORMULA_SMOOTHNESS)
     assert list(m["per_vehicle"]) == ["1", "2", "3", "4", "5"]
     for vid, row in FORMULA_PER_VEHICLE.items():
-        assert _agrees(m["per_vehicle"][vid], row), vid
+        got = {k: v for k, v in m["per_vehicle"][vid].items() if k != "nearest_keep_out"}
+        assert _agrees(got, row), vid
+
+
+def test_each_vehicle_s_nearest_keep_out_is_the_sphere_it_came_closest_to() -> None:
+    """Against every sphere's distance over the whole flight, counted here apart."""
+    trajectory, context = table3_flown_by_formula()
+    m = compute_metrics(trajectory, context)
+    obs = context.obstacles
+    centres = obs.center[None] + trajectory.t[:, None, None] * obs.velocity[None]  # [K,M,3]
+    labels = set()
+    for i, vid in enumerate(trajectory.ids.tolist()):
+        gaps = [
+            float(np.min(np.linalg.norm(trajectory.pos[:, i] - centres[:, j], axis=-1)))
+            - float(obs.radius[j])
+            for j in range(obs.radius.shape[0])
+        ]
+        row = m["per_vehicle"][str(vid)]
+        assert row["nearest_keep_out"] == f"obstacles[{int(np.argmin(gaps))}]"
+        assert row["min_obstacle_clearance_m"] == pytest.approx(min(gaps))
+        labels.add(row["nearest_keep_out"])
+    assert len(labels) > 1  # not one answer for all
+
+
+def test_a_zone_nearer_than_every_sphere_is_the_nearest_keep_out() -> None:
+    """Two vehicles flying east, one 100 m beside a cylinder zone, the other 300 m beside a
+    sphere: each one's nearest keep-out is its own; a fleet without keep-outs has none."""
+    mission = Mission.model_validate({
+        "target": [9000.0, 0.0, 500.0],
+        "obstacles": [{"center": [4000.0, 1300.0, 500.0], "radius": 200.0}],
+        "zones": [{"kind": "cylinder", "center": [4000.0, -1200.0], "radius": 100.0,
+                   "floor": 0.0, "ceiling": 2000.0}],
+        "vehicles": [
+            {"id": 1, "role": "leader", "position": [0.0, -1000.0, 500.0]},
+            {"id": 2, "role": "wingman", "position": [0.0, 1000.0, 500.0],
+             "slot": [0.0, 2000.0, 0.0]},
+        ],
+    })  # fmt: skip
+    scene = scene_from_mission(mission)
+    t = (np.arange(161) * 0.5).astype(np.float64)  # 80 s, 8 km east
+    pos = scene.fleet.pos[None] + t[:, None, None] * np.array([100.0, 0.0, 0.0])
+    k, n = pos.shape[:2]
+    trajectory = Trajectory(
+        ids=scene.fleet.ids, t=t, pos=pos, pitch=np.zeros((k, n)), yaw=np.zeros((k, n)),
+        speed=np.full((k, n), 100.0), state=np.ones((k, n), dtype=np.int8),
+        avoiding=np.zeros((k, n), dtype=bool), formed=np.zeros((k, n), dtype=bool),
+    )  # fmt: skip
+    m = compute_metrics(trajectory, flight_context(mission, scene))
+    assert m["per_vehicle"]["1"]["nearest_keep_out"] == "zones[0]"
+    assert m["per_vehicle"]["1"]["min_obstacle_clearance_m"] == pytest.approx(100.0)
+    assert m["per_vehicle"]["2"]["nearest_keep_out"] == "obstacles[0]"
+    assert m["per_vehicle"]["2"]["min_obstacle_clearance_m"] == pytest.approx(100.0)
+    bare = mission.model_copy(update={"obstacles": [], "zones": []})
+    m = compute_metrics(trajectory, flight_context(bare, scene_from_mission(bare)))
+    assert m["per_vehicle"]["1"]["nearest_keep_out"] is None
 
 
 def test_the_share_in_formation_counts_from_the_first_forming() -> None:
