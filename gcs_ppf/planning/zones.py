@@ -195,8 +195,12 @@ def zone_distance(
     if h > 0.0 or v > 0.0:
         a, b = max(h, 0.0), max(v, 0.0)
         d = math.hypot(a, b)
-        sa, sb = a / d, b / d  # (ratios first: exact for subnormal distances)
-        nx, ny, nz = sa * hx, sa * hy, sb * vz
+        # The normal from the ratios to the larger part, normalised: a unit vector for
+        # subnormal parts too (a/d and b/d were 1 and 1 at a/b = 5e-324, d rounding to a).
+        m = max(a, b)
+        sa, sb = a / m, b / m
+        r = math.hypot(sa, sb)
+        nx, ny, nz = sa / r * hx, sa / r * hy, sb / r * vz
     elif h > v:
         d, nx, ny, nz = h, hx, hy, 0.0
     else:
