@@ -337,10 +337,17 @@ class Codec:
 _OK, _BAD, _UNKNOWN = 0, 1, 2
 
 
+def message_id(frame: bytes | bytearray) -> int:
+    """The message id of a whole MAVLink frame (1 or 2)."""
+    if frame[0] == STX_V2:
+        return frame[7] | (frame[8] << 8) | (frame[9] << 16)
+    return frame[5]
+
+
 def _decode(mav: Any, frame: bytearray) -> MAVLinkMessage:
     """``mav.decode(frame)``, refusing a message id the dialect lacks (pymavlink returns
     those as ``MAVLink_unknown`` without a CRC it could check)."""
-    msg_id = frame[7] | (frame[8] << 8) | (frame[9] << 16) if frame[0] == STX_V2 else frame[5]
+    msg_id = message_id(frame)
     if msg_id not in mavlink2.mavlink_map:
         raise ValueError(f"unknown message id {msg_id}")
     return mav.decode(frame)
@@ -349,8 +356,8 @@ def _decode(mav: Any, frame: bytearray) -> MAVLinkMessage:
 def _frame_ids(frame: bytearray) -> tuple[int, int, int]:
     """(system id, component id, message id) of a whole frame."""
     if frame[0] == STX_V2:
-        return frame[5], frame[6], frame[7] | (frame[8] << 8) | (frame[9] << 16)
-    return frame[3], frame[4], frame[5]
+        return frame[5], frame[6], message_id(frame)
+    return frame[3], frame[4], message_id(frame)
 
 
 def _next_stx(buf: bytearray, start: int) -> int:
@@ -380,13 +387,8 @@ def _frame_length(buf: bytearray, i: int) -> int | None:
 def _check_frame(frame: bytearray) -> int:
     """_OK if the CRC (with the message's CRC_EXTRA) matches, _BAD if not, _UNKNOWN if the
     message id is not in the dialect (its CRC_EXTRA, hence its CRC, cannot be checked)."""
-    if frame[0] == STX_V2:
-        header_len = _HEADER_LEN_V2
-        msg_id = frame[7] | (frame[8] << 8) | (frame[9] << 16)
-    else:
-        header_len = _HEADER_LEN_V1
-        msg_id = frame[5]
-    msg_type = mavlink2.mavlink_map.get(msg_id)
+    header_len = _HEADER_LEN_V2 if frame[0] == STX_V2 else _HEADER_LEN_V1
+    msg_type = mavlink2.mavlink_map.get(message_id(frame))
     if msg_type is None:
         return _UNKNOWN
     end = header_len + frame[1]

@@ -224,11 +224,15 @@ def smoothness(
 
 
 def per_vehicle_rows(
-    trajectory: Trajectory, per: dict[str, FloatArray], in_place: NDArray[np.bool_]
+    trajectory: Trajectory,
+    per: dict[str, FloatArray],
+    in_place: NDArray[np.bool_],
+    nearest: list[str | None],
 ) -> dict[str, dict[str, Any]]:
     """Each vehicle's figures by its id: its role, ``per``'s values (None for infinite,
-    collisions as an int; no local target offset for the leader), and for a wingman the
-    first time it was in place (``in_place`` [K,N])."""
+    collisions as an int; no local target offset for the leader), for a wingman the first
+    time it was in place (``in_place`` [K,N]), and its nearest keep-out (``nearest``,
+    ``Safety.nearest``)."""
     tr = trajectory
     rows: dict[str, dict[str, Any]] = {}
     for i, vid in enumerate(tr.ids.tolist()):
@@ -241,6 +245,7 @@ def per_vehicle_rows(
         if i > 0:
             first = np.argmax(in_place[:, i])
             row["formation_time_s"] = float(tr.t[first]) if in_place[:, i].any() else None
+        row["nearest_keep_out"] = nearest[i]
         rows[str(vid)] = row
     return rows
 
@@ -321,8 +326,5 @@ def compute_metrics(
         "simulated_time_s": flight,
         "leader_distance_to_target_m": leader_gap,
         "smoothness": smoothness(tr, turn, km, offsets),
-        "per_vehicle": {
-            vid: {**row, "nearest_keep_out": safe.nearest[i]}
-            for i, (vid, row) in enumerate(per_vehicle_rows(tr, per, in_place).items())
-        },
+        "per_vehicle": per_vehicle_rows(tr, per, in_place, safe.nearest),
     }

@@ -440,11 +440,6 @@ class Fleet:
         if entry is not None:
             await entry.link.send(msg)
 
-    def flush(self) -> None:
-        """Every link's queued frames written now (``MavlinkLink.flush``)."""
-        for entry in self._links.values():
-            entry.link.flush()
-
     async def heartbeats(self) -> None:
         """Our HEARTBEAT on every link, for ever, at ``heartbeat_hz`` of the vehicles' time
         (CONVENTIONS §5: a SITL at ×10 hears 1 Hz of its seconds, and its GCS failsafe,

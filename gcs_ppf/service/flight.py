@@ -223,6 +223,13 @@ def tick_spacing(on_radio: bool, overrunning: bool) -> float:
     return 1.0 if on_radio or overrunning else TICK_SPACING
 
 
+def run_spacing(station: Station, run: Run) -> float:
+    """``tick_spacing`` for the run as it is now (its vehicles' links, its tick rate)."""
+    assert run.tick_rate is not None
+    on_radio = station.fleet.on_radio(v.id for v in run.mission.vehicles)
+    return tick_spacing(on_radio, run.tick_rate.overrunning)
+
+
 async def tick_loop(station: Station, run: Run) -> None:
     """A tick at ``tick_hz`` of the leader's clock, or with a position of the leader's
     (``due``), woken by fresh telemetry, until the run is aborted or ends; a telemetry
@@ -236,6 +243,7 @@ async def tick_loop(station: Station, run: Run) -> None:
     last_sample = -math.inf
     run.tick_rate = TickRate(station.settings.tick_hz)
     clock_of = run.mission.leader.id
+    spacing = run_spacing(station, run)
     while not run.abort.is_set():
         fleet.telemetry_event.clear()
         try:
@@ -256,9 +264,6 @@ async def tick_loop(station: Station, run: Run) -> None:
             run.start_vehicle_time_s = now_v - run.mission_time_s
             last_tick = last_fix = None
         fix = leader_fix_s(station, run)
-        spacing = tick_spacing(
-            fleet.on_radio(v.id for v in run.mission.vehicles), run.tick_rate.overrunning
-        )
         if last_tick is not None and not due(now_v - last_tick, fix, last_fix, period, spacing):
             continue
         if last_tick is not None:
@@ -281,6 +286,7 @@ async def tick_loop(station: Station, run: Run) -> None:
         keep_rate(station, run, now_v, sum(phases.end_tick().values()))
         if done:
             return
+        spacing = run_spacing(station, run)  # once a tick: the loop wakes with every position
 
 
 def keep_rate(station: Station, run: Run, now_v: float, work_s: float) -> None:
@@ -635,7 +641,6 @@ async def plan_and_command(
             run.climb_trims,
             phases=phases,
         )
-        station.fleet.flush()
     with phases.phase("confirmation"):
         for vid, v in verdicts.items():
             sent = run.sent_courses.setdefault(vid, deque(maxlen=SENT_COURSES_KEPT))

@@ -33,7 +33,7 @@ from typing import IO
 import serial_asyncio
 
 from gcs_ppf.mavlink.ardupilot import GCS_COMPONENT_ID, GCS_SYSTEM_ID
-from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage, signing_timestamp
+from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage, message_id, signing_timestamp
 
 log = logging.getLogger(__name__)
 
@@ -260,10 +260,6 @@ class MavlinkLink:
         # rebuilt per frame cost a tenth of the decoding at 100 vehicles): (bytes,
         # messages) in and out.
         self._traffic = [0, 0, 0, 0]
-        # Frames for a byte stream, written together (``flush``): a tick's two or three
-        # commands to a vehicle in one write, not one system call each.
-        self._pending = bytearray()
-        self._flush_due = False
         # The live connection: set by a session, cleared when it ends.
         self._writer: asyncio.StreamWriter | None = None
         self._udp: asyncio.DatagramTransport | None = None
@@ -445,7 +441,6 @@ class MavlinkLink:
         self._udp = None
         self._peer = None
         self._peers = {}
-        self._pending.clear()
         if writer is not None:
             writer.close()
         if udp is not None:
@@ -537,13 +532,7 @@ class MavlinkLink:
         address ``target_system`` was last heard from; a frame for every system (none
         named) to every address heard; one for a system not heard to the last sender."""
         if self._writer is not None:
-            self._pending += frame
-            if not self._flush_due:
-                self._flush_due = True
-                try:
-                    asyncio.get_running_loop().call_soon(self.flush)
-                except RuntimeError:  # no loop running: now
-                    self.flush()
+            self._writer.write(frame)
         elif self._udp is not None and self._peer is not None:
             if self.url.kind is LinkKind.UDP_OUT:
                 self._udp.sendto(frame)
@@ -556,16 +545,6 @@ class MavlinkLink:
         traffic = self._traffic
         traffic[2] += len(frame)
         traffic[3] += 1
-
-    def flush(self) -> None:
-        """Write the frames queued for a byte stream since the last flush, in one write.
-        Done by itself as soon as the event loop runs on (a frame is never queued for longer
-        than the task that sent it runs without waiting); the tick calls it (``Fleet.flush``)
-        when its commands are all queued, before the store and the live stream's work."""
-        self._flush_due = False
-        if self._pending and self._writer is not None:
-            self._writer.write(bytes(self._pending))
-        self._pending.clear()
 
     async def _send_frame(self, frame: bytes, target_system: int | None = None) -> bool:
         writer = self._writer
@@ -595,7 +574,7 @@ class MavlinkLink:
             self._tlog_flushed_s = time.monotonic()
 
     def _tlog_write(self, frame: bytes) -> None:
-        if self._tlog is None or _message_id(frame) == _SETUP_SIGNING_ID:
+        if self._tlog is None or message_id(frame) == _SETUP_SIGNING_ID:
             return
         self._tlog.write(struct.pack(">Q", int(time.time() * 1e6)) + frame)
         now = time.monotonic()
@@ -607,10 +586,3 @@ class MavlinkLink:
         if self._tlog is not None:
             self._tlog.close()
             self._tlog = None
-
-
-def _message_id(frame: bytes) -> int:
-    """The message id of a whole MAVLink frame (1 or 2)."""
-    if frame[0] == 0xFD:
-        return frame[7] | (frame[8] << 8) | (frame[9] << 16)
-    return frame[5]

@@ -219,43 +219,6 @@ def test_tcp_heartbeat_in_command_out() -> None:
     run(body())
 
 
-def test_frames_sent_together_go_out_in_one_write_in_order() -> None:
-    """A tick's commands to a vehicle leave in one write (one system call, one wakeup of
-    the vehicle's reader), by ``flush`` or as soon as the sender lets the loop run."""
-
-    async def body() -> None:
-        vehicle = FakeTcpVehicle()
-        await vehicle.start()
-        link = MavlinkLink(f"tcp:127.0.0.1:{vehicle.port}", Inbox())
-        async with running(link):
-            await wait_until(lambda: link.connected)
-            assert link._writer is not None
-            writes: list[bytes] = []
-            write = link._writer.write
-
-            def counted(data: bytes | bytearray | memoryview) -> None:
-                writes.append(bytes(data))
-                write(data)
-
-            link._writer.write = counted  # type: ignore[method-assign]
-            modes = (PlaneMode.LOITER, PlaneMode.RTL, PlaneMode.GUIDED)
-            for mode in modes:
-                assert await link.send(commands.set_mode(1, mode))
-            assert writes == []  # queued while the sender runs on
-            link.flush()
-            assert len(writes) == 1
-            for mode in modes[:2]:
-                assert await link.send(commands.set_mode(1, mode))
-            await asyncio.sleep(0)  # the loop runs: written by itself
-            assert len(writes) == 2
-            await wait_until(lambda: len(vehicle.got(176)) == 5)
-            assert [m.param2 for m in vehicle.got(176)] == [float(m) for m in (*modes, *modes[:2])]
-        assert link.stats.messages_out == 5
-        await vehicle.stop()
-
-    run(body())
-
-
 def test_tcp_reconnects_with_exponential_backoff() -> None:
     async def body() -> None:
         vehicle = FakeTcpVehicle()
@@ -651,8 +614,14 @@ def test_a_serial_line_that_fills_up_drains_and_goes_quiet() -> None:
     errors: list[dict[str, Any]] = []
     frames = 3000  # 3000 x 41 bytes: more than a pty holds
 
-    def radio_reads(into: bytearray, until: float) -> None:
-        while time.monotonic() < until:
+    frame_len = len(commands.set_mode(1, PlaneMode.RTL).pack(mavlink2.MAVLink(None)))
+
+    def radio_reads(into: bytearray) -> None:
+        """The other end, read from 0.3 s on (the line full meanwhile) until every frame is
+        in, 5 s at most."""
+        time.sleep(0.3)
+        until = time.monotonic() + 5.0
+        while len(into) < frames * frame_len and time.monotonic() < until:
             try:
                 into.extend(os.read(radio, 65536))
             except BlockingIOError:
@@ -662,15 +631,15 @@ def test_a_serial_line_that_fills_up_drains_and_goes_quiet() -> None:
         asyncio.get_running_loop().set_exception_handler(lambda _loop, ctx: errors.append(ctx))
         link = MavlinkLink(f"serial:{os.ttyname(device)}:57600", Inbox())
         received = bytearray()
+        os.set_blocking(radio, False)
         async with running(link):
             await wait_until(lambda: link.connected)
-            for k in range(frames):
+            reader = asyncio.create_task(asyncio.to_thread(radio_reads, received))
+            for k in range(frames):  # the sends wait while the line is full
                 await link.send(commands.set_mode(1, PlaneMode.LOITER if k % 2 else PlaneMode.RTL))
-            await asyncio.sleep(0.2)  # nobody reads yet: the line is full
-            os.set_blocking(radio, False)
-            reader = asyncio.to_thread(radio_reads, received, time.monotonic() + 1.5)
             await reader
             await asyncio.sleep(0.2)  # the loop turns with nothing left to write
+        assert link.stats.reconnects == 0
         parser = mavlink2.MAVLink(None)
         got = parser.parse_buffer(bytes(received)) or []
         assert [m.param2 for m in got] == [12.0 if k % 2 else 11.0 for k in range(frames)]
