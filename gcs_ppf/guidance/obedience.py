@@ -39,6 +39,9 @@ TURN_FRACTION = 0.3
 
 RESPONSE_S = 1.0
 """Beyond the lag, how long a course sent may still be what a vehicle is seen answering."""
+SILENT_S = 1.0
+"""A vehicle without a new position for longer than this (its own seconds) reports nothing
+to judge it by (``Obedience.unheard``); at 10 Hz, 20 % loss leaves such a gap once in 10⁷."""
 
 
 def courses_in_effect(
@@ -102,6 +105,22 @@ class Obedience:
         meanwhile is no evidence against it (×10 under load, ticks 3.7 s of vehicle time
         apart flagged an obeying leader and failed the run)."""
         self.since_s.clear()
+
+    def unheard(self, vehicle_id: int) -> None:
+        """No report of the vehicle this tick (``SILENT_S`` without a position): its silence
+        is no evidence against it.  Counted on, the last course it reported before a link
+        cut was judged against the courses sent into the cut, which it never received: a
+        wingman was flagged 3 s into an 8 s cut, never commanded again after it was heard
+        once more, and flew its last course into an obstacle's keep-out."""
+        self.since_s.pop(vehicle_id, None)
+
+    def forget(self, vehicle_id: int) -> None:
+        """A vehicle heard again after it was lost is judged afresh: commanded again, and
+        flagged again only if it does not obey for the bound.  Once flagged it is no longer
+        commanded, so it could be cleared only by flying, by chance, the last course sent
+        before the loss."""
+        self.since_s.pop(vehicle_id, None)
+        self.not_responding.discard(vehicle_id)
 
     def update(self, now_s: float, reports: list[Report]) -> tuple[list[int], list[int]]:
         """One tick at vehicle time ``now_s``: the vehicles newly flagged, and those that

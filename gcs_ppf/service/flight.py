@@ -310,6 +310,7 @@ async def losses(station: Station, run: Run) -> bool:
             station.event(run, "vehicle_lost", v.id)
         elif vehicle is not None and not vehicle.lost and v.id in run.lost_ids:
             run.lost_ids.discard(v.id)  # heard again: planned for and watched again
+            run.obedience.forget(v.id)  # and commanded again
             station.event(run, "vehicle_back", v.id)
         if vehicle is not None and vehicle.duplicate_links != run.duplicates.get(v.id, ()):
             if vehicle.duplicate_links:
@@ -367,11 +368,17 @@ def check_obedience(
 ) -> bool:
     """Which vehicles obey (GUIDED, the course command ACCEPTED, the course sent flown
     or turned to): events when one stops for ``NOT_RESPONDING_S`` of vehicle time or
-    comes back; True if it is the leader."""
+    comes back; True if it is the leader.  One without a new position for
+    ``obedience.SILENT_S`` is not judged (``Obedience.unheard``)."""
     command = COURSE_COMMAND[station.settings.guidance]
     reports = []
+    now = time.monotonic()
     for v, _ in located:
         t = v.telemetry
+        received = t.position_received_s
+        if received is None or v.clock.vehicle_seconds(now - received) > obedience.SILENT_S:
+            run.obedience.unheard(v.system_id)
+            continue
         ack = t.ack(command)
         guided = t.custom_mode == PlaneMode.GUIDED
         result = ack.result if ack else None

@@ -144,3 +144,29 @@ def test_a_vehicle_answering_an_earlier_course_obeys() -> None:
     latest_only = [Report(4, True, ACCEPTED, right, turning_left, 0.3)]
     ob.update(4.0, latest_only)
     assert ob.update(7.0, latest_only) == ([4], [])
+
+
+def test_a_silent_vehicle_is_not_judged_by_its_last_report() -> None:
+    """A link cut: the last course reported, judged against the courses sent into the cut,
+    flagged a wingman 3 s into an 8 s cut (Table 3, ×10, a CPU burner per core)."""
+    ob = Obedience(bound_s=3.0)
+    off_course = Report(3, True, ACCEPTED, course_error_rad=0.5)
+    assert ob.update(0.0, [off_course]) == ([], [])
+    for t in (1.0, 2.0, 3.0, 4.0):  # silent: no report, the evidence dropped each tick
+        ob.unheard(3)
+        assert ob.update(t, []) == ([], [])
+    assert ob.update(5.0, [off_course]) == ([], [])  # heard again: the clock starts again
+    assert ob.update(8.0, [off_course]) == ([3], [])  # and it does not obey for 3 s
+
+
+def test_a_vehicle_back_from_a_loss_is_judged_afresh() -> None:
+    """Flagged, it is no longer commanded: kept flagged after it was lost and heard again,
+    it could be cleared only by flying the last course sent before the loss, by chance."""
+    ob = Obedience(bound_s=3.0)
+    manual = Report(2, False, FAILED)
+    ob.update(0.0, [manual])
+    assert ob.update(3.0, [manual]) == ([2], [])
+    ob.forget(2)
+    assert ob.not_responding == set()
+    assert ob.update(4.0, [manual]) == ([], [])  # the bound counted from now
+    assert ob.update(7.0, [manual]) == ([2], [])
