@@ -172,6 +172,8 @@ def with_formation(
                 "formed": p.get("formed"),
                 "local_target_m": ltp,
                 "local_target_distance_m": p.get("local_target_distance_m"),
+                "nearest_keep_out": p.get("nearest_keep_out"),
+                "clearance_m": p.get("clearance_m"),
             }
         )
     return out

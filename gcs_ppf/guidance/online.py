@@ -444,12 +444,31 @@ def clearance(
     """Smallest distance from the given positions to any obstacle surface, or any zone's
     (``zones``: on its free side; negative inside an exclusion zone or outside an
     inclusion zone); None: nothing to be clear of."""
-    if positions.shape[0] == 0:
-        return None
-    found: list[float] = []
+    found = [d for _, d in nearest_keep_outs(positions, obstacles, zones) if d is not None]
+    return min(found) if found else None
+
+
+def nearest_keep_outs(
+    positions: FloatArray, obstacles: Obstacles, zones: Zones | None = None
+) -> list[tuple[str | None, float | None]]:
+    """For each position ([N,3]) the keep-out nearest to it, as the mission document
+    lists it (``"obstacles[j]"`` or ``"zones[k]"``, 0-based; the offline metrics'
+    ``nearest_keep_out``), and the distance to its surface (as ``clearance``); (None,
+    None): nothing to be clear of."""
+    n = positions.shape[0]
+    best = np.full(n, np.inf)
+    names: list[str | None] = [None] * n
     if obstacles.radius.shape[0]:
         d = np.linalg.norm(positions[:, None] - obstacles.center[None], axis=-1) - obstacles.radius
-        found.append(float(d.min()))
+        best = d.min(axis=1)
+        names = [f"obstacles[{j}]" for j in d.argmin(axis=1).tolist()]
     if zones is not None and len(zones):
-        found.append(float(zone_clearances(positions, zones).min()))
-    return min(found) if found else None
+        z = zone_clearances(positions, zones)
+        nearer = z.min(axis=1) < best
+        for i in np.flatnonzero(nearer).tolist():
+            names[i] = f"zones[{int(z[i].argmin())}]"
+        best = np.minimum(best, z.min(axis=1))
+    return [
+        (name, None if math.isinf(d) else float(d))
+        for name, d in zip(names, best.tolist(), strict=True)
+    ]

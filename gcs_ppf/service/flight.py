@@ -22,7 +22,12 @@ from gcs_ppf.geodesy import velocity_ned_to_enu
 from gcs_ppf.guidance import assurance, failsafe, lag, obedience, speed_reference, tick_plan
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.formation_watch import slot_errors_m
-from gcs_ppf.guidance.online import VehicleState, clearance, home_ground, separations
+from gcs_ppf.guidance.online import (
+    VehicleState,
+    home_ground,
+    nearest_keep_outs,
+    separations,
+)
 from gcs_ppf.guidance.tick_plan import traffic_radius_m
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_HEADING
@@ -461,12 +466,14 @@ async def tick(station: Station, run: Run) -> bool:
         # the target is reached, and distances kept, by the reported positions
         reported = {v.system_id: pos for v, pos in located}
         at = {vid: k for k, vid in enumerate(ids)}
-        positions = together[[at[i] for i in sorted(active)]].reshape(-1, 3)
+        watched = sorted(active)
+        positions = together[[at[i] for i in watched]].reshape(-1, 3)
         obstacles = obstacles_from_mission(mission).at(run.mission_time_s)
         run.min_separation_m = min_of(run.min_separation_m, separations(positions))
-        run.min_clearance_m = min_of(
-            run.min_clearance_m, clearance(positions, obstacles, run.zones)
-        )
+        nearest = nearest_keep_outs(positions, obstacles, run.zones)
+        run.nearest_keep_out = dict(zip(watched, nearest, strict=True))
+        clear = [d for _, d in nearest if d is not None]
+        run.min_clearance_m = min_of(run.min_clearance_m, min(clear) if clear else None)
 
         reached = leader_flown(station, run, np.array(reported[leader_id]))
     if reached:

@@ -90,6 +90,9 @@ class Run:
     """The formation is held: the leader keeps its speed (``speed_reference.leader_held``)."""
     min_separation_m: float | None = None
     min_clearance_m: float | None = None
+    nearest_keep_out: dict[int, tuple[str | None, float | None]] = field(default_factory=dict)
+    """Each vehicle watched at the last tick: the keep-out nearest to it (the mission's
+    ``"obstacles[j]"`` or ``"zones[k]"``) and how far it is from its surface now (m)."""
     legs: list[Leg] = field(init=False)
     """The leader's route, leg by leg (``gcs_ppf.planning.route``); one leg without one."""
     leg: int = 0
@@ -215,6 +218,7 @@ def status(run: Run) -> dict[str, Any]:
                     "avoiding": g.avoiding[i],
                     "formed": g.formed[i] if i else None,
                     "local_target_distance_m": g.local_target_distance_m[i],
+                    **nearest_row(run.nearest_keep_out.get(vid, (None, None))),
                     "lost": vid in run.lost_ids,
                     "taken_over": vid in run.taken_over,
                 }
@@ -243,6 +247,15 @@ def status(run: Run) -> dict[str, Any]:
             "over_budget": run.lag_budget.over,
         },
         "vehicles": per_vehicle,
+    }
+
+
+def nearest_row(nearest: tuple[str | None, float | None]) -> dict[str, Any]:
+    """A vehicle's nearest keep-out in the status: which, and its clearance now (m)."""
+    name, clearance_m = nearest
+    return {
+        "nearest_keep_out": name,
+        "clearance_m": None if clearance_m is None else round(clearance_m, 1),
     }
 
 

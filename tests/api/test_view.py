@@ -138,13 +138,15 @@ def test_each_wingmans_local_target_point_turns_with_the_leader() -> None:
     wingman = vehicle_view(row(2), (0.0, 0.0, 300.0), (100.0, 0.0, 0.0))
     other = vehicle_view(row(42), None, (None, None, None))
     status = {"vehicles": [{"id": 2, "ppf_state": "s3", "avoiding": False, "formed": False,
-                            "local_target_distance_m": 1234.5, "lost": False}]}  # fmt: skip
+                            "local_target_distance_m": 1234.5, "lost": False,
+                            "nearest_keep_out": "zones[1]", "clearance_m": 88.4}]}  # fmt: skip
     views = {v["id"]: v for v in with_formation([leader_north, wingman, other], mission, status)}
     # Heading north, the leader's left is west: behind (south) and left (west).
     expected = [1000.0 - slot[1], 2000.0 + slot[0], 300.0 + slot[2]]
     assert views[2]["local_target_m"] == pytest.approx(expected)
     assert views[2]["ppf_state"] == "s3"
     assert views[2]["local_target_distance_m"] == 1234.5
+    assert (views[2]["nearest_keep_out"], views[2]["clearance_m"]) == ("zones[1]", 88.4)
     assert views[1]["role"] == "leader"
     assert views[1]["local_target_m"] is None
     assert views[42]["role"] == "other"

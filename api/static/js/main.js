@@ -344,6 +344,13 @@ function slotError(v) {
   return d === null || d === undefined ? "–" : `${d.toFixed(1)} m`;
 }
 
+// The keep-out nearest a vehicle (the mission's obstacles[j] or zones[k]) and its clearance
+// now, as the service's monitor measures it from the reported positions.
+function nearestKeepOut(v) {
+  if (!v.nearest_keep_out) return "–";
+  return `${v.nearest_keep_out} ${v.clearance_m === null ? "" : `${v.clearance_m.toFixed(0)} m`}`.trim();
+}
+
 function updateVehicleTable(f) {
   const body = $("vehicles-table").tBodies[0];
   const rows = f.vehicles.map((v) => [
@@ -353,6 +360,7 @@ function updateVehicleTable(f) {
     v.pos_m ? v.pos_m.map((c) => c.toFixed(0)).join(", ") : "–",
     v.speed_m_s === null ? "–" : `${v.speed_m_s.toFixed(1)} m/s`,
     slotError(v),
+    nearestKeepOut(v),
   ]);
   while (body.rows.length > rows.length) body.deleteRow(-1);
   rows.forEach((cells, i) => {

@@ -13,6 +13,7 @@ from gcs_ppf.guidance.online import (
     clearance,
     guidance,
     home_ground,
+    nearest_keep_outs,
     planned_turn_rate,
     scene_now,
     separations,
@@ -135,6 +136,26 @@ def test_clearance_counts_the_zones_too_and_the_scene_keeps_them(table3: Mission
     states = _states_at_start(mission)
     scene = scene_now(mission, states, {v.id for v in mission.vehicles}, obstacles)
     assert scene.zones.arrays[1].tolist() == zones.arrays[1].tolist()
+
+
+def test_each_vehicles_nearest_keep_out_is_named_as_the_mission_lists_it(table3: Mission) -> None:
+    """The flown status's ``nearest_keep_out``, as the offline metrics name it: the sphere
+    or zone nearer than every other, and the distance to its surface."""
+    doc = table3.model_dump()
+    doc["zones"] = [
+        {"kind": "cylinder", "center": [9000.0, 9000.0], "radius": 100.0},
+        {"kind": "cylinder", "center": [4000.0, 1000.0], "radius": 200.0},
+    ]
+    mission = Mission.model_validate(doc)
+    zones, obstacles = zones_from_mission(mission), obstacles_from_mission(mission)
+    positions = np.array(
+        [[4000.0, 1230.0, 300.0], [3000.0, 3000.0, 500.0], [4500.0, 6000.0, 1000.0]]
+    )
+    near = nearest_keep_outs(positions, obstacles, zones)
+    assert [name for name, _ in near] == ["zones[1]", "obstacles[0]", "obstacles[3]"]
+    assert [d for _, d in near] == pytest.approx([30.0, 50.0, 50.0])  # 900 above the 850
+    assert clearance(positions, obstacles, zones) == pytest.approx(30.0)
+    assert nearest_keep_outs(positions[:1], no_obstacles()) == [(None, None)]
 
 
 def test_the_ground_is_the_missions_or_else_under_the_vehicles_homes(table3: Mission) -> None:
