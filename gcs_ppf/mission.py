@@ -17,6 +17,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Annotated, Literal
 
+import numpy as np
+from numpy.typing import NDArray
 from pydantic import (
     BaseModel,
     ConfigDict,
@@ -28,6 +30,8 @@ from pydantic import (
 Vec3 = tuple[float, float, float]
 Vec2 = tuple[float, float]
 PositiveFloat = Annotated[float, Field(gt=0.0)]
+
+FloatArray = NDArray[np.float64]
 
 
 class _Strict(BaseModel):
@@ -227,25 +231,32 @@ def zone_clearance(
     free side (outside an exclusion zone, inside an inclusion zone); ``footprint`` is
     ``zone_footprint``'s.  Computed by shapely, apart from the planner's compiled
     ``gcs_ppf.planning.zones`` (which the tests check against it)."""
-    from shapely import Point, Polygon
+    return float(zone_clearances_m(zone, footprint, np.asarray([point], dtype=float))[0])
 
-    x, y, z = float(point[0]), float(point[1]), float(point[2])
+
+def zone_clearances_m(
+    zone: CylinderZone | PolygonZone, footprint: Sequence[Vec2], points: FloatArray
+) -> FloatArray:
+    """``zone_clearance`` of every point of ``points`` ([K,3], ICS), at once."""
+    import shapely
+
+    p = np.asarray(points, dtype=float).reshape(-1, 3)
+    x, y, z = p[:, 0], p[:, 1], p[:, 2]
     if isinstance(zone, CylinderZone):
         cx, cy = footprint[0]
-        dh = math.hypot(x - cx, y - cy) - zone.radius
+        dh = np.hypot(x - cx, y - cy) - zone.radius
     else:
-        shape, here = Polygon(footprint), Point(x, y)
-        dh = shape.exterior.distance(here)
-        if shape.contains(here):
-            dh = -dh
-    below = -math.inf if zone.floor is None else zone.floor - z
-    above = -math.inf if zone.ceiling is None else z - zone.ceiling
-    dz = max(below, above)
-    if dh > 0.0 or dz > 0.0:
-        d = math.hypot(max(dh, 0.0), max(dz, 0.0))
-    else:
-        d = max(dh, dz)
-    return -d if zone.inclusion else d
+        shape = shapely.Polygon(footprint)
+        here = shapely.points(x, y)
+        edge = np.asarray(shapely.distance(shape.exterior, here), dtype=float)
+        dh = np.where(shapely.contains_xy(shape, x, y), -edge, edge)
+    below = np.full(len(p), -np.inf) if zone.floor is None else zone.floor - z
+    above = np.full(len(p), -np.inf) if zone.ceiling is None else z - zone.ceiling
+    dz = np.maximum(below, above)
+    outside = (dh > 0.0) | (dz > 0.0)
+    d = np.where(outside, np.hypot(np.maximum(dh, 0.0), np.maximum(dz, 0.0)), np.maximum(dh, dz))
+    out: FloatArray = -d if zone.inclusion else d
+    return out
 
 
 class Waypoint(_Strict):

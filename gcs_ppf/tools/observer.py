@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from pymavlink import mavutil
 
 from gcs_ppf.geodesy import geodetic_to_enu
-from gcs_ppf.mission import Mission
+from gcs_ppf.mission import Mission, zone_clearances_m, zone_footprint
 
 FloatArray = NDArray[np.float64]
 
@@ -366,7 +366,8 @@ class Judgement:
 
     ``min_separation_m``: closest centre-to-centre distance of two vehicles both heard
     then (None: never two); ``closest_pair`` their ids.  ``clearance_m``: per vehicle, its
-    closest approach to any obstacle's surface (None without obstacles), with moving
+    closest approach to any obstacle's or zone's surface (a zone's free side positive, as
+    ``mission.zone_clearance``; None without either), with moving
     obstacles placed at their positions ``t − run_start_s`` after the run's start.
     ``lowest_m``: per vehicle, its lowest height above home once it had been
     ``ground_keepout_m`` above it (None if it never was).  ``leader_to_target_m``: the
@@ -436,13 +437,14 @@ def judge(
             if sep is None or d < sep:
                 sep, pair = d, (ids[a], ids[b])
     clearance: dict[int, float | None] = {}
+    footprints = [(z, zone_footprint(z, mission.origin)) for z in mission.zones]
     for k, vid in enumerate(ids):
         mask = heard[:, k]
-        if not mission.obstacles or not mask.any():
+        if not (mission.obstacles or footprints) or not mask.any():
             clearance[vid] = None
             continue
         p, tk = pos[mask, k], t[mask]
-        clearance[vid] = min(
+        spheres = [
             float(
                 (
                     np.linalg.norm(
@@ -452,7 +454,9 @@ def judge(
                 ).min()
             )
             for o in mission.obstacles
-        )
+        ]
+        zones = [float(zone_clearances_m(z, f, p).min()) for z, f in footprints]
+        clearance[vid] = min(spheres + zones)
     keepout = (
         mission.limits.safe_distance_obstacle if ground_keepout_m is None else ground_keepout_m
     )

@@ -71,6 +71,25 @@ def test_a_silent_vehicle_counts_only_while_it_was_heard() -> None:
     assert j.clearance_m == {1: None, 2: None}
 
 
+def test_zones_count_in_the_clearance_the_observer_judges() -> None:
+    """A U of no-fly walls one track flies into, and a stay-inside area the other flies
+    outside of: each distance as ``mission.zone_clearance`` gives it, negative inside the
+    keep-out."""
+    doc = mission([]).model_dump()
+    doc["zones"] = [
+        {"kind": "polygon", "vertices": [[800, -300], [1200, -300], [1200, 300], [800, 300],
+                                          [800, 200], [1100, 200], [1100, -200], [800, -200]]},
+        {"kind": "polygon", "inclusion": True, "vertices": [[-500, -500], [2100, -500],
+                                                            [2100, 500], [-500, 500]]},
+    ]  # fmt: skip
+    m = Mission.model_validate(doc)
+    t = np.arange(0.0, 12.0, 0.1)  # east at 100 m/s: through the pocket into the back wall
+    j = judge(m, {1: straight(t, 0.0), 2: straight(t, 600.0)}, 0.0, 11.9)
+    assert j.clearance_m[1] == pytest.approx(-50.0, abs=0.5)  # mid-wall, 50 m from each face
+    assert j.clearance_m[2] == pytest.approx(-100.0, abs=0.5)  # 100 m outside the area
+    assert judge(mission([]), {1: straight(t, 0.0)}, 0.0, 11.9).clearance_m == {1: None}
+
+
 def test_gaps_in_a_track_are_not_interpolated_across() -> None:
     ts = np.array([0.0, 0.1, 0.2, 5.0, 5.1])
     mask = observed_at(straight(ts, 0.0), np.array([0.05, 1.0, 5.05, 6.0]))
