@@ -126,9 +126,15 @@ def polygon_distance(
         d2 = (px - qx) ** 2 + (py - qy) ** 2
         if d2 < best2:
             best2, bx, by, ex, ey = d2, qx, qy, sx, sy
-    d = math.hypot(px - bx, py - by)  # (not √best2: exact when the square underflows)
+    dx, dy = px - bx, py - by
+    d = math.hypot(dx, dy)  # (not √best2: exact when the square underflows)
     if d > 0.0:
-        nx, ny = (px - bx) / d, (py - by) / d
+        # From the ratios to the larger part, normalised: a unit vector for subnormal
+        # offsets too ((−1, −1) at (−5e-324, −5e-324) from a corner, d rounding to 5e-324).
+        m = max(abs(dx), abs(dy))
+        sx, sy = dx / m, dy / m
+        r = math.hypot(sx, sy)
+        nx, ny = sx / r, sy / r
         if inside:
             nx, ny = -nx, -ny
     else:  # on the boundary: the edge's normal, outward by the winding

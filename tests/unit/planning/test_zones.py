@@ -59,6 +59,7 @@ def test_the_compiled_distance_is_shapelys(x: float, y: float, z: float) -> None
 
 @given(st.floats(-300, 900), st.floats(-300, 900), st.floats(-100, 600))
 @example(0.0, -5e-324, -5e-324)  # subnormal off a wall and the floor at once: drawn in CI
+@example(-5e-324, -5e-324, 200.0)  # subnormal off a corner, both ways: drawn here
 def test_the_nearest_surface_point_is_the_distance_back_along_the_normal(
     x: float, y: float, z: float
 ) -> None:
