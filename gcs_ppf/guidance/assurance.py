@@ -531,6 +531,8 @@ _WARM_UP_ZONES = Zones(
     np.array([[500.0, -800.0, 300.0, -math.inf, math.inf]]),
     np.array([0, 0], dtype=np.int64),
     np.zeros((0, 2)),
+    np.array([0, 0], dtype=np.int64),
+    np.zeros((0, 2)),
 )
 
 

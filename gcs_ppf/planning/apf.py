@@ -124,14 +124,14 @@ def apf_zone_repulsion(
     fz: float,
     pos: np.ndarray,
     speed: np.ndarray,
-    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     lim: KernelLimits,
 ) -> tuple[float, float, float, bool]:
     """The field (fx, fy, fz) on vehicle i with Khatib's gradient from every zone added,
     by the distance to its nearest surface point and along the normal there
     (``gcs_ppf.planning.zones.zone_distance``; the reach from the surface as PPF's,
     ``surface_influence_radius``); returns (the field, whether a zone repels)."""
-    kind, geom, vstart, verts = zones
+    kind, geom, vstart, verts = zones[0], zones[1], zones[2], zones[3]  # (not the hulls)
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
     reach = surface_influence_radius(speed[i], omega, lim.safe_distance_obstacle)
@@ -200,7 +200,7 @@ def apf_fleet_step(
     direction: np.ndarray,
     local_target: np.ndarray,
     next_motion: np.ndarray,
-    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> None:
     """Advance the fleet one step Δt in place by the classical APF method: the unit
     attraction towards the target (the leader) or G_i (a wingman) plus the repulsions

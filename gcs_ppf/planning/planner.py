@@ -172,7 +172,7 @@ def advance(
             _MATE_SEARCH[mates],
             radius,
             finish,
-            scene.zones.arrays,
+            scene.zones.planning_arrays,
         )
         t_s, times = t0 + elapsed, t0 + rec_t[:records]
     else:
@@ -206,7 +206,7 @@ def advance(
             _MATE_SEARCH[mates],
             radius,
             finish,
-            scene.zones.arrays,
+            scene.zones.planning_arrays,
         )
         elapsed, times = t_s - t0, rec_t[:records]
     trajectory = Trajectory(

@@ -246,7 +246,7 @@ def run_steps(
     trig: np.ndarray,
     goal_radius: float,
     finish: np.ndarray,
-    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> tuple[int, int, float, bool]:
     """Steps ``first`` to ``last`` − 1 of ``run_fleet`` (of ``n_steps``) with the neighbour
     lists as they are, recording and stopping at the leader's arrival as ``run_fleet``
@@ -384,7 +384,7 @@ def run_fleet(
     mate_search: int,
     goal_radius: float,
     finish: np.ndarray,
-    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> tuple[int, int, float, bool]:
     """Run up to ``n_steps`` steps in place, stopping when the leader reaches the target:
     within ``goal_radius`` of it, or across its finish line (``finish``, the normal of the
@@ -528,7 +528,7 @@ def run_chunks(
     mate_search: int,
     goal_radius: float,
     finish: np.ndarray,
-    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> tuple[int, int, float, bool]:
     """``run_fleet`` ``chunk_steps`` steps at a time, exactly as that many calls of it one
     after the other: each chunk records from its own start (``record_every``), its record

@@ -8,13 +8,17 @@ out, an inclusion zone keeps them in: ``zone_distance`` returns the distance to 
 surface measured on the free side (positive there) and the normal pointing into the
 free side, so every user treats both kinds alike.
 
-Layout (K zones, V vertices in all), the tuple ``Zones.arrays`` passes to the kernels:
+Layout (K zones, V vertices in all), the tuple ``Zones.arrays`` (the compiled geometry's):
 
 * ``kind[K]``      int64: ``CYLINDER`` or ``POLYGON``, plus ``INCLUSION`` for an inclusion zone
 * ``geom[K,5]``    cx, cy (the circle's centre, or the polygon's bounding-circle centre),
   radius (the circle's, or the polygon's bounding radius), floor, ceiling
 * ``vstart[K+1]``  int64: polygon k's corners are ``verts[vstart[k]:vstart[k+1]]``
 * ``verts[V,2]``   ICS x, y of the corners (none for a cylinder)
+
+``Zones.planning_arrays`` adds the footprints PPF is repelled by from outside
+(``hull_vstart[K+1]``, ``hull_verts[H,2]``, laid out as ``vstart`` and ``verts``): an
+exclusion polygon that is not convex has its convex hull there, every other zone none.
 """
 
 from __future__ import annotations
@@ -37,6 +41,7 @@ SHAPE = 1  # kind & SHAPE: the footprint's shape
 INCLUSION = 2  # kind & INCLUSION: vehicles stay inside
 
 ZoneArrays = tuple[IntArray, FloatArray, IntArray, FloatArray]
+PlanningZoneArrays = tuple[IntArray, FloatArray, IntArray, FloatArray, IntArray, FloatArray]
 
 
 @dataclass(frozen=True)
@@ -47,10 +52,17 @@ class Zones:
     geom: FloatArray
     vstart: IntArray
     verts: FloatArray
+    hull_vstart: IntArray
+    hull_verts: FloatArray
 
     @property
     def arrays(self) -> ZoneArrays:
         return (self.kind, self.geom, self.vstart, self.verts)
+
+    @property
+    def planning_arrays(self) -> PlanningZoneArrays:
+        """``arrays`` and the hulls PPF is repelled by (module docstring)."""
+        return (*self.arrays, self.hull_vstart, self.hull_verts)
 
     def __len__(self) -> int:
         return int(self.kind.shape[0])
@@ -60,6 +72,8 @@ def no_zones() -> Zones:
     return Zones(
         np.zeros(0, dtype=np.int64),
         np.zeros((0, 5)),
+        np.zeros(1, dtype=np.int64),
+        np.zeros((0, 2)),
         np.zeros(1, dtype=np.int64),
         np.zeros((0, 2)),
     )
@@ -76,6 +90,8 @@ def zones_of(zones: list[CylinderZone | PolygonZone], mission: Mission) -> Zones
     geom: list[tuple[float, float, float, float, float]] = []
     vstart: list[int] = [0]
     verts: list[tuple[float, float]] = []
+    hull_vstart: list[int] = [0]
+    hull_verts: list[tuple[float, float]] = []
     for zone in zones:
         footprint = zone_footprint(zone, mission.origin)
         floor = -math.inf if zone.floor is None else zone.floor
@@ -91,14 +107,40 @@ def zones_of(zones: list[CylinderZone | PolygonZone], mission: Mission) -> Zones
             radius = float(np.hypot(pts[:, 0] - cx, pts[:, 1] - cy).max())
             verts.extend(ring)
             kind.append(POLYGON | flag)
+            if not zone.inclusion:
+                hull_verts.extend(pocket_hull(ring))
         geom.append((cx, cy, radius, floor, ceiling))
         vstart.append(len(verts))
+        hull_vstart.append(len(hull_verts))
     return Zones(
         np.array(kind, dtype=np.int64),
         np.array(geom, dtype=float).reshape(-1, 5),
         np.array(vstart, dtype=np.int64),
         np.array(verts, dtype=float).reshape(-1, 2),
+        np.array(hull_vstart, dtype=np.int64),
+        np.array(hull_verts, dtype=float).reshape(-1, 2),
     )
+
+
+def pocket_hull(ring: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """The convex hull of a polygon that has pockets (a U, an L), none for a convex one.
+
+    PPF takes a zone by its nearest surface point, and the influence radius measured from
+    it (``surface_influence_radius``) holds only where that surface is flat or convex
+    towards the vehicle.  Flown into a U opening towards it, the formation was repelled
+    from wall to wall inside the pocket and planned through its corner, 114 m deep
+    (``examples/scene_u_pocket.json``).  Repelled by the hull while outside it, a vehicle
+    sees the pocket's mouth as a flat wall and never enters it."""
+    import shapely
+
+    shape = shapely.Polygon(ring)
+    hull = shape.convex_hull
+    if hull.area - shape.area <= 1e-9 * max(hull.area, 1.0) or not isinstance(
+        hull, shapely.Polygon
+    ):
+        return []
+    coords = list(hull.exterior.coords)[:-1]
+    return [(float(x), float(y)) for x, y in coords]
 
 
 @njit(cache=True)

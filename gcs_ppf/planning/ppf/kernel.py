@@ -289,7 +289,7 @@ def fleet_step(
     mate_start: np.ndarray,
     mates: np.ndarray,
     trig: np.ndarray,
-    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
 ) -> None:
     """Advance the fleet one step Δt in place: the paper's algorithm (Eq. 3–24).
 

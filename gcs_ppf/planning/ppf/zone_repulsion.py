@@ -115,7 +115,7 @@ def zone_repulsion(
     pos: np.ndarray,
     speed: np.ndarray,
     direction: np.ndarray,
-    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     lim: KernelLimits,
     dt: float,
 ) -> tuple[float, float, float]:
@@ -124,8 +124,10 @@ def zone_repulsion(
     ``surface_influence_radius``, a few steps of travel and for an ``airframe_limited``
     vehicle one more turn radius, as for spheres) the vehicle is in; for an exclusion
     zone whose ceiling is shorter to climb over than going round, tilted up
-    (``overflight_direction``).  ``direction[N,3]`` the vehicles' flight directions."""
-    kind, geom, vstart, verts = zones
+    (``overflight_direction``).  An exclusion polygon with pockets repels a vehicle
+    outside its convex hull from the hull (``zones.pocket_hull``).  ``direction[N,3]``
+    the vehicles' flight directions; ``zones`` ``Zones.planning_arrays``."""
+    kind, geom, vstart, verts, hull_vstart, hull_verts = zones
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     vi = speed[i]
     rho = vi / omega
@@ -137,7 +139,11 @@ def zone_repulsion(
         excluded = not kind[k] & INCLUSION
         if excluded and zone_lower_bound(k, px, py, pz, geom) > reach:
             continue
-        d, nx, ny, nz = zone_distance(k, px, py, pz, kind, geom, vstart, verts)
+        d, nx, ny, nz = -1.0, 0.0, 0.0, 0.0
+        if hull_vstart[k + 1] > hull_vstart[k]:  # outside the hull: the hull
+            d, nx, ny, nz = zone_distance(k, px, py, pz, kind, geom, hull_vstart, hull_verts)
+        if d <= 0.0:
+            d, nx, ny, nz = zone_distance(k, px, py, pz, kind, geom, vstart, verts)
         if d > reach:
             continue
         if excluded:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,7 +21,9 @@ from gcs_ppf.mission import (
     zone_clearance,
     zone_footprint,
 )
-from gcs_ppf.planning.zones import zone_clearances, zone_distance, zones_of
+from gcs_ppf.planning.planner import advance
+from gcs_ppf.planning.scene import scene_from_mission
+from gcs_ppf.planning.zones import pocket_hull, zone_clearances, zone_distance, zones_of
 
 U_SHAPE = [(0, 0), (600, 0), (600, 600), (400, 600), (400, 200), (200, 200), (200, 600), (0, 600)]
 
@@ -86,6 +89,31 @@ def test_inside_and_outside_of_a_u() -> None:
     assert nz == pytest.approx(1.0)
     d = zone_distance(0, 300.0, 300.0, 500.0, kind, geom, vstart, verts)[0]
     assert d == pytest.approx(math.hypot(100.0, 100.0))  # over the pocket: the arms' edges
+
+
+def test_only_an_exclusion_polygon_with_pockets_has_a_hull() -> None:
+    m = mission(ZONES)
+    z = zones_of(m.zones, m)
+    assert z.hull_vstart.tolist() == [0, 4, 4, 4]  # the U's; the cylinder, the inclusion none
+    assert sorted(map(tuple, z.hull_verts.tolist())) == [(0, 0), (0, 600), (600, 0), (600, 600)]
+    assert pocket_hull([(0.0, 0.0), (600.0, 0.0), (600.0, 600.0), (0.0, 600.0)]) == []
+    kind, geom, vstart, verts = z.arrays  # the geometry every check uses is the zone's own
+    assert zone_distance(0, 300.0, 500.0, 200.0, kind, geom, vstart, verts)[0] == 100.0
+
+
+def test_a_formation_flying_at_a_u_goes_round_it_not_into_its_pocket() -> None:
+    """``examples/scene_u_pocket.json``: a U 1.4 km wide opening towards the formation.
+    Repelled by the nearest wall only, the plan flew into the pocket, from wall to wall,
+    and through its corner 114 m deep; repelled by the hull from outside, it keeps every
+    zone's safe distance."""
+    root = Path(__file__).resolve().parents[3]
+    m = load_mission((root / "examples" / "scene_u_pocket.json").read_text())
+    scene = scene_from_mission(m)
+    result = advance(scene, m.planner.dt, 30_000, record_every=10)
+    assert result.arrived
+    pos = result.trajectory.pos.reshape(-1, 3)
+    clear = zone_clearances(pos, scene.zones).min()
+    assert clear >= m.limits.safe_distance_obstacle, clear
 
 
 @pytest.mark.parametrize(
