@@ -1,6 +1,6 @@
 """What the closed loop's planning margins do to a mission's formation, planned offline.
 
-``python -m gcs_ppf.tools.margin_effect MISSION --obstacle-margin 100 --teammate-margins 0
+``python -m gcs_ppf.offline.margin_effect MISSION --obstacle-margin 100 --teammate-margins 0
 15 45.7`` plans the mission from its start once per teammate margin, with both safe
 distances widened as the service widens them at every tick (``online.scene_now``), and
 prints when the formation forms (every wingman within the target accuracy of its slot at
