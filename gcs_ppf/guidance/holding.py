@@ -28,6 +28,7 @@ import numpy as np
 from gcs_ppf.guidance.vehicle_motion import Motion
 from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
 from gcs_ppf.planning.scene import FloatArray, Obstacles
+from gcs_ppf.planning.zones import Zones, zone_clearances
 
 #: Bearings tried, off the vehicle's heading (radians), nearest first.
 BEARINGS = tuple(math.radians(b) for b in (0, 30, -30, 60, -60, 90, -90, 120, -120, 150, -150, 180))
@@ -35,6 +36,8 @@ BEARINGS = tuple(math.radians(b) for b in (0, 30, -30, 60, -60, 90, -90, 120, -1
 REACH_STEPS = (0.0, 2.0, 4.0, 8.0)
 #: Points sampled along the approach.
 APPROACH_SAMPLES = 24
+#: Points sampled round a ring, for the zones (a chord sags 0.1 % of the radius).
+RING_SAMPLES = 72
 #: Seconds between the points of a flown approach, and the longest approach flown.
 APPROACH_STEP_S = 0.5
 APPROACH_MAX_S = 180.0
@@ -49,7 +52,7 @@ SETTLED_COURSE_RAD = math.radians(30.0)
 @dataclass(frozen=True, slots=True)
 class Hold:
     """A loiter circle: centre (ICS x, y), height, radius; and its smallest clearance to an
-    obstacle's surface along the ring and the approach (inf without obstacles)."""
+    obstacle's or a zone's surface along the ring and the approach (inf without either)."""
 
     x_m: float
     y_m: float
@@ -174,6 +177,20 @@ def points_clearance(points: FloatArray, obstacles: Obstacles) -> float:
     return float(gap.min())
 
 
+def zones_clearance(points: FloatArray, zones: Zones | None) -> float:
+    """Smallest distance from any of ``points`` [k,3] to any zone's surface (its free
+    side positive); inf without zones."""
+    if zones is None or not len(zones) or not len(points):
+        return math.inf
+    return float(zone_clearances(points, zones).min())
+
+
+def ring_points(x: float, y: float, z: float, r: float) -> FloatArray:
+    """``RING_SAMPLES`` points round the horizontal circle (centre x, y at height z, radius r)."""
+    a = np.linspace(0.0, math.tau, RING_SAMPLES, endpoint=False)
+    return np.column_stack((x + r * np.cos(a), y + r * np.sin(a), np.full(RING_SAMPLES, z)))
+
+
 def ring_gap(x: float, y: float, wide_m: float, taken: Sequence[tuple[Hold, float]]) -> float:
     """Smallest horizontal gap between the ring flown at centre (x, y), ``wide_m`` wide, and
     the rings already ``taken`` (each with the width it is flown at); inf without any."""
@@ -199,21 +216,27 @@ def hold_at(
     heading: float,
     obstacles: Obstacles,
     motion: Motion | None,
+    zones: Zones | None = None,
 ) -> Hold:
     """The circle centred at (x, y), ``heading`` the way from the vehicle to it, with its
-    clearance along the ring (as asked and as flown) and the approach."""
+    clearance along the ring (as asked and as flown) and the approach, from the obstacles
+    and the ``zones`` (a hold after a run once circled through a no-fly zone's wall the
+    spheres alone had let it cut: ``examples/scene_u_pocket.json`` under load)."""
+    start = np.asarray(pos_m, dtype=float)
     if motion is None:
         entry = np.array([x - radius_m * math.cos(heading), y - radius_m * math.sin(heading), z_m])
-        approach = path_clearance(np.asarray(pos_m, dtype=float), entry, obstacles)
+        approach = path_clearance(start, entry, obstacles)
+        way = start + np.linspace(0.0, 1.0, APPROACH_SAMPLES)[:, None] * (entry - start)
     else:
-        approach = points_clearance(
-            approach_path(motion, x, y, z_m, flown_radius_m(radius_m)), obstacles
-        )
+        way = approach_path(motion, x, y, z_m, flown_radius_m(radius_m))
+        approach = points_clearance(way, obstacles)
     wide = flown_width_m(radius_m, motion)
+    rings = np.concatenate((ring_points(x, y, z_m, radius_m), ring_points(x, y, z_m, wide)))
     clear = min(
         ring_clearance(x, y, z_m, radius_m, obstacles),
         ring_clearance(x, y, z_m, wide, obstacles),
         approach,
+        zones_clearance(np.concatenate((rings, way)), zones),
     )
     return Hold(x, y, z_m, radius_m, clear)
 
@@ -236,6 +259,7 @@ def formation_holds(
     ahead_m: float,
     obstacles: Obstacles,
     keep_out_m: float,
+    zones: Zones | None = None,
 ) -> list[Hold] | None:
     """Every vehicle's circle at its own position moved by one same vector (``ahead_m``
     or further, nearest the bearing ``yaw_rad`` first): the formation as it flies now,
@@ -262,6 +286,7 @@ def formation_holds(
                     heading,
                     obstacles,
                     r.motion,
+                    zones,
                 )
                 for r in requests
             ]
@@ -281,6 +306,7 @@ def holding_circle(
     motion: Motion | None = None,
     taken: Sequence[tuple[Hold, float]] = (),
     separation_m: float = 0.0,
+    zones: Zones | None = None,
 ) -> Hold:
     """The loiter circle for a vehicle at ``pos_m`` heading ``yaw_rad``: centred ``ahead_m``
     (or further) off its nose, as near the heading as keeps ``keep_out_m`` from every
@@ -296,7 +322,7 @@ def holding_circle(
             heading = yaw_rad + bearing
             x = float(pos_m[0]) + d * math.cos(heading)
             y = float(pos_m[1]) + d * math.sin(heading)
-            hold = hold_at(pos_m, z_m, radius_m, x, y, heading, obstacles, motion)
+            hold = hold_at(pos_m, z_m, radius_m, x, y, heading, obstacles, motion, zones)
             wide = flown_width_m(radius_m, motion)
             spare = min(hold.clearance_m - keep_out_m, ring_gap(x, y, wide, taken) - separation_m)
             if spare >= 0.0:

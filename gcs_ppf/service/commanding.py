@@ -32,6 +32,7 @@ from gcs_ppf.mavlink.ardupilot import (
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.scene import Obstacles, obstacles_from_mission
+from gcs_ppf.planning.zones import Zones, zones_from_mission
 from gcs_ppf.service import confirmation
 from gcs_ppf.service.tick_phases import TickPhases
 
@@ -350,6 +351,7 @@ def _holds(
     mission: Mission,
     obstacles: Obstacles,
     keep_out: float,
+    zones: Zones | None = None,
 ) -> dict[int, holding.Hold]:
     """The formation's present layout translated (``holding.formation_holds``, towards the
     leader's heading), or, where no translation clears the obstacles, each vehicle's own
@@ -358,7 +360,7 @@ def _holds(
     yaw = 0.0 if reference is None else reference.yaw_rad
     ids = list(requests)
     together = holding.formation_holds(
-        [requests[i] for i in ids], yaw, LOITER_AHEAD_M, obstacles, keep_out
+        [requests[i] for i in ids], yaw, LOITER_AHEAD_M, obstacles, keep_out, zones
     )
     if together is not None:
         return dict(zip(ids, together, strict=True))
@@ -376,6 +378,7 @@ def _holds(
             r.motion,
             taken,
             mission.limits.safe_distance_uav,
+            zones,
         )
         taken.append((hold, holding.flown_width_m(r.radius_m, r.motion)))
         out[vid] = hold
@@ -428,7 +431,7 @@ def hold_plan(
     heard: set[int],
 ) -> HoldPlan:
     """Each vehicle to a holding circle (``gcs_ppf.guidance.holding``) that cuts no
-    obstacle's keep-out (twice the safe distance), at ``HOLD_TURN_RADII`` turn radii at its
+    obstacle's or zone's keep-out (twice the safe distance), at ``HOLD_TURN_RADII`` turn radii at its
     speed: the formation's present layout translated (``_holds``), else each circle clear
     of its teammates' by the safe distance; flown at the mission's v_min (GUIDED keeps the
     last DO_CHANGE_SPEED: a wingman left at 218 m/s crossed its circle's centre and swung
@@ -479,7 +482,7 @@ def hold_plan(
         requests[v.id] = holding.HoldRequest(
             np.array(s.pos_m), s.yaw_rad, z, radius, motion(s, airframes[v.id], mission)
         )
-    circles = _holds(requests, states, mission, obstacles, keep_out)
+    circles = _holds(requests, states, mission, obstacles, keep_out, zones_from_mission(mission))
     for vid, hold in circles.items():
         if hold.clearance_m < keep_out:
             event("hold_not_clear", vid, clearance_m=round(hold.clearance_m, 1))

@@ -11,7 +11,9 @@ from hypothesis import strategies as hs
 
 from gcs_ppf.guidance.holding import (
     Hold,
+    HoldRequest,
     approach_path,
+    formation_holds,
     holding_circle,
     path_clearance,
     points_clearance,
@@ -19,7 +21,9 @@ from gcs_ppf.guidance.holding import (
 )
 from gcs_ppf.guidance.vehicle_motion import Motion
 from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
+from gcs_ppf.mission import Mission
 from gcs_ppf.planning.scene import Obstacles
+from gcs_ppf.planning.zones import zone_clearances, zones_from_mission
 
 
 def spheres(*cr: tuple[float, float, float, float]) -> Obstacles:
@@ -43,6 +47,36 @@ def test_an_obstacle_ahead_moves_the_circle_off_it_and_the_way_there_clear() -> 
     assert ring_clearance(hold.x_m, hold.y_m, 100.0, 90.0 / TURN_EFFICIENCY, obstacle) >= 50.0
     assert ring_clearance(hold.x_m, hold.y_m, 100.0, 90.0, obstacle) >= 50.0
     assert math.hypot(hold.x_m - 800.0, hold.y_m) > 300.0 + 90.0
+
+
+def test_a_zone_ahead_moves_the_circle_off_it_as_a_sphere_does() -> None:
+    """A hold after a run circled through a U's wall: the spheres alone were checked
+    (``examples/scene_u_pocket.json``, a CPU burner per core). Ring, ring as flown and the
+    way there keep the keep-out from the zone's walls."""
+    zones = zones_from_mission(
+        Mission.model_validate(
+            {
+                "target": [5000.0, 0.0, 100.0],
+                "vehicles": [{"id": 1, "role": "leader", "position": [0.0, 0.0, 100.0]}],
+                "zones": [{"kind": "polygon", "vertices": [[600, -300], [1000, -300],
+                                                           [1000, 300], [600, 300]]}],
+            }
+        )
+    )  # fmt: skip
+    pos = np.array([0.0, 0.0, 100.0])
+    blind = holding_circle(pos, 0.0, 100.0, 90.0, 800.0, spheres(), 50.0)
+    assert zone_clearances(np.array([[blind.x_m, blind.y_m, 100.0]]), zones)[0, 0] < 0.0
+    hold = holding_circle(pos, 0.0, 100.0, 90.0, 800.0, spheres(), 50.0, zones=zones)
+    assert hold.clearance_m >= 50.0
+    a = np.linspace(0.0, 2.0 * math.pi, 360)
+    for r in (90.0, 90.0 / TURN_EFFICIENCY):
+        ring = np.column_stack([hold.x_m + r * np.cos(a), hold.y_m + r * np.sin(a),
+                                np.full(a.shape, 100.0)])  # fmt: skip
+        assert zone_clearances(ring, zones).min() >= 50.0 - 0.5
+    request = HoldRequest(pos, 0.0, 100.0, 90.0, None)
+    together = formation_holds([request], 0.0, 800.0, spheres(), 50.0, zones)
+    assert together is not None
+    assert together[0].clearance_m >= 50.0
 
 
 def test_path_clearance_is_the_segments_closest_approach() -> None:
