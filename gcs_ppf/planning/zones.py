@@ -52,8 +52,9 @@ class Zones:
     geom: FloatArray
     vstart: IntArray
     verts: FloatArray
-    hull_vstart: IntArray
-    hull_verts: FloatArray
+    hull_vstart: IntArray | None = None
+    hull_verts: FloatArray | None = None
+    """None: no hulls (zones recorded before there were any)."""
 
     @property
     def arrays(self) -> ZoneArrays:
@@ -62,6 +63,8 @@ class Zones:
     @property
     def planning_arrays(self) -> PlanningZoneArrays:
         """``arrays`` and the hulls PPF is repelled by (module docstring)."""
+        if self.hull_vstart is None or self.hull_verts is None:
+            return (*self.arrays, np.zeros(len(self) + 1, dtype=np.int64), np.zeros((0, 2)))
         return (*self.arrays, self.hull_vstart, self.hull_verts)
 
     def __len__(self) -> int:

@@ -94,8 +94,9 @@ def test_inside_and_outside_of_a_u() -> None:
 def test_only_an_exclusion_polygon_with_pockets_has_a_hull() -> None:
     m = mission(ZONES)
     z = zones_of(m.zones, m)
-    assert z.hull_vstart.tolist() == [0, 4, 4, 4]  # the U's; the cylinder, the inclusion none
-    assert sorted(map(tuple, z.hull_verts.tolist())) == [(0, 0), (0, 600), (600, 0), (600, 600)]
+    hull_vstart, hull_verts = z.planning_arrays[4:]
+    assert hull_vstart.tolist() == [0, 4, 4, 4]  # the U's; the cylinder, the inclusion none
+    assert sorted(map(tuple, hull_verts.tolist())) == [(0, 0), (0, 600), (600, 0), (600, 600)]
     assert pocket_hull([(0.0, 0.0), (600.0, 0.0), (600.0, 600.0), (0.0, 600.0)]) == []
     kind, geom, vstart, verts = z.arrays  # the geometry every check uses is the zone's own
     assert zone_distance(0, 300.0, 500.0, 200.0, kind, geom, vstart, verts)[0] == 100.0
