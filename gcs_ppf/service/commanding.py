@@ -430,24 +430,23 @@ def hold_plan(
     event: Callable[..., None],
     heard: set[int],
 ) -> HoldPlan:
-    """Each vehicle to a holding circle (``gcs_ppf.guidance.holding``) that cuts no
-    obstacle's or zone's keep-out (twice the safe distance), at ``HOLD_TURN_RADII`` turn radii at its
-    speed: the formation's present layout translated (``_holds``), else each circle clear
-    of its teammates' by the safe distance; flown at the mission's v_min (GUIDED keeps the
-    last DO_CHANGE_SPEED: a wingman left at 218 m/s crossed its circle's centre and swung
-    1.4 km out, into a sphere, 11 s after a Table 3 run under two CPU burners).  The k-th
-    lowest vehicle (``levelling_height``: where it levels off) holds ``stack_spacing_m``·k
-    above the target after completion
-    (``stacked``), above the highest vehicle after an abort or a failure: no two circles at
-    one height (held at their own heights after a failure, a leader and a wingman came to
-    42.5 m on crossing circles), and no two climbs or descents to them crossing (stacked by
-    the mission's order, a wingman descending to its level met one climbing through it to a
-    higher one, 14.2 m apart, 3.9 s after the end of a Table 3 run; stacked by the heights
-    they had, a wingman 20 m above another but diving at 50 m/s got the higher level, dived
-    70 m more before it climbed, and climbed through the other's level 42 m from it, 7.7 s
-    after a run, ×5 on a lossy link).  A vehicle without a
-    state is put in LOITER; one not ``heard`` (lost) is not commanded.  A ``hold_not_clear``
-    event when no circle keeps the keep-out."""
+    """Each vehicle to a holding circle (``gcs_ppf.guidance.holding``) that cuts no obstacle's
+    or zone's keep-out (twice the safe distance), at ``HOLD_TURN_RADII`` turn radii at its
+    speed: the formation's present layout translated (``_holds``), else each circle clear of
+    its teammates' by the safe distance; flown at the mission's v_min (GUIDED keeps the last
+    DO_CHANGE_SPEED: a wingman left at 218 m/s crossed its circle's centre and swung 1.4 km
+    out, into a sphere, 11 s after a Table 3 run under two CPU burners). The k-th lowest
+    vehicle (``levelling_height``: where it levels off) holds ``stack_spacing_m``·k above
+    the target after completion (``stacked``), above the highest vehicle after an abort or a
+    failure: no two circles at one height (held at their own heights after a failure, a
+    leader and a wingman came to 42.5 m on crossing circles), and no two climbs or descents
+    to them crossing (stacked by the mission's order, a wingman descending to its level met
+    one climbing through it to a higher one, 14.2 m apart, 3.9 s after the end of a Table 3
+    run; stacked by the heights they had, a wingman 20 m above another but diving at 50 m/s
+    got the higher level, dived 70 m more before it climbed, and climbed through the other's
+    level 42 m from it, 7.7 s after a run, ×5 on a lossy link). A vehicle without a state is
+    put in LOITER; one not ``heard`` (lost) is not commanded. A ``hold_not_clear`` event
+    when no circle keeps the keep-out."""
     mission = orders.mission
     obstacles = obstacles_from_mission(mission).at(mission_time_s)
     keep_out = 2.0 * mission.limits.safe_distance_obstacle
