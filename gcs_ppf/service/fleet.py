@@ -33,8 +33,10 @@ from gcs_ppf.mavlink.ardupilot import mode_name
 from gcs_ppf.mavlink.codec import signing_timestamp
 from gcs_ppf.mavlink.telemetry import AIRFRAME_PARAMS, VehicleTelemetry, apply
 from gcs_ppf.mission import Mission
+from gcs_ppf.service import link_choice
 from gcs_ppf.service.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.service.forwarding import Forwarding
+from gcs_ppf.service.link_choice import Fix, LinkSeen
 from gcs_ppf.service.links import LinkKind, MavlinkLink, parse_link_url
 from gcs_ppf.service.settings import Settings
 
@@ -103,7 +105,17 @@ class Vehicle:
     heard_on: dict[int, float] = field(default_factory=dict)
     """Link id → when (our monotonic seconds) it was last heard there."""
     duplicate_links: tuple[int, ...] = ()
-    """The links it is heard on at once, when more than one (``Fleet.duplicates``)."""
+    """The links one system id is heard on at once, when they carry two vehicles
+    (``Fleet.duplicates``)."""
+    redundant_links: tuple[int, ...] = ()
+    """The links it is heard on at once, when they carry this one vehicle (a radio and a
+    backup): it is commanded on the better (``link_choice``)."""
+    links_seen: dict[int, LinkSeen] = field(default_factory=dict)
+    """Link id → what the link carried of it lately (``link_choice``)."""
+    link_change: tuple[int, int, str] | None = None
+    """The last change of the link it is commanded on: (from, to, why)."""
+    link_switched_s: float = -math.inf
+    """When (ours) it last did."""
     boot_history: deque[tuple[float, int]] = field(
         default_factory=lambda: deque(maxlen=BOOT_HISTORY_KEPT)
     )
@@ -296,10 +308,16 @@ class Fleet:
         else:
             vehicle.telemetry = apply(vehicle.telemetry, msg, now)
         vehicle.heard_on[link_id] = now
-        self._check_duplicate(vehicle, now)
-        if not vehicle.duplicate_links:
+        if kind == "GLOBAL_POSITION_INT":
+            seen = vehicle.links_seen.setdefault(link_id, LinkSeen())
+            seen.fixes.append(Fix(int(msg.time_boot_ms), msg.lat / 1e7, msg.lon / 1e7))
+        several = self._check_duplicate(vehicle, now)
+        if vehicle.redundant_links:  # one vehicle on several links: the better one
+            self._choose_link(vehicle, now)
+        elif not several:
             vehicle.link_id = link_id  # a vehicle that moved links is followed...
-        # ...but not one heard on two at once: commands stay on the link first heard.
+        # ...but not one id heard from two vehicles (or not known yet to be one): commands
+        # stay on the link first heard.
         vehicle.last_heard_s = now
         self._forward(link_id, sysid, msg)
         boot_ms = getattr(msg, "time_boot_ms", None)
@@ -337,45 +355,96 @@ class Fleet:
         finally:
             del self._inboxes[system_id]
 
-    def _check_duplicate(self, vehicle: Vehicle, now: float) -> None:
-        """Note (and log, when it starts and ends) a system id heard on more than one link
-        within the lost-vehicle timeout (in the vehicle's seconds): two vehicles with one
-        id, or one vehicle on two links.  A run does not start with it (``duplicates``)."""
-        if len(vehicle.heard_on) < 2 and not vehicle.duplicate_links:
-            return  # heard on one link only (every message comes here)
+    def _live_links(self, vehicle: Vehicle, now: float) -> tuple[int, ...]:
+        """The links the vehicle was heard on within the lost-vehicle timeout (its seconds)."""
         timeout = self.settings.vehicle_timeout_s
-        live = tuple(
+        return tuple(
             sorted(
                 lid
                 for lid, t in vehicle.heard_on.items()
                 if lid in self._links and vehicle.clock.vehicle_seconds(now - t) <= timeout
             )
         )
-        links = live if len(live) > 1 else ()
-        if links == vehicle.duplicate_links:
-            return
-        if links:
+
+    def _check_duplicate(self, vehicle: Vehicle, now: float) -> bool:
+        """Note (and log, when it starts and ends) a system id heard on more than one link
+        within the lost-vehicle timeout (in the vehicle's seconds): two vehicles with one
+        id (``duplicate_links``: a run does not start with it, ``duplicates``), or one
+        vehicle on two links (``redundant_links``: commanded on the better,
+        ``link_choice``), told apart by the positions each link carries at the same
+        ``time_boot_ms`` (``link_choice.same_vehicle``); undecided until they have.  True
+        while it is heard on several."""
+        if len(vehicle.heard_on) < 2 and not (vehicle.duplicate_links or vehicle.redundant_links):
+            return False  # heard on one link only (every message comes here)
+        live = self._live_links(vehicle, now)
+        duplicate: tuple[int, ...] = ()
+        redundant: tuple[int, ...] = ()
+        if len(live) > 1:
+            same = link_choice.same_vehicle(
+                [vehicle.links_seen.get(lid, LinkSeen()) for lid in live]
+            )
+            if same is None:
+                return True  # not known yet
+            if same:
+                redundant = live
+            else:
+                duplicate = live
+        if (duplicate, redundant) == (vehicle.duplicate_links, vehicle.redundant_links):
+            return len(live) > 1
+        if duplicate:
             log.warning(
-                "system id %d heard on links %s at once: two vehicles with one id, or one "
-                "vehicle on two links; commands stay on link %d, and no run starts with it",
+                "system id %d heard on links %s at once, at different positions: two "
+                "vehicles with one id; commands stay on link %d, and no run starts with it",
                 vehicle.system_id,
-                ", ".join(map(str, links)),
+                ", ".join(map(str, duplicate)),
                 vehicle.link_id,
+            )
+        elif redundant:
+            log.info(
+                "vehicle %d heard on links %s at once: one vehicle, commanded on the better",
+                vehicle.system_id,
+                ", ".join(map(str, redundant)),
             )
         else:
             log.info("system id %d now heard on one link only", vehicle.system_id)
-        vehicle.duplicate_links = links
+        vehicle.duplicate_links, vehicle.redundant_links = duplicate, redundant
+        return len(live) > 1
+
+    def _choose_link(self, vehicle: Vehicle, now: float) -> None:
+        """Command a vehicle heard on several links on the better one (``link_choice``)."""
+        chosen, why = link_choice.better_link(
+            vehicle.link_id,
+            vehicle.links_seen,
+            vehicle.redundant_links,
+            vehicle.clock.rate,
+            now - vehicle.link_switched_s,
+        )
+        if why is None or chosen == vehicle.link_id:
+            return
+        log.info(
+            "vehicle %d commanded on link %d instead of %d (%s)",
+            vehicle.system_id,
+            chosen,
+            vehicle.link_id,
+            why,
+        )
+        vehicle.link_change = (vehicle.link_id, chosen, why)
+        vehicle.link_id = chosen
+        vehicle.link_switched_s = now
 
     def duplicates(self, system_ids: list[int] | None = None) -> dict[int, tuple[int, ...]]:
         """System id → the links it is heard on at once, for those heard on several (of
-        ``system_ids``, or all)."""
+        ``system_ids``, or all) that are not known to be one vehicle on each
+        (``redundant_links``)."""
         now = time.monotonic()
         out = {}
         for v in self.by_id.values():
             if system_ids is None or v.system_id in system_ids:
-                self._check_duplicate(v, now)
+                several = self._check_duplicate(v, now)
                 if v.duplicate_links:
                     out[v.system_id] = v.duplicate_links
+                elif several and not v.redundant_links:  # not known yet to be one vehicle
+                    out[v.system_id] = self._live_links(v, now)
         return out
 
     async def _request_streams(self, vehicle: Vehicle) -> None:
@@ -557,6 +626,7 @@ class Fleet:
                     "armed": t.armed,
                     "lost": v.lost,
                     "duplicate_links": list(v.duplicate_links),
+                    "redundant_links": list(v.redundant_links),
                     "seconds_since_heard": round(now - v.last_heard_s, 3),
                     "round_trip_s": None if v.round_trip_s is None else round(v.round_trip_s, 3),
                     "position": {

@@ -317,6 +317,11 @@ async def losses(station: Station, run: Run) -> bool:
             run.lost_ids.discard(v.id)  # heard again: planned for and watched again
             run.obedience.forget(v.id)  # and commanded again
             station.event(run, "vehicle_back", v.id)
+        change = None if vehicle is None else vehicle.link_change
+        if change is not None and run.link_changes.get(v.id) is not change:
+            run.link_changes[v.id] = change
+            station.event(run, "vehicle_link_changed", v.id, was=change[0], now=change[1],
+                          why=change[2])  # fmt: skip
         if vehicle is not None and vehicle.duplicate_links != run.duplicates.get(v.id, ()):
             if vehicle.duplicate_links:
                 run.duplicates[v.id] = vehicle.duplicate_links

@@ -107,6 +107,9 @@ class Run:
     taken_over: set[int] = field(default_factory=set)
     """Vehicles another ground station commanded (``vehicle_taken_over``), out of the run's
     command until handed back."""
+    link_changes: dict[int, tuple[int, int, str]] = field(default_factory=dict)
+    """Vehicle id → the last change of the link it is commanded on, told
+    (``vehicle_link_changed``)."""
     duplicates: dict[int, tuple[int, ...]] = field(default_factory=dict)
     """Vehicle id → the links it was heard on at once (``duplicate_system_id`` told)."""
     commanded_speed: dict[int, float] = field(default_factory=dict)

@@ -314,6 +314,9 @@ class FormationService:
     def _new_run(self, record: StoredRun, mission: Mission) -> Run:
         orders = commanding.Orders(mission, self.settings.guidance, self.settings.lookahead_s)
         run = Run(record=record, mission_id=record.mission_id, mission=mission, orders=orders)
+        for v in self.fleet.by_id.values():  # links changed before the run are not its events
+            if v.link_change is not None:
+                run.link_changes[v.system_id] = v.link_change
         self._runs[record.mission_id] = run
         return run
 

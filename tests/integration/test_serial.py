@@ -15,11 +15,12 @@ from typing import Any
 
 import pytest
 
+from gcs_ppf.service import link_choice
 from gcs_ppf.service.store import Store
 from gcs_ppf.tools.demo import http_json as http
 from tests.checks import wait_for
 from tests.conftest import EXAMPLES
-from tests.integration.test_service_sitl import check_safety, fly
+from tests.integration.test_service_sitl import SPEEDUP, check_safety, fly
 
 MISSION = EXAMPLES / "paper_table3.json"
 BAUD = 57600
@@ -109,6 +110,67 @@ def test_table3_on_one_radio_carrying_every_vehicle(tmp_path: Path) -> None:
         f"\none serial line, five vehicles: completed at {seconds:.1f} s, separation "
         f"{separation:.1f} m, clearance {clearance:.1f} m; {link['bytes_in']} bytes in, "
         f"{link['bytes_out']} out; at 57,600 baud {load['down']:.0%} down, {load['up']:.0%} up"
+    )
+
+
+@pytest.mark.integration
+def test_a_radio_unplugged_hands_its_vehicle_to_its_backup_link(tmp_path: Path) -> None:
+    """Each vehicle on a radio of its own, and 5 s into the run on its own TCP link too, a
+    backup (issue 30: one vehicle heard on two links is one vehicle, commanded on the
+    better).  The radios keep the commands while they keep up; wingman 3's unplugged 20 s
+    into the run, its commands move to its backup once the backup carries its clock
+    ``link_choice.BEHIND_S`` ahead (at ×10, 2.5 of its seconds: a quarter second of ours)
+    and a second more at most (``vehicle_link_changed``).  No other vehicle changes link
+    (equal links: no flapping), none is lost, and the run completes safely, the observer
+    says."""
+    doc = json.loads(MISSION.read_text())
+    names = [f"v{v['id']}" for v in doc["vehicles"]]
+    ports: dict[int, int] = {}
+    seen: dict[str, Any] = {}
+    with radios(tmp_path, names) as r:
+
+        def during(api: str, mid: int) -> None:
+            wait_for(lambda: _mission_time(api, mid) >= 5.0, 90, "5 s of the mission")
+            for port in ports.values():
+                status, body = http("POST", f"{api}/links", {"url": f"tcp:127.0.0.1:{port}"})
+                assert status == 201, body
+            wait_for(lambda: _mission_time(api, mid) >= 20.0, 90, "20 s of the mission")
+            status, body = http("GET", f"{api}/vehicles")
+            assert status == 200, body
+            seen["before"] = {v["system_id"]: (v["link_id"], v["redundant_links"]) for v in body}
+            seen["unplugged_wall_s"] = time.time()
+            r["v3"].unplug()
+
+        flight = fly(
+            tmp_path,
+            doc,
+            sitl_extra=[a for n in names for a in ("--serial", f"{r[n].air}:{BAUD}")],
+            links=[f"serial:{r[n].ground}:{BAUD}" for n in names],
+            during=during,
+            ports_out=ports,
+        )
+    assert flight.final["state"] == "completed", flight.final
+    radio_of = {vid: k + 1 for k, vid in enumerate(sorted(seen["before"]))}
+    assert all(link == radio_of[vid] and len(links) == 2
+               for vid, (link, links) in seen["before"].items()), seen["before"]  # fmt: skip
+    store = Store(tmp_path / "gcs.db")
+    run = store.runs(flight.mission_id)[0]
+    events = store.events(run.id)
+    changed = [e for e in events if e.kind == "vehicle_link_changed"]
+    assert [e.vehicle_id for e in changed] == [3], changed
+    (switch,) = changed
+    assert switch.detail is not None
+    assert switch.detail["was"] == radio_of[3]
+    assert switch.detail["now"] != radio_of[3]
+    assert not any(e.kind == "vehicle_lost" for e in events)
+    after_s = (switch.wall_s - seen["unplugged_wall_s"]) * SPEEDUP  # in the SITL's seconds
+    behind_s = max(link_choice.BEHIND_S, link_choice.BEHIND_OURS_S * SPEEDUP)
+    assert after_s <= behind_s + 1.0, after_s  # the rule's lag, and a second more
+    _, separation, clearance = check_safety(flight)
+    print(
+        f"\nradio 3 unplugged: its backup commands it {after_s:.2f} s of vehicle time later "
+        f"({switch.detail['why']}); completed at {flight.final['mission_time_s']:.1f} s, "
+        f"separation {separation:.1f} m, clearance {clearance:.1f} m"
     )
 
 

@@ -60,15 +60,19 @@ def fly(tmp_path: Path, mission_doc: dict[str, Any], *, sitl_extra: Sequence[str
         env_extra: dict[str, str] | None = None,
         during: Callable[[str, int], None] | None = None,
         after: Callable[[str, int], None] | None = None,
-        links: Sequence[str] | None = None) -> Flight:  # fmt: skip
+        links: Sequence[str] | None = None,
+        ports_out: dict[int, int] | None = None) -> Flight:  # fmt: skip
     """Start SITL and service, fly ``mission_doc`` to its end, record it independently.
-    ``links``: the URLs the service is given (default: each vehicle's TCP port)."""
+    ``links``: the URLs the service is given (default: each vehicle's TCP port);
+    ``ports_out``: filled with each vehicle's TCP port."""
     mission = Mission.model_validate(mission_doc)
     path = tmp_path / "mission.json"
     path.write_text(json.dumps(mission_doc))
     base = free_port_block(10 * len(mission.vehicles))
     api_port = free_port_block(1)
     ports = {v.id: base + 10 * k for k, v in enumerate(mission.vehicles)}
+    if ports_out is not None:
+        ports_out.update(ports)
     api = f"http://127.0.0.1:{api_port}"
     serve = [sys.executable, "-m", "gcs_ppf.cli", "serve", "--port", str(api_port),
              "--db", str(tmp_path / "gcs.db")]  # fmt: skip

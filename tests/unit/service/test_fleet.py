@@ -166,15 +166,28 @@ def _two_links(tmp_path: Path) -> Recording:
     return fleet
 
 
+def _position(boot_ms: int, lat_deg: float, lon_deg: float = 8.0) -> MAVLinkMessage:
+    return mavlink2.MAVLink_global_position_int_message(
+        boot_ms, int(lat_deg * 1e7), int(lon_deg * 1e7), 400_000, 100_000, 0, 0, 0, 0
+    )
+
+
 def test_one_system_id_on_two_links_at_once_is_told_and_not_followed(
     tmp_path: Path, caplog: Any
 ) -> None:
+    """Two vehicles with one id: each link carries its own position (1.1 km apart)."""
     fleet = _two_links(tmp_path)
     heartbeat = mavlink2.MAVLink_heartbeat_message(1, 3, 0, 0, 3, 3)
     fleet._on_message(1, _wire(heartbeat))
+    fleet._on_message(1, _wire(_position(10_000, 47.0)))
     assert fleet.duplicates() == {}
+    fleet._on_message(2, _wire(heartbeat))
+    # Not known yet to be one vehicle (link 2 has carried no position): no start with it,
+    # and nothing told yet.
+    assert fleet.duplicates() == {7: (1, 2)}
+    assert fleet.by_id[7].duplicate_links == ()
     with caplog.at_level("WARNING", logger="gcs_ppf.service.fleet"):
-        fleet._on_message(2, _wire(heartbeat))
+        fleet._on_message(2, _wire(_position(10_000, 47.01)))
     assert fleet.duplicates() == {7: (1, 2)}
     assert fleet.duplicates([8]) == {}
     assert fleet.by_id[7].link_id == 1  # commands stay on the link first heard
@@ -193,11 +206,36 @@ def test_one_system_id_on_two_links_at_once_is_told_and_not_followed(
         coro.close()
 
 
+def test_one_vehicle_on_two_links_is_commanded_on_the_one_still_heard(tmp_path: Path) -> None:
+    """A radio and a backup: the same position at the same time on both links (one 0.3 s
+    behind) is one vehicle, not a duplicate; its commands move to the backup once the
+    other link carries its clock half a second further (the commanding one silent)."""
+    fleet = _two_links(tmp_path)
+    heartbeat = mavlink2.MAVLink_heartbeat_message(1, 3, 0, 0, 3, 3)
+    for link, boot in ((1, 10_000), (2, 9_700)):
+        fleet._on_message(link, _wire(heartbeat))
+        fleet._on_message(link, _wire(_position(boot, 47.0 + boot * 1e-9)))
+    vehicle = fleet.by_id[7]
+    assert fleet.duplicates() == {}
+    assert vehicle.redundant_links == (1, 2)
+    assert fleet.vehicles()[0]["redundant_links"] == [1, 2]
+    first = vehicle.link_id
+    other = 2 if first == 1 else 1
+    for boot in range(10_100, 10_800, 100):  # the commanding link silent: 0.7 s on
+        fleet._on_message(other, _wire(_position(boot, 47.0)))
+    assert vehicle.link_id == other
+    assert vehicle.link_change == (first, other, "behind")
+    for coro in fleet.spawned:
+        coro.close()
+
+
 def test_a_removed_link_is_not_a_duplicate(tmp_path: Path) -> None:
     fleet = _two_links(tmp_path)
     heartbeat = mavlink2.MAVLink_heartbeat_message(1, 3, 0, 0, 3, 3)
     fleet._on_message(1, _wire(heartbeat))
+    fleet._on_message(1, _wire(_position(10_000, 47.0)))
     fleet._on_message(2, _wire(heartbeat))
+    fleet._on_message(2, _wire(_position(10_000, 47.01)))
     assert fleet.duplicates() == {7: (1, 2)}
     asyncio.run(fleet.remove_link(2))
     assert fleet.duplicates() == {}
