@@ -166,6 +166,40 @@ EXPERIMENTS: dict[str, Experiment] = {
 }
 
 
+#: Course steps recorded on ArduPlane 4.7.0-dev (90700977): every one flown from level
+#: flight at 22 and at 28 m/s, metrics and tolerances as the +90° step's.
+COURSE_STEPS = {"plus20": 20.0, "minus20": -20.0, "plus45": 45.0, "minus45": -45.0,
+                "plus90": 90.0, "minus90": -90.0, "plus135": 135.0, "minus135": -135.0,
+                "180": 180.0}  # fmt: skip
+HEADING_TOLERANCES = EXPERIMENTS["02-heading-plus90"][3]
+
+
+def _course_step(name: str, delta_deg: float) -> Experiment:
+    return (
+        40.0,
+        lambda meta, d: fly_guided(name, meta, d),
+        lambda r, meta: heading_metrics(r, delta_deg),
+        HEADING_TOLERANCES,
+    )
+
+
+def _ramp(name: str, rate_dps: float) -> Experiment:
+    return (
+        60.0,
+        lambda meta, d: fly_heading_ramp(meta, d, name),
+        lambda r, meta: ramp_metrics(r, rate_dps, 40.0),
+        EXPERIMENTS["09-heading-ramp"][3],
+    )
+
+
+for _step, _delta in COURSE_STEPS.items():
+    for _speed in (22, 28):
+        _name = f"10-course-{_step}-as{_speed}"
+        EXPERIMENTS[_name] = _course_step(_name, _delta)
+for _rate in (6, 12):
+    EXPERIMENTS[f"11-heading-ramp-{_rate}dps"] = _ramp(f"11-heading-ramp-{_rate}dps", _rate)
+
+
 @dataclass(frozen=True, slots=True)
 class Comparison:
     experiment: str

@@ -142,9 +142,11 @@ def fly_guided(experiment: str, meta: dict[str, Any], duration_s: float) -> Resp
     return _response(rows)
 
 
-def fly_heading_ramp(meta: dict[str, Any], duration_s: float) -> Response:
+def fly_heading_ramp(
+    meta: dict[str, Any], duration_s: float, experiment: str = "09-heading-ramp"
+) -> Response:
     """The course ramp: level, then a course command every 0.1 s turning at rate_dps."""
-    e = meta["experiments"]["09-heading-ramp"]
+    e = meta["experiments"][experiment]
     c0 = e["first_ramp_command_course_deg"]
     sim = _guided_at(e, meta)
     rows: list[tuple[float, ...]] = []

@@ -25,7 +25,13 @@ def _settled(t: FloatArray, ok: NDArray[np.bool_]) -> float:
 
 
 def heading_metrics(r: Response, delta_deg: float) -> dict[str, float]:
+    """A course step of ``delta_deg`` (+ right, − left; ±180: either way, the way it turned),
+    measured along the turn."""
     d = r.course_deg - r.course_deg[0]
+    if abs(abs(delta_deg) - 180.0) < 1e-9:  # a reversal: the way it went
+        delta_deg = math.copysign(180.0, d[-1])
+    d = d * math.copysign(1.0, delta_deg)
+    delta_deg = abs(delta_deg)
     turn = np.gradient(r.course_deg, r.t)
     return {
         "t_10pct_s": _first(r.t, d >= 0.1 * delta_deg),
