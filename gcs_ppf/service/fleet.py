@@ -82,6 +82,9 @@ TRAFFIC_SAMPLES = 6
 RADIO_FULL = 0.9
 """A radio link carrying more than this fraction of its baud rate either way is told in the
 log: beyond it, a radio's buffer fills and it drops what does not fit."""
+IDENTITY_CHECK_S = 1.0
+"""Our seconds between two looks at whether the links a vehicle is heard on carry one
+vehicle or two (the positions compared: a few hundred each, at every message otherwise)."""
 UNMEASURED_HEARTBEAT_HZ = 10.0
 """Our heartbeats per second of ours while a vehicle's clock rate is not yet measured."""
 HEARTBEAT_POLL_S = 0.05
@@ -116,6 +119,8 @@ class Vehicle:
     """The last change of the link it is commanded on: (from, to, why)."""
     link_switched_s: float = -math.inf
     """When (ours) it last did."""
+    identity_checked_s: float = -math.inf
+    """When (ours) its links were last told one vehicle or two (``Fleet._check_duplicate``)."""
     boot_history: deque[tuple[float, int]] = field(
         default_factory=lambda: deque(maxlen=BOOT_HISTORY_KEPT)
     )
@@ -377,9 +382,13 @@ class Fleet:
         if len(vehicle.heard_on) < 2 and not (vehicle.duplicate_links or vehicle.redundant_links):
             return False  # heard on one link only (every message comes here)
         live = self._live_links(vehicle, now)
+        known = vehicle.duplicate_links or vehicle.redundant_links
+        if live == known and now - vehicle.identity_checked_s < IDENTITY_CHECK_S:
+            return True  # decided for these links lately (every message comes here)
         duplicate: tuple[int, ...] = ()
         redundant: tuple[int, ...] = ()
         if len(live) > 1:
+            vehicle.identity_checked_s = now
             same = link_choice.same_vehicle(
                 [vehicle.links_seen.get(lid, LinkSeen()) for lid in live]
             )
