@@ -40,6 +40,11 @@ at ×5 with a CPU burner per core (5 runs each) was in formation for a median 66
 flight after forming with 2 s, 19 % with 0.4 s (the leader's flight path swinging ±8°)."""
 
 
+NULL_ISLAND_DEG = 0.01
+"""A position within this of 0°, 0° (1.1 km) is none: what an autopilot reports before it
+has one.  No mission flies in the Gulf of Guinea's null island square."""
+NULL_ISLAND_E7 = round(NULL_ISLAND_DEG * 1e7)
+
 FIXES_KEPT = 32
 """How many positions ``recent_fixes`` keeps: 3.2 s at the 10 Hz stream the service asks for,
 more than a tick late under load."""
@@ -284,6 +289,13 @@ def _vd_mean(tel: VehicleTelemetry, vd: float, boot_ms: int) -> float:
 def _global_position_int(
     tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float
 ) -> dict[str, Any]:
+    """A position, unless it is none: ArduPlane 4.7 streams GLOBAL_POSITION_INT about 0°, 0°
+    before its EKF has a global position (lat 3003, lon −696 in 1e-7°; read as one, three
+    vehicles waiting for their GPS were 11,761 km from their starts and on top of each
+    other, and a start was refused): ``NULL_ISLAND_DEG``.  Its height above home is kept:
+    the barometer's, by which a vehicle on the runway is known to be on the ground."""
+    if abs(msg.lat) < NULL_ISLAND_E7 and abs(msg.lon) < NULL_ISLAND_E7:
+        return {"relative_alt_m": msg.relative_alt * 1e-3}
     hdg = int(msg.hdg)
     vn, ve = msg.vx * 1e-2, msg.vy * 1e-2
     fix = Fix(int(msg.time_boot_ms), msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3)

@@ -34,6 +34,10 @@ PREARM_OK = 1 << 28
 MAX_GAP_S = 2.0
 
 
+NO_FIX_E7 = 100_000
+"""A position within 0.01° (1e-7° units) of 0°, 0° is none: an autopilot reports there
+before it has one (ArduPlane 4.7: lat 3003, lon −696 while waiting for its GPS).  The
+service has its own (``telemetry.NULL_ISLAND_DEG``): this judge shares nothing with it."""
 PORT_OFFSETS = (0, 1, 2, 3)
 """The ports an instance takes from its base P + 10·i: ArduPilot's SITL binds SERIAL0,
 SERIAL1 and SERIAL2 at +0, +2 and +3 (and +1 is kept free as its own layout does)."""
@@ -151,8 +155,8 @@ class Observer:
                     continue
                 kind = msg.get_type()
                 if kind == "GLOBAL_POSITION_INT":
-                    if msg.lat == 0 and msg.lon == 0:  # no GPS fix yet
-                        continue
+                    if abs(msg.lat) < NO_FIX_E7 and abs(msg.lon) < NO_FIX_E7:
+                        continue  # no position yet
                     last_pos, tbm = time.monotonic(), int(msg.time_boot_ms)
                     rec.pos.append(
                         (

@@ -67,8 +67,25 @@ def test_global_position_int_units() -> None:
 
 
 def test_unknown_heading_is_none() -> None:
-    msg = mavlink2.MAVLink_global_position_int_message(1, 0, 0, 0, 0, 0, 0, 0, 0xFFFF)
-    assert apply(None, _wire(msg), 0.0).heading_deg is None
+    msg = mavlink2.MAVLink_global_position_int_message(
+        1, 473977420, 85455940, 0, 0, 0, 0, 0, 0xFFFF
+    )
+    tel = apply(None, _wire(msg), 0.0)
+    assert tel.lat_deg is not None
+    assert tel.heading_deg is None
+
+
+def test_a_position_about_0_0_is_no_position() -> None:
+    """ArduPlane 4.7 streams GLOBAL_POSITION_INT about 0°, 0° before its EKF has a
+    position (as recorded from its SITL): three vehicles waiting for their GPS read
+    11,761 km from their starts."""
+    tel = apply(None, _heartbeat(), 0.0)
+    nowhere = mavlink2.MAVLink_global_position_int_message(5000, 3003, -696, 100, 100, 0, 0, 0, 0)
+    tel = apply(tel, _wire(nowhere), 1.0)
+    assert (tel.lat_deg, tel.lon_deg, tel.position_received_s) == (None, None, None)
+    assert tel.relative_alt_m == pytest.approx(0.1)  # on the runway: the barometer's height
+    here = mavlink2.MAVLink_global_position_int_message(6000, 473977420, 85455940, 0, 0, 0, 0, 0, 0)
+    assert apply(tel, _wire(here), 2.0).lat_deg == pytest.approx(47.397742)
 
 
 def test_attitude_vfr_hud_and_system_time() -> None:
