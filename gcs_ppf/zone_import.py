@@ -165,11 +165,28 @@ def zones_from_plan(doc: Any) -> list[Zone]:
     return zones
 
 
+def zones_from_mission_form(doc: dict[str, Any]) -> list[Zone]:
+    """``{"zones": [...]}``: zones as the mission document writes them (CONVENTIONS §3, in
+    ICS metres or lat/lon), as the operator's page sends one drawn on its map."""
+    items = doc["zones"]
+    if not isinstance(items, list):
+        raise ZoneImportError("zones: a list of zones expected")
+    out = []
+    for k, item in enumerate(items):
+        if not isinstance(item, dict) or item.get("kind") not in ("cylinder", "polygon"):
+            raise ZoneImportError(f'zones[{k}].kind: "cylinder" or "polygon" expected')
+        out.append(_zone(f"zones[{k}]", item))
+    return out
+
+
 def zones_from_document(doc: Any, required: bool = True) -> list[Zone]:
     """The zones of a parsed GeoJSON or QGroundControl ``.plan`` document (told apart by
-    its ``fileType``): at least one when ``required``, or a ``ZoneImportError``."""
+    its ``fileType``), or of ``{"zones": [...]}`` in the mission document's own form: at
+    least one when ``required``, or a ``ZoneImportError``."""
     if isinstance(doc, dict) and doc.get("fileType") == "Plan":
         zones = zones_from_plan(doc)
+    elif isinstance(doc, dict) and "zones" in doc and "type" not in doc:
+        zones = zones_from_mission_form(doc)
     else:
         zones = zones_from_geojson(doc)
     if not zones and required:

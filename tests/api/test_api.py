@@ -133,6 +133,26 @@ def test_zones_imported_from_geojson_or_a_plan_or_refused_whole(client: TestClie
     assert client.post("/missions/999/zones", json=plan).status_code == 404
 
 
+def test_zones_in_the_missions_own_form_as_the_page_draws_them(client: TestClient) -> None:
+    """POST …/zones takes ``{"zones": [...]}`` in ICS metres (a polygon drawn on the page);
+    one that cannot be a zone names its index and field, and nothing is added."""
+    mid = client.post("/missions", json=table3()).json()["id"]
+    corners = [[4000, 1000], [4400, 1000], [4400, 1300], [4000, 1300]]
+    drawn = {"kind": "polygon", "name": "drawn", "vertices": corners}
+    ok = client.post(f"/missions/{mid}/zones", json={"zones": [drawn]})
+    assert ok.status_code == 200, ok.text
+    (zone,) = ok.json()["mission"]["zones"]
+    assert (zone["kind"], zone["name"], zone["vertices"][1]) == ("polygon", "drawn", [4400, 1000])
+    line = {"kind": "polygon", "vertices": [[0, 0], [10, 0]]}
+    bad = client.post(f"/missions/{mid}/zones", json={"zones": [drawn, line]})
+    assert bad.status_code == 422
+    assert "zones[1]: vertices" in bad.json()["detail"]
+    kindless = client.post(f"/missions/{mid}/zones", json={"zones": [{"radius": 5}]})
+    assert kindless.status_code == 422
+    assert "zones[0].kind" in kindless.json()["detail"]
+    assert len(client.get(f"/missions/{mid}").json()["mission"]["zones"]) == 1
+
+
 def test_a_body_that_is_not_utf8_is_a_422_and_stores_nothing(client: TestClient) -> None:
     """FastAPI answers an undecodable body 400, undocumented (schemathesis found it)."""
     r = client.post(

@@ -269,3 +269,44 @@ def test_a_wingman_lost_mid_run_is_marked(tmp_path: Path) -> None:
         assert "aborted: every vehicle holds" in text(driver, "load-message")
         assert http("GET", f"{flying.api}/runs")[1][-1]["state"] == "aborted"
         assert page_errors(driver) == []
+
+
+@pytest.mark.integration
+def test_a_no_fly_polygon_drawn_on_the_map_is_added_to_the_mission(tmp_path: Path) -> None:
+    """Issue 27: the operator draws a no-fly zone on the map (Z, a click per corner, a
+    double click ends it); the page sends it and the service adds it to the stored mission,
+    in the mission's ICS metres, as a polygon the map then draws."""
+    port = free_port()
+    api = f"http://127.0.0.1:{port}"
+    tokens = tmp_path / "tokens.json"
+    add_to_token_file(tokens, TOKEN_ENTRY)
+    serve = [*serve_args(port, tmp_path / "gcs.db"), "--token-file", str(tokens)]
+    with process(serve, tmp_path / "gcs.log") as gcs, browser() as driver:
+        wait_serving(api, gcs, tmp_path / "gcs.log")
+        driver.get(f"{api}/#token={TOKEN}")
+        driver.find_element(By.ID, "file-input").send_keys(str(MISSION))
+        wait_for(lambda: "stored as mission #1" in text(driver, "load-message"), 20,
+                 "the mission stored")  # fmt: skip
+        canvas = driver.find_element(By.ID, "map")
+        driver.find_element(By.ID, "btn-draw-zone").click()
+        assert driver.find_element(By.ID, "btn-draw-zone").get_attribute("aria-pressed") == "true"
+        corners_px = [(-90, -70), (90, -70), (90, 70)]
+        actions = ActionChains(driver)
+        for dx, dy in corners_px:
+            actions.move_to_element_with_offset(canvas, dx, dy).click()
+        actions.move_to_element_with_offset(canvas, -90, 70).double_click().perform()
+        wait_for(lambda: "No-fly zone" in text(driver, "load-message"), 20, "the zone added")
+        assert page_errors(driver) == []
+        status, stored = http("GET", f"{api}/missions/1")
+        assert status == 200, stored
+        (zone,) = stored["mission"]["zones"]
+        assert (zone["kind"], zone["name"], zone["inclusion"]) == ("polygon", "drawn 1", False)
+        corners = zone["vertices"]
+        assert len(corners) == 4  # the double click's first press put the last corner
+        width = max(x for x, _ in corners) - min(x for x, _ in corners)
+        scale = js(driver, "window.gcs.top.view.scale")  # screen px per m
+        dpr = js(driver, "window.devicePixelRatio")
+        assert width == pytest.approx(180 * dpr / scale, rel=0.05)  # 180 px across
+        assert driver.find_element(By.ID, "btn-draw-zone").get_attribute("aria-pressed") == "false"
+        assert js(driver, "window.gcs.top.drawing") is None
+        assert js(driver, "window.gcs.state.doc.zones.length") == 1

@@ -35,6 +35,7 @@ const perf = { frames: 0, draws: 0, drawMs: 0, drawMaxMs: 0, messages: 0 };
 // Views ---------------------------------------------------------------------------------
 const top = new TopView($("map"), {
   onPlace: placeObstacle,
+  onZoneDrawn: addDrawnZone,
   onObstacleEdit: editObstacle,
   onSelect: (i) => {
     state.selected = i;
@@ -517,6 +518,36 @@ function placeObstacle(x, y) {
   staleEdit();
 }
 
+/** A no-fly polygon drawn on the map (its corners in ICS m; null: cancelled): added to the
+ * stored mission by the service (a running one keeps out of it from its next tick), or to
+ * the document being edited. */
+async function addDrawnZone(corners) {
+  showDrawing(false);
+  if (!corners || !state.doc) return;
+  const zone = {
+    kind: "polygon",
+    name: `drawn ${(state.doc.zones || []).length + 1}`,
+    vertices: corners.map(([x, y]) => [Math.round(x), Math.round(y)]),
+  };
+  if (state.storedId && !state.missionDirty) {
+    try {
+      const m = await api("POST", `/missions/${state.storedId}/zones`, { zones: [zone] });
+      state.doc = m.mission;
+      state.missions.set(m.id, m.mission);
+      renderMission();
+      message(`No-fly zone "${zone.name}" added to mission #${m.id}${isRunning() ? ": the run keeps out of it from its next tick" : ""}.`, "ok");
+    } catch (err) {
+      message(`The zone was not added: ${err.message}`, "bad");
+    }
+    return;
+  }
+  state.doc.zones = Array.isArray(state.doc.zones) ? state.doc.zones : [];
+  state.doc.zones.push(zone);
+  state.missionDirty = true;
+  renderMission();
+  staleEdit();
+}
+
 function editObstacle(index, patch, done) {
   const o = state.doc && state.doc.obstacles && state.doc.obstacles[index];
   if (!o) return;
@@ -666,6 +697,7 @@ function updateButtons() {
   $("btn-resume").disabled = !interrupted;
   $("btn-abort").disabled = !running && !interrupted;
   $("btn-add-obstacle").disabled = !hasDoc || state.mode === "replay";
+  $("btn-draw-zone").disabled = !hasDoc || state.mode === "replay";
 }
 
 // Links and vehicles ----------------------------------------------------------------------
@@ -927,6 +959,22 @@ function drawTimeline() {
 }
 
 // Controls --------------------------------------------------------------------------------
+function showDrawing(on) {
+  $("btn-draw-zone").setAttribute("aria-pressed", String(on));
+  $("map").classList.toggle("placing", on);
+  $("map-mode").textContent = on ? "Click each corner of the no-fly zone; double-click or Enter ends it (Esc cancels)" : "";
+}
+
+function setDrawing(on) {
+  if (on) {
+    setPlacing(false);
+    top.startDrawing();
+    showDrawing(true);
+  } else if (top.drawing) {
+    top.finishDrawing(true);
+  }
+}
+
 function setPlacing(on) {
   top.placing = on;
   $("btn-add-obstacle").setAttribute("aria-pressed", String(on));
@@ -1011,6 +1059,7 @@ function bind() {
   $("btn-follow").addEventListener("click", toggleFollow);
   $("btn-pause").addEventListener("click", togglePause);
   $("btn-add-obstacle").addEventListener("click", () => setPlacing(!top.placing));
+  $("btn-draw-zone").addEventListener("click", () => setDrawing(!top.drawing));
   $("btn-add-link").addEventListener("click", addLink);
   $("btn-refresh-runs").addEventListener("click", refreshRuns);
   $("btn-live").addEventListener("click", stopReplay);
@@ -1033,7 +1082,9 @@ function bind() {
       "+": () => zoomBy(1.4), "=": () => zoomBy(1.4), "-": () => zoomBy(1 / 1.4),
       "0": () => top.fit(), f: toggleFollow, F: toggleFollow, " ": togglePause,
       o: () => editing() && setPlacing(!top.placing), O: () => editing() && setPlacing(!top.placing),
-      Escape: () => setPlacing(false),
+      z: () => editing() && setDrawing(!top.drawing), Z: () => editing() && setDrawing(!top.drawing),
+      Enter: () => top.drawing && top.finishDrawing(),
+      Escape: () => { setPlacing(false); setDrawing(false); },
       Delete: () => editing() && state.selected !== null && deleteObstacle(state.selected),
       Backspace: () => editing() && state.selected !== null && deleteObstacle(state.selected),
       p: () => state.doc && !isRunning() && preview(), P: () => state.doc && !isRunning() && preview(),

@@ -126,11 +126,13 @@ export class TopView {
   constructor(canvas, handlers) {
     this.canvas = canvas;
     this.ctx = canvas.getContext("2d");
-    this.h = handlers; // onPlace(x, y), onObstacleEdit(index, obstacle, done), onSelect(index)
+    this.h = handlers; // onPlace(x, y), onObstacleEdit(index, obstacle, done), onSelect(index), onZoneDrawn(vertices)
     this.view = { x: 0, y: 0, scale: 0.05 };
     this.col = colours();
     this.follow = false;
     this.placing = false;
+    this.drawing = null; // the corners of a no-fly polygon being drawn (ICS m), or null
+    this.drawCursor = null;
     this.drag = null;
     this.scene = null;
     this.fitted = false;
@@ -191,6 +193,20 @@ export class TopView {
     this.fitted = true;
   }
 
+  /** Starts drawing a no-fly polygon: each click a corner, a double click (or Enter) ends it. */
+  startDrawing() {
+    this.drawing = [];
+    this.drawCursor = null;
+  }
+
+  /** Ends the polygon being drawn: handed on with three corners or more (``cancel``: dropped). */
+  finishDrawing(cancel = false) {
+    const corners = this.drawing;
+    this.drawing = null;
+    this.drawCursor = null;
+    this.h.onZoneDrawn(!cancel && corners && corners.length >= 3 ? corners : null);
+  }
+
   hit(sx, sy) {
     const s = this.scene;
     if (!s || !s.editable) return null;
@@ -220,6 +236,13 @@ export class TopView {
     c.addEventListener("pointerdown", (e) => {
       c.focus();
       const [sx, sy] = pos(e);
+      if (this.drawing) {
+        const last = this.drawing[this.drawing.length - 1];
+        const [lx, ly] = last ? this.toScreen(last[0], last[1]) : [Infinity, Infinity];
+        const near = 4 * (window.devicePixelRatio || 1);
+        if (Math.hypot(sx - lx, sy - ly) > near) this.drawing.push(this.toWorld(sx, sy));
+        return; // (a double click's second press puts no corner: the dblclick ends it)
+      }
       if (this.placing) {
         const [x, y] = this.toWorld(sx, sy);
         this.h.onPlace(x, y);
@@ -239,6 +262,10 @@ export class TopView {
     });
     c.addEventListener("pointermove", (e) => {
       const [sx, sy] = pos(e);
+      if (this.drawing) {
+        this.drawCursor = this.toWorld(sx, sy);
+        return;
+      }
       const d = this.drag;
       if (!d) {
         const hit = this.placing ? null : this.hit(sx, sy);
@@ -267,6 +294,7 @@ export class TopView {
         if (Math.hypot(sx - d.sx, sy - d.sy) > 2) this.h.onObstacleEdit(d.index, {}, true);
       }
     };
+    c.addEventListener("dblclick", () => this.drawing && this.finishDrawing());
     c.addEventListener("pointerup", up);
     c.addEventListener("pointercancel", up);
   }
@@ -358,6 +386,28 @@ export class TopView {
       ctx.font = font(11);
       ctx.textAlign = "center";
       ctx.fillText(`${z.name || z.kind} ${zoneBand(z)}`, x, y);
+    }
+
+    // A no-fly polygon being drawn: its corners, the edge to the pointer, closed dashed.
+    if (this.drawing && this.drawing.length) {
+      const pts = [...this.drawing, ...(this.drawCursor ? [this.drawCursor] : [])];
+      ctx.beginPath();
+      pts.forEach((p, j) => {
+        const [x, y] = this.toScreen(p[0], p[1]);
+        if (j) ctx.lineTo(x, y);
+        else ctx.moveTo(x, y);
+      });
+      ctx.closePath();
+      ctx.setLineDash([6 * dpr, 4 * dpr]);
+      ctx.lineWidth = 2 * dpr;
+      ctx.strokeStyle = col.bad;
+      ctx.stroke();
+      ctx.setLineDash([]);
+      ctx.fillStyle = col.bad;
+      for (const p of this.drawing) {
+        const [x, y] = this.toScreen(p[0], p[1]);
+        ctx.fillRect(x - 3 * dpr, y - 3 * dpr, 6 * dpr, 6 * dpr);
+      }
     }
 
     // The planned paths (preview), thin.
