@@ -231,13 +231,14 @@ def hold_at(
         way = approach_path(motion, x, y, z_m, flown_radius_m(radius_m))
         approach = points_clearance(way, obstacles)
     wide = flown_width_m(radius_m, motion)
-    rings = np.concatenate((ring_points(x, y, z_m, radius_m), ring_points(x, y, z_m, wide)))
     clear = min(
         ring_clearance(x, y, z_m, radius_m, obstacles),
         ring_clearance(x, y, z_m, wide, obstacles),
         approach,
-        zones_clearance(np.concatenate((rings, way)), zones),
     )
+    if zones is not None and len(zones):
+        rings = (ring_points(x, y, z_m, radius_m), ring_points(x, y, z_m, wide))
+        clear = min(clear, zones_clearance(np.concatenate((*rings, way)), zones))
     return Hold(x, y, z_m, radius_m, clear)
 
 

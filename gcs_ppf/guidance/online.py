@@ -19,7 +19,7 @@ from gcs_ppf.guidance.airframe import OnlineLimits
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.planner import STATE_NAMES, Trajectory, advance
 from gcs_ppf.planning.ppf.kernel import KernelLimits
-from gcs_ppf.planning.scene import FloatArray, Obstacles, Scene, scene_from_mission
+from gcs_ppf.planning.scene import FloatArray, Obstacles, Scene, scene_from_mission, with_margins
 from gcs_ppf.planning.turns import formation_turn_limits
 from gcs_ppf.planning.zones import Zones, zone_clearances
 
@@ -128,16 +128,11 @@ def scene_now(
     TECS rates) to what the airframes fly.  A speed
     range that does not meet the mission's is the airframes' (they fly what they can).
     """
-    base = scene_from_mission(mission)
+    teammates = margin_m if teammate_margin_m is None else teammate_margin_m
+    base = with_margins(scene_from_mission(mission), margin_m, teammates)
     ground = mission.ground if mission.ground is not None else home_ground_m
     base = replace(
-        base,
-        limits=base.limits._replace(
-            safe_distance_uav=base.limits.safe_distance_uav
-            + (margin_m if teammate_margin_m is None else teammate_margin_m),
-            safe_distance_obstacle=base.limits.safe_distance_obstacle + margin_m,
-            ground=-math.inf if ground is None else ground,
-        ),
+        base, limits=base.limits._replace(ground=-math.inf if ground is None else ground)
     )
     if envelope is not None:
         base = replace(base, limits=_within_envelope(base.limits, envelope))

@@ -12,7 +12,7 @@ with these margins: a mission whose plan does not form with them cannot form flo
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +20,7 @@ import numpy as np
 from gcs_ppf.mission import load_mission
 from gcs_ppf.planning.metrics import local_target_points
 from gcs_ppf.planning.planner import advance
-from gcs_ppf.planning.scene import Scene, scene_from_mission
+from gcs_ppf.planning.scene import Scene, scene_from_mission, with_margins
 
 RECORD_EVERY = 10  # planner steps between records
 
@@ -35,18 +35,6 @@ class MarginEffect:
     formed_s: float | None
     arrived_s: float | None
     best_worst_m: float
-
-
-def with_margins(scene: Scene, obstacle_margin_m: float, teammate_margin_m: float) -> Scene:
-    """The scene with both safe distances widened, as ``online.scene_now`` widens them."""
-    lim = scene.limits
-    return replace(
-        scene,
-        limits=lim._replace(
-            safe_distance_uav=lim.safe_distance_uav + teammate_margin_m,
-            safe_distance_obstacle=lim.safe_distance_obstacle + obstacle_margin_m,
-        ),
-    )
 
 
 def margin_effect(

@@ -120,6 +120,20 @@ def obstacles_from_mission(mission: Mission) -> Obstacles:
     )
 
 
+def with_margins(scene: Scene, obstacle_margin_m: float, teammate_margin_m: float) -> Scene:
+    """The scene with both safe distances widened: the obstacles' by ``obstacle_margin_m``,
+    the teammates' by ``teammate_margin_m`` (the closed loop's planning margins,
+    ``gcs_ppf.guidance.online.scene_now``)."""
+    lim = scene.limits
+    return replace(
+        scene,
+        limits=lim._replace(
+            safe_distance_uav=lim.safe_distance_uav + teammate_margin_m,
+            safe_distance_obstacle=lim.safe_distance_obstacle + obstacle_margin_m,
+        ),
+    )
+
+
 def scene_from_mission(mission: Mission) -> Scene:
     """Arrays of a validated mission: leader at index 0, wingmen by priority; the leader's
     turns those its formation follows if the mission holds them (``gcs_ppf.planning.turns``).

@@ -193,6 +193,17 @@ export class TopView {
     this.fitted = true;
   }
 
+  /** A new path through the points (world m) on the canvas, not yet stroked or filled. */
+  tracePath(points) {
+    const ctx = this.ctx;
+    ctx.beginPath();
+    points.forEach((p, j) => {
+      const [x, y] = this.toScreen(p[0], p[1]);
+      if (j) ctx.lineTo(x, y);
+      else ctx.moveTo(x, y);
+    });
+  }
+
   /** Starts drawing a no-fly polygon: each click a corner, a double click (or Enter) ends it. */
   startDrawing() {
     this.drawing = [];
@@ -357,15 +368,11 @@ export class TopView {
 
     // Zones: the footprint (exclusion filled as an obstacle, inclusion a dashed green line).
     for (const z of s.zones || []) {
-      ctx.beginPath();
       if (z.vertices_m) {
-        z.vertices_m.forEach((p, j) => {
-          const [x, y] = this.toScreen(p[0], p[1]);
-          if (j) ctx.lineTo(x, y);
-          else ctx.moveTo(x, y);
-        });
+        this.tracePath(z.vertices_m);
         ctx.closePath();
       } else {
+        ctx.beginPath();
         const [x, y] = this.toScreen(z.center_m[0], z.center_m[1]);
         ctx.arc(x, y, z.radius_m * k, 0, 2 * Math.PI);
       }
@@ -390,13 +397,7 @@ export class TopView {
 
     // A no-fly polygon being drawn: its corners, the edge to the pointer, closed dashed.
     if (this.drawing && this.drawing.length) {
-      const pts = [...this.drawing, ...(this.drawCursor ? [this.drawCursor] : [])];
-      ctx.beginPath();
-      pts.forEach((p, j) => {
-        const [x, y] = this.toScreen(p[0], p[1]);
-        if (j) ctx.lineTo(x, y);
-        else ctx.moveTo(x, y);
-      });
+      this.tracePath([...this.drawing, ...(this.drawCursor ? [this.drawCursor] : [])]);
       ctx.closePath();
       ctx.setLineDash([6 * dpr, 4 * dpr]);
       ctx.lineWidth = 2 * dpr;
@@ -413,14 +414,8 @@ export class TopView {
     // The planned paths (preview), thin.
     ctx.lineWidth = 1.5 * dpr;
     for (const id in s.plan || {}) {
-      const pts = s.plan[id].position_m;
       ctx.strokeStyle = col.plan;
-      ctx.beginPath();
-      pts.forEach((p, j) => {
-        const [x, y] = this.toScreen(p[0], p[1]);
-        if (j) ctx.lineTo(x, y);
-        else ctx.moveTo(x, y);
-      });
+      this.tracePath(s.plan[id].position_m);
       ctx.stroke();
     }
 

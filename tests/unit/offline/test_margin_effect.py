@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 from gcs_ppf.mission import load_mission
-from gcs_ppf.offline.margin_effect import margin_effect, with_margins
-from gcs_ppf.planning.scene import Scene, scene_from_mission
+from gcs_ppf.offline.margin_effect import margin_effect
+from gcs_ppf.planning.scene import Scene, scene_from_mission, with_margins
 
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
 
