@@ -20,6 +20,7 @@ from gcs_ppf.planning.ppf.neighbours import (
     mate_search_for,
     nearby_obstacles,
     nearby_teammates,
+    nearby_zones,
     refine_teammates,
 )
 from gcs_ppf.planning.ppf.primitives import TRIG_COLUMNS
@@ -247,6 +248,8 @@ def run_steps(
     goal_radius: float,
     finish: np.ndarray,
     zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    zone_start: np.ndarray,
+    near_zones: np.ndarray,
 ) -> tuple[int, int, float, bool]:
     """Steps ``first`` to ``last`` − 1 of ``run_fleet`` (of ``n_steps``) with the neighbour
     lists as they are, recording and stopping at the leader's arrival as ``run_fleet``
@@ -286,6 +289,8 @@ def run_steps(
                 mates,
                 trig,
                 zones,
+                zone_start,
+                near_zones,
             )
         else:
             apf_fleet_step(
@@ -399,13 +404,15 @@ def run_fleet(
     written, elapsed flight time, whether the leader arrived).
 
     The neighbour lists are made here (they allocate) and the steps between two lists
-    taken by ``run_steps``: every ``NEIGHBOUR_LIST_STEPS`` steps the obstacles and (the
+    taken by ``run_steps``: every ``NEIGHBOUR_LIST_STEPS`` steps the obstacles, the zones and (the
     grid) the teammates, and every ``MATE_REFINE_STEPS`` the teammates of those within
     reach over that many steps (``refine_teammates``).
     """
     scratch, lists, prev_pos, prev_motion, trig = rollout_buffers(pos, pitch, yaw, obs_center)
     state, avoiding, formed, direction, local_target, next_motion = scratch
     near_start, near_obstacles, mate_start, mates = lists
+    zone_start = np.zeros(pos.shape[0] + 1, dtype=np.int64)
+    near_zones = np.empty(pos.shape[0] * zones[0].shape[0], dtype=np.int64)
     mate_search = mate_search_for(mate_search, pos.shape[0])
     refine = method == PPF and mate_search != MATES_ALL_PAIRS
     close_start, close = np.zeros(pos.shape[0] + 1, dtype=np.int64), mates.copy()
@@ -425,6 +432,17 @@ def run_fleet(
                 NEIGHBOUR_LIST_STEPS,
                 near_start,
                 near_obstacles,
+            )
+            nearby_zones(
+                pos,
+                speed,
+                zones[0],
+                zones[1],
+                lim,
+                dt,
+                NEIGHBOUR_LIST_STEPS,
+                zone_start,
+                near_zones,
             )
             if step == 0 or mate_search != MATES_ALL_PAIRS:
                 mates = nearby_teammates(
@@ -493,6 +511,8 @@ def run_fleet(
             goal_radius,
             finish,
             zones,
+            zone_start,
+            near_zones,
         )
     return step, records, elapsed, arrived
 

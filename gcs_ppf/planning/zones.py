@@ -24,13 +24,14 @@ exclusion polygon that is not convex has its convex hull there, every other zone
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from gcs_ppf.mission import CylinderZone, Mission, PolygonZone, zone_footprint
+from gcs_ppf.mission import CylinderZone, Mission, Origin, PolygonZone, zone_footprint
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -84,11 +85,11 @@ def no_zones() -> Zones:
 
 def zones_from_mission(mission: Mission) -> Zones:
     """The mission's zones as arrays (lat/lon corners converted about its origin)."""
-    return zones_of(mission.zones, mission)
+    return zones_of(mission.zones, mission.origin)
 
 
-def zones_of(zones: list[CylinderZone | PolygonZone], mission: Mission) -> Zones:
-    """``zones`` as arrays, their lat/lon converted about ``mission``'s origin."""
+def zones_of(zones: Sequence[CylinderZone | PolygonZone], origin: Origin) -> Zones:
+    """``zones`` as arrays, their lat/lon converted about ``origin``."""
     kind: list[int] = []
     geom: list[tuple[float, float, float, float, float]] = []
     vstart: list[int] = [0]
@@ -96,7 +97,7 @@ def zones_of(zones: list[CylinderZone | PolygonZone], mission: Mission) -> Zones
     hull_vstart: list[int] = [0]
     hull_verts: list[tuple[float, float]] = []
     for zone in zones:
-        footprint = zone_footprint(zone, mission.origin)
+        footprint = zone_footprint(zone, origin)
         floor = -math.inf if zone.floor is None else zone.floor
         ceiling = math.inf if zone.ceiling is None else zone.ceiling
         flag = INCLUSION if zone.inclusion else 0

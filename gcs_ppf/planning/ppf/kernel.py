@@ -290,6 +290,8 @@ def fleet_step(
     mates: np.ndarray,
     trig: np.ndarray,
     zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    zone_start: np.ndarray,
+    near_zones: np.ndarray,
 ) -> None:
     """Advance the fleet one step Δt in place: the paper's algorithm (Eq. 3–24).
 
@@ -305,7 +307,8 @@ def fleet_step(
     (the velocities, and who gives way back: ``yielding_back``).
     Every vehicle decides from the fleet's state at the start of the step (``rank`` through
     the teammate lists).  Obstacles are moved at the end of the step.  ``zones`` (the
-    arrays of ``gcs_ppf.planning.zones``) repel as obstacles do (``zone_repulsion``).
+    arrays of ``gcs_ppf.planning.zones``) repel as obstacles do (``zone_repulsion``), each
+    vehicle looking at ``near_zones[zone_start[i]:zone_start[i+1]]`` (``nearby_zones``).
     """
     unit_velocities(speed, trig, direction)  # Eq. 5
     wait_speed = formation_targets(pos, slot, active, trig, direction, lim, local_target, formed)
@@ -367,7 +370,9 @@ def fleet_step(
             lim,
             dt,
         )
-        zx, zy, zz = zone_repulsion(i, pos, speed, direction, zones, lim, dt)
+        zx, zy, zz = zone_repulsion(
+            i, pos, speed, direction, zones, zone_start, near_zones, lim, dt
+        )
         ox, oy, oz = ox + zx, oy + zy, oz + zz
         room = room and zx == 0.0 and zy == 0.0 and zz == 0.0
         px, py, pz, mate, hold_course = teammate_conflicts(

@@ -30,6 +30,7 @@ from gcs_ppf.planning.ppf.primitives import (
     airframe_limited,
     influence_radius,
 )
+from gcs_ppf.planning.zones import INCLUSION, zone_lower_bound
 
 MATES_AUTO = -1  # the grid from ``GRID_MIN_VEHICLES`` vehicles on, all pairs below
 MATES_ALL_PAIRS = 0  # every active teammate of higher priority, no distance bound
@@ -151,6 +152,43 @@ def _obstacles_grid(
         i = pair_vehicle[p]
         near_obstacles[starts[i]] = pair_obstacle[p]
         starts[i] += 1
+
+
+@njit(cache=True)
+def nearby_zones(
+    pos: np.ndarray,
+    speed: np.ndarray,
+    kind: np.ndarray,
+    geom: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+    horizon_steps: int,
+    zone_start: np.ndarray,
+    near_zones: np.ndarray,
+) -> None:
+    """The zones each vehicle could come under the influence of within the next
+    ``horizon_steps`` steps, in CSR form as ``nearby_obstacles`` (ascending index order):
+    every inclusion zone, and each exclusion zone whose bounding cylinder
+    (``zone_lower_bound``) is within the farthest reach of ``zone_repulsion`` at the
+    fastest speed (v/ω + the safe distance + a few steps; one v/ω more for an
+    ``airframe_limited`` vehicle) plus the travel over the horizon."""
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    v = lim.v_max
+    for i in range(pos.shape[0]):
+        v = max(v, speed[i])
+    turns = 2.0 if airframe_limited(lim) else 1.0
+    reach = turns * v / omega + lim.safe_distance_obstacle + INFLUENCE_STEPS * v * dt
+    reach += v * horizon_steps * dt
+    count = 0
+    for i in range(pos.shape[0]):
+        zone_start[i] = count
+        for k in range(kind.shape[0]):
+            if kind[k] & INCLUSION or (
+                zone_lower_bound(k, pos[i, 0], pos[i, 1], pos[i, 2], geom) <= reach
+            ):
+                near_zones[count] = k
+                count += 1
+    zone_start[pos.shape[0]] = count
 
 
 @njit(cache=True)

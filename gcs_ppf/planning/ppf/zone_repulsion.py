@@ -116,6 +116,8 @@ def zone_repulsion(
     speed: np.ndarray,
     direction: np.ndarray,
     zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    zone_start: np.ndarray,
+    near_zones: np.ndarray,
     lim: KernelLimits,
     dt: float,
 ) -> tuple[float, float, float]:
@@ -126,7 +128,8 @@ def zone_repulsion(
     zone whose ceiling is shorter to climb over than going round, tilted up
     (``overflight_direction``).  An exclusion polygon with pockets repels a vehicle
     outside its convex hull from the hull (``zones.pocket_hull``).  ``direction[N,3]``
-    the vehicles' flight directions; ``zones`` ``Zones.planning_arrays``."""
+    the vehicles' flight directions; ``zones`` ``Zones.planning_arrays``; only the zones
+    ``near_zones[zone_start[i]:zone_start[i+1]]`` are looked at (``nearby_zones``)."""
     kind, geom, vstart, verts, hull_vstart, hull_verts = zones
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     vi = speed[i]
@@ -135,7 +138,8 @@ def zone_repulsion(
     reach += INFLUENCE_STEPS * vi * dt + (rho if airframe_limited(lim) else 0.0)
     px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
     rx, ry, rz = 0.0, 0.0, 0.0
-    for k in range(kind.shape[0]):
+    for c in range(zone_start[i], zone_start[i + 1]):
+        k = near_zones[c]
         excluded = not kind[k] & INCLUSION
         if excluded and zone_lower_bound(k, px, py, pz, geom) > reach:
             continue

@@ -23,7 +23,7 @@ ORIGIN_MISSION = Mission.model_validate(
 
 
 def zones(*zs: CylinderZone | PolygonZone) -> Zones:
-    return zones_of(list(zs), ORIGIN_MISSION)
+    return zones_of(list(zs), ORIGIN_MISSION.origin)
 
 
 def keep(z: Zones) -> KeepOut:

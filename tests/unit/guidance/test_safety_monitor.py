@@ -136,7 +136,7 @@ def _zones() -> Zones:
                 inclusion=True,
             ),
         ],
-        m,
+        m.origin,
     )
 
 

@@ -53,7 +53,7 @@ ZONES: list[dict[str, object]] = [
 )
 def test_the_compiled_distance_is_shapelys(x: float, y: float, z: float) -> None:
     m = mission(ZONES)
-    arrays = zones_of(m.zones, m)
+    arrays = zones_of(m.zones, m.origin)
     got = zone_clearances(np.array([[x, y, z]]), arrays)[0]
     for k, zone in enumerate(m.zones):
         want = zone_clearance(zone, zone_footprint(zone, m.origin), (x, y, z))
@@ -67,7 +67,7 @@ def test_the_nearest_surface_point_is_the_distance_back_along_the_normal(
     x: float, y: float, z: float
 ) -> None:
     m = mission(ZONES[:1])
-    kind, geom, vstart, verts = zones_of(m.zones, m).arrays
+    kind, geom, vstart, verts = zones_of(m.zones, m.origin).arrays
     d, nx, ny, nz = zone_distance(0, x, y, z, kind, geom, vstart, verts)
     assert math.isclose(nx * nx + ny * ny + nz * nz, 1.0, rel_tol=1e-9)
     # The nearest surface point, d back along the normal, is on the surface.
@@ -77,7 +77,7 @@ def test_the_nearest_surface_point_is_the_distance_back_along_the_normal(
 
 def test_inside_and_outside_of_a_u() -> None:
     m = mission(ZONES[:1])
-    kind, geom, vstart, verts = zones_of(m.zones, m).arrays
+    kind, geom, vstart, verts = zones_of(m.zones, m.origin).arrays
     assert zone_distance(0, 300.0, 500.0, 200.0, kind, geom, vstart, verts)[0] == pytest.approx(
         100.0
     )  # in the pocket, 100 m from either arm
@@ -93,7 +93,7 @@ def test_inside_and_outside_of_a_u() -> None:
 
 def test_only_an_exclusion_polygon_with_pockets_has_a_hull() -> None:
     m = mission(ZONES)
-    z = zones_of(m.zones, m)
+    z = zones_of(m.zones, m.origin)
     hull_vstart, hull_verts = z.planning_arrays[4:]
     assert hull_vstart.tolist() == [0, 4, 4, 4]  # the U's; the cylinder, the inclusion none
     assert sorted(map(tuple, hull_verts.tolist())) == [(0, 0), (0, 600), (600, 0), (600, 600)]

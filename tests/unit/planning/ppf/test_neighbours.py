@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from gcs_ppf.mission import Limits, load_mission_file
-from gcs_ppf.offline.benchmark import synthetic_scene
+from gcs_ppf.offline.benchmark import synthetic_scene, with_polygon_zones
 from gcs_ppf.planning.planner import MateSearch, Trajectory, advance
 from gcs_ppf.planning.ppf.kernel import attitude_trig
 from gcs_ppf.planning.ppf.neighbours import (
@@ -15,8 +15,12 @@ from gcs_ppf.planning.ppf.neighbours import (
     OBSTACLE_GRID_MIN_PAIRS,
     nearby_obstacles,
     nearby_teammates,
+    nearby_zones,
 )
+from gcs_ppf.planning.ppf.zone_repulsion import surface_influence_radius
+from gcs_ppf.planning.rollout import NEIGHBOUR_LIST_STEPS
 from gcs_ppf.planning.scene import Fleet, Obstacles, Scene, kernel_limits, scene_from_mission
+from gcs_ppf.planning.zones import zone_distance
 from tests.conftest import EXAMPLES
 
 FIELDS = ("t", "pos", "pitch", "yaw", "speed", "state", "avoiding", "formed")
@@ -139,3 +143,35 @@ def test_the_grid_keeps_fewer_mates_than_all_pairs() -> None:
         counts[search] = start[n]
     assert counts[MATES_ALL_PAIRS] == n * (n - 1) // 2
     assert counts[MATES_GRID] < counts[MATES_ALL_PAIRS] / 5
+
+
+def test_the_zone_lists_hold_every_zone_a_vehicle_can_reach_within_the_horizon() -> None:
+    """Every zone whose surface a vehicle could come within influence of over the next
+    steps (moved by v_max a step, in any direction) is on its list; far ones are not."""
+    scene = with_polygon_zones(synthetic_scene(50, 0), 60)
+    rng = np.random.default_rng(3)
+    pos = np.column_stack(
+        [rng.uniform(0, 40_000, 400), rng.uniform(-7000, 7000, 400), rng.uniform(-500, 500, 400)]
+    )
+    speed = rng.uniform(100.0, 300.0, 400)
+    lim, dt = scene.limits, 0.01
+    kind, geom, vstart, verts = scene.zones.arrays
+    start = np.zeros(401, dtype=np.int64)
+    near = np.empty(400 * len(kind), dtype=np.int64)
+    nearby_zones(pos, speed, kind, geom, lim, dt, NEIGHBOUR_LIST_STEPS, start, near)
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    reach = surface_influence_radius(lim.v_max, omega, lim.safe_distance_obstacle)
+    reach += 3.0 * lim.v_max * dt
+    travel = lim.v_max * NEIGHBOUR_LIST_STEPS * dt
+    listed = 0
+    for i in range(400):
+        mine = set(near[start[i] : start[i + 1]].tolist())
+        assert list(near[start[i] : start[i + 1]]) == sorted(mine)
+        listed += len(mine)
+        for k in range(len(kind)):
+            d = zone_distance(k, pos[i, 0], pos[i, 1], pos[i, 2], kind, geom, vstart, verts)[0]
+            if d <= reach + travel:
+                assert k in mine, (i, k, d)
+            if d > 3.0 * (reach + travel) + 2.0 * geom[k, 2]:
+                assert k not in mine, (i, k, d)
+    assert 0 < listed < 400 * len(kind) // 4  # the lists do cut the work
