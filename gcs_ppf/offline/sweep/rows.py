@@ -107,7 +107,7 @@ def plan_scene(spec: SceneSpec, seed: int, index: int) -> SceneRow:
         return _error_row(base, str(exc))
     base.update(
         vehicles=len(mission.vehicles),
-        obstacles=len(mission.obstacles),
+        obstacles=len(mission.obstacles) + len(mission.zones),
         straight_line_time_s=straight_line_time_s(mission),
     )
     try:

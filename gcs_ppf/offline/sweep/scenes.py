@@ -16,9 +16,17 @@ from collections.abc import Sequence
 from typing import Any, Protocol
 
 import numpy as np
-from pydantic import ValidationError
+from pydantic import TypeAdapter, ValidationError
 
-from gcs_ppf.mission import Limits, Mission, describe_validation_error
+from gcs_ppf.mission import (
+    Limits,
+    Mission,
+    Origin,
+    Zone,
+    describe_validation_error,
+    zone_clearance,
+    zone_footprint,
+)
 from gcs_ppf.offline.sweep.spec import Box, SceneSpec, pull_up_margin_m
 from gcs_ppf.planning.ppf.primitives import influence_radius
 
@@ -27,6 +35,9 @@ INFLUENCE_MARGIN_M = 30.0
 """Added to an obstacle's influence radius at v_max where scenes keep starts, the target and
 other obstacles out of it: a few steps of travel at v_max, rounded up."""
 MAX_ATTEMPTS = 1000
+ZONE = TypeAdapter[Zone](Zone)
+ICS_ORIGIN = Origin(lat=0.0, lon=0.0, alt=0.0)
+"""(The footprints of zones drawn in the ICS do not depend on the origin.)"""
 """Draws of one scene before a family is declared unable to make it."""
 
 
@@ -85,6 +96,13 @@ def influence_at_v_max(limits: Limits, radius_m: float) -> float:
     return float(influence_radius(limits.v_max, omega, keep_out)) + INFLUENCE_MARGIN_M
 
 
+def zone_influence_at_v_max(limits: Limits, dt: float) -> float:
+    """How far from a zone's surface a vehicle at v_max starts to avoid it (the planner's
+    ``surface_influence_radius`` and a few steps of travel)."""
+    omega = min(limits.max_pitch_rate, limits.max_yaw_rate)
+    return limits.v_max / omega + limits.safe_distance_obstacle + 3.0 * limits.v_max * dt
+
+
 def v_slots(wingmen: int, spacing_m: float) -> list[Point]:
     """Slots of a V behind the leader (leader's VCS), in rows of two, left first."""
     slots = []
@@ -127,6 +145,70 @@ def _obstacles(
     return placed
 
 
+def _u_shape(cx: float, cy: float, half: float, heading: float) -> list[list[float]]:
+    """A U of ``half`` metres' half-width about (cx, cy), its opening towards ``heading``
+    (rad), its walls a fifth of its width thick."""
+    t = 0.4 * half
+    local = [
+        (-half, -half),
+        (half, -half),
+        (half, -half + t),
+        (-half + t, -half + t),
+        (-half + t, half - t),
+        (half, half - t),
+        (half, half),
+        (-half, half),
+    ]
+    c, s = math.cos(heading), math.sin(heading)
+    return [[cx + u * c - v * s, cy + u * s + v * c] for u, v in local]
+
+
+def _zones(
+    draws: Draws,
+    spec: SceneSpec,
+    spheres: Sequence[dict[str, Any]],
+    leader_start: Point,
+    keep_clear: Sequence[Point],
+) -> list[dict[str, Any]]:
+    """Each sphere turned into a zone inside it (``ZoneSpec``); the scene is drawn again
+    unless every point of ``keep_clear`` lies outside each zone's influence at v_max and
+    the zones' influence regions are apart."""
+    assert spec.zones is not None
+    zones: list[dict[str, Any]] = []
+    for o in spheres:
+        half = o["radius"] / math.sqrt(2.0)  # a cylinder this wide fits in the sphere
+        cx, cy, cz = o["center"]
+        band = {"floor": cz - half, "ceiling": cz + half}
+        if spec.zones.shape == "pocket":
+            heading = math.atan2(leader_start[1] - cy, leader_start[0] - cx)
+            zones.append({"kind": "polygon", "vertices": _u_shape(cx, cy, half, heading), **band})
+        elif draws.integer(0, 1):
+            zones.append({"kind": "cylinder", "center": [cx, cy], "radius": half, **band})
+        else:
+            gaps = [draws.uniform(0.5, 1.0) for _ in range(draws.integer(3, 8))]
+            total, angle, vertices = sum(gaps), 0.0, []
+            for g in gaps:
+                r = half * draws.uniform(0.6, 1.0)
+                vertices.append([cx + r * math.cos(angle), cy + r * math.sin(angle)])
+                angle += 2.0 * math.pi * g / total
+            zones.append({"kind": "polygon", "vertices": vertices, **band})
+    reach = zone_influence_at_v_max(spec.limits, spec.planner.dt)
+    circles = []  # each footprint's centre and the radius round it that holds it
+    for z in zones:
+        model = ZONE.validate_python(z)
+        footprint = zone_footprint(model, ICS_ORIGIN)
+        draws.require(all(zone_clearance(model, footprint, p) > reach for p in keep_clear))
+        if z["kind"] == "cylinder":
+            circles.append((footprint[0], z["radius"]))
+        else:
+            centre = tuple(np.mean(footprint, axis=0))
+            circles.append((centre, max(math.dist(centre, p) for p in footprint)))
+    for a, (ca, ra) in enumerate(circles):
+        for cb, rb in circles[:a]:
+            draws.require(math.dist(ca, cb) - ra - rb > 2.0 * reach)
+    return zones
+
+
 def mission_document(spec: SceneSpec, draws: Draws) -> dict[str, Any]:
     """A random scene of ``spec`` as a mission document (CONVENTIONS §3).
 
@@ -134,7 +216,8 @@ def mission_document(spec: SceneSpec, draws: Draws) -> dict[str, Any]:
     hypothesis strategies make the same draws in the same order, and a hypothesis seed
     gives the scenes it gave before the families moved here): wingmen, starts, target, slot
     spacing, apart obstacles (a count of none for overlapping ones), each vehicle's pitch,
-    yaw and speed, the ground, overlapping obstacles, obstacle velocities.
+    yaw and speed, the ground, overlapping obstacles, obstacle velocities, the zones that
+    take the obstacles' places (``ZoneSpec``).
     """
     fleet, lim = spec.fleet, spec.limits
     wingmen = draws.integer(*fleet.wingmen)
@@ -178,6 +261,8 @@ def mission_document(spec: SceneSpec, draws: Draws) -> dict[str, Any]:
             heading = draws.uniform(-math.pi, math.pi)
             o["velocity"] = (speed * math.cos(heading), speed * math.sin(heading), 0.0)
     doc["obstacles"] = obstacles
+    if spec.zones is not None:
+        doc["obstacles"], doc["zones"] = [], _zones(draws, spec, obstacles, starts[0], points)
     return doc
 
 

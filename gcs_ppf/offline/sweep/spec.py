@@ -103,6 +103,17 @@ class ObstacleSpec(_Strict):
     """Each obstacle moves horizontally at a speed drawn here, in a random heading."""
 
 
+class ZoneSpec(_Strict):
+    """The obstacles drawn, each turned into a zone inside its sphere with the sphere's
+    height band: ``"mixed"``, a vertical cylinder or an extruded polygon of 3–8 corners
+    (star-shaped, so convex or not), half and half; ``"pocket"``, a U whose opening (60 %
+    of its width) faces the leader's start, a concave pocket the way in.  Every start and
+    the target lie outside each zone's influence at v_max measured from its surface, and
+    the zones' influence regions apart (a scene drawn otherwise is drawn again)."""
+
+    shape: Literal["mixed", "pocket"] = "mixed"
+
+
 class GroundSpec(_Strict):
     """Flat ground under the scene (the mission's ``ground``): it lies below the lowest start
     and the target by the safe distance, a full-rate pull-up from the steepest start pitch
@@ -119,6 +130,8 @@ class SceneSpec(_Strict):
     fleet: FleetSpec = FleetSpec()
     obstacles: ObstacleSpec = ObstacleSpec()
     ground: GroundSpec | None = None
+    zones: ZoneSpec | None = None
+    """None: the obstacles stay spheres."""
     limits: Limits = Limits()
     planner: PlannerSettings = PlannerSettings(max_time=90.0)
 
@@ -160,6 +173,8 @@ def spec_problems(spec: SceneSpec) -> list[str]:
         problems.append("obstacles.radius_m: must be positive")
     if spec.obstacles.speed_m_s[0] < 0.0:
         problems.append("obstacles.speed_m_s: must not be negative")
+    if spec.zones is not None and spec.obstacles.speed_m_s[1] > 0.0:
+        problems.append("zones: zones do not move (obstacles.speed_m_s must be 0)")
     return problems
 
 

@@ -8,14 +8,15 @@ from itertools import combinations
 import numpy as np
 import pytest
 
-from gcs_ppf.mission import Mission
-from gcs_ppf.offline.sweep.families import CLOSE, DENSE, FEASIBLE, MOVING
+from gcs_ppf.mission import Mission, zone_clearance, zone_footprint
+from gcs_ppf.offline.sweep.families import CLOSE, DENSE, FEASIBLE, MOVING, POCKETS, ZONES
 from gcs_ppf.offline.sweep.scenes import (
     SceneError,
     draw_scene,
     influence_at_v_max,
     scene_rng,
     v_slots,
+    zone_influence_at_v_max,
 )
 from gcs_ppf.offline.sweep.spec import Box, FleetSpec, GroundSpec, SceneSpec
 
@@ -54,6 +55,42 @@ def test_feasible_scenes_keep_the_guarantees_conditions() -> None:
             assert math.dist(o.center, q.center) >= apart
         assert m.planner.max_time == 90.0
         assert m.ground is None
+
+
+@pytest.mark.parametrize("family", [ZONES, POCKETS], ids=lambda f: f.name)
+def test_zone_scenes_keep_every_start_and_the_target_out_of_each_zones_influence(
+    family: SceneSpec,
+) -> None:
+    kinds = set()
+    for m in _scenes(family):
+        assert not m.obstacles
+        reach = zone_influence_at_v_max(m.limits, m.planner.dt)
+        for z in m.zones:
+            kinds.add(z.kind)
+            footprint = zone_footprint(z, m.origin)
+            assert all(zone_clearance(z, footprint, p) > reach for p in [*_starts(m), m.target])
+            assert z.floor is not None
+            assert z.ceiling is not None
+            assert z.floor < z.ceiling
+    assert kinds == ({"cylinder", "polygon"} if family is ZONES else {"polygon"})
+
+
+def test_a_pocket_opens_towards_the_leaders_start() -> None:
+    m = next(m for m in _scenes(POCKETS) if m.zones)
+    start = m.leader.position
+    for z in m.zones:
+        footprint = zone_footprint(z, m.origin)
+        cx = sum(p[0] for p in footprint) / len(footprint)
+        cy = sum(p[1] for p in footprint) / len(footprint)
+        heading = math.atan2(start[1] - cy, start[0] - cx)
+        half = max(math.dist(a, b) for a, b in combinations(footprint, 2)) / math.sqrt(8.0)
+        dx, dy = 0.9 * half * math.cos(heading), 0.9 * half * math.sin(heading)
+        assert z.floor is not None
+        assert z.ceiling is not None
+        height = (z.floor + z.ceiling) / 2.0
+        # The middle of the open side is outside the zone, the middle of the back wall inside.
+        assert zone_clearance(z, footprint, (cx + dx, cy + dy, height)) > 0.0
+        assert zone_clearance(z, footprint, (cx - dx, cy - dy, height)) < 0.0
 
 
 def test_the_fleet_is_a_v_within_the_boxes() -> None:

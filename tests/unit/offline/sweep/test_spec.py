@@ -29,7 +29,16 @@ def test_the_defaults_are_the_feasible_family() -> None:
     assert SceneSpec() == FEASIBLE
     assert FEASIBLE.planner.max_time == 90.0
     assert FEASIBLE.initial_speed_m_s == (FEASIBLE.limits.v_min, FEASIBLE.limits.v_max)
-    assert set(FAMILIES) == {"feasible", "dense", "moving", "close"}
+    assert set(FAMILIES) == {"feasible", "dense", "moving", "close", "zones", "pockets"}
+
+
+def test_zones_that_would_move_are_refused_naming_the_field() -> None:
+    with pytest.raises(SpecError) as err:
+        parse_spec({"zones": {"shape": "pocket"}, "obstacles": {"speed_m_s": [0.0, 20.0]}})
+    assert err.value.field == "zones"
+    with pytest.raises(SpecError) as err:
+        parse_spec({"zones": {"shape": "donut"}})
+    assert err.value.field.startswith("zones.shape")
 
 
 def test_a_toml_spec_changes_only_what_it_states(tmp_path: Path) -> None:
