@@ -18,6 +18,7 @@ from api.models import (
     mission_summary,
 )
 from gcs_ppf.mission import Mission, Obstacle
+from gcs_ppf.plan_route import RouteImportError, route_from_plan
 from gcs_ppf.service.errors import TooLarge, Unprocessable
 from gcs_ppf.service.settings import Settings
 from gcs_ppf.zone_import import ZoneImportError, zones_from_document
@@ -113,16 +114,26 @@ UNREADABLE: dict[int | str, dict[str, Any]] = {
     "/missions/{mission_id}/zones", responses={**ERRORS, **UNREADABLE}, dependencies=COMMANDS
 )
 async def post_zones(
-    mission_id: MissionId, document: Annotated[dict[str, Any], Body()], service: Service
+    mission_id: MissionId,
+    document: Annotated[dict[str, Any], Body()],
+    service: Service,
+    route: bool = False,
 ) -> MissionDetail:
     """The zones of a GeoJSON document or a QGroundControl ``.plan`` (the file's JSON as
     the body) added to the mission's (``gcs_ppf.zone_import``): 422 naming the feature and
-    the field of the first that cannot be read, and nothing added."""
+    the field of the first that cannot be read, and nothing added.  With ``route`` (a
+    ``.plan`` only), its waypoints become the mission's route and target as well
+    (``gcs_ppf.plan_route``: takeoff, land, loiters and ``DO_`` items are left out; 409
+    while the mission flies)."""
     try:
-        zones = zones_from_document(document)
-    except ZoneImportError as exc:
+        zones = zones_from_document(document, required=not route)
+        flown = None
+        if route:
+            plan = route_from_plan(document, service.mission(mission_id).mission.origin)
+            flown = (plan.route, plan.target)
+    except (ZoneImportError, RouteImportError) as exc:
         raise Unprocessable(f"zones: {exc}; nothing imported") from None
-    return mission_detail(service.add_zones(mission_id, zones))
+    return mission_detail(service.add_zones(mission_id, zones, flown))
 
 
 @router.post(

@@ -112,6 +112,7 @@ LAYERS = (
             "gcs_ppf.offline",
             "gcs_ppf.tokens",
             "gcs_ppf.zone_import",
+            "gcs_ppf.plan_route",
             "api",
         ),
         frozenset(),

@@ -26,7 +26,7 @@ from typing import Any
 
 from gcs_ppf.guidance import start_check
 from gcs_ppf.mavlink.ardupilot import PlaneMode
-from gcs_ppf.mission import CylinderZone, Mission, Obstacle, PolygonZone
+from gcs_ppf.mission import CylinderZone, Mission, Obstacle, PolygonZone, Waypoint
 from gcs_ppf.service import commanding, ending, flight, launch, resumption, vehicle_fences
 from gcs_ppf.service.errors import Conflict, NotFound, ServiceError
 from gcs_ppf.service.fleet import Fleet
@@ -181,13 +181,27 @@ class FormationService:
         """New obstacle set; a running mission uses it from its next tick on."""
         return self._revise(mission_id, obstacles=[o.model_dump() for o in obstacles])
 
-    def add_zones(self, mission_id: int, zones: list[CylinderZone | PolygonZone]) -> StoredMission:
+    def add_zones(
+        self,
+        mission_id: int,
+        zones: list[CylinderZone | PolygonZone],
+        route: tuple[list[Waypoint], tuple[float, float, float]] | None = None,
+    ) -> StoredMission:
         """Zones added to the mission's; a running mission keeps out of them from its next
         tick on, and its vehicles' fences are put up again with them
-        (``vehicle_fences.put_up``).  A set that does not fit the mission (a start inside
-        one) adds none."""
+        (``vehicle_fences.put_up``).  With ``route`` (waypoints and target, a ``.plan``'s),
+        the route and target replaced as well, never while the mission flies
+        (``Conflict``).  A set that does not fit the mission (a start inside one) adds
+        none."""
         kept = [z.model_dump() for z in self.mission(mission_id).mission.zones]
-        return self._revise(mission_id, zones=[*kept, *(z.model_dump() for z in zones)])
+        fields: dict[str, Any] = {"zones": [*kept, *(z.model_dump() for z in zones)]}
+        if route is not None:
+            run = self._runs.get(mission_id)
+            if run is not None and run.state not in FINISHED:
+                raise Conflict(f"mission {mission_id} flies: its route cannot change in flight")
+            fields["route"] = [w.model_dump() for w in route[0]]
+            fields["target"] = list(route[1])
+        return self._revise(mission_id, **fields)
 
     def _revise(self, mission_id: int, **fields: Any) -> StoredMission:
         """The stored mission with ``fields`` of its document replaced, validated whole."""

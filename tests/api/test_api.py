@@ -13,6 +13,8 @@ from fastapi.testclient import TestClient
 from api.app import create_app
 from gcs_ppf.service.settings import Settings
 from tests.conftest import EXAMPLES
+from tests.unit.test_zone_import import item
+from tests.unit.test_zone_import import plan as plan_of
 
 
 @pytest.fixture
@@ -131,6 +133,28 @@ def test_zones_imported_from_geojson_or_a_plan_or_refused_whole(client: TestClie
     assert over.status_code == 400
     assert len(client.get(f"/missions/{mid}").json()["mission"]["zones"]) == 1
     assert client.post("/missions/999/zones", json=plan).status_code == 404
+
+
+def test_a_plans_route_comes_with_its_zones_when_asked(client: TestClient) -> None:
+    """POST …/zones?route=true with a .plan: its geofence added and its waypoints the route
+    and target; an item that cannot be read names it, and nothing is imported."""
+    mid = client.post("/missions", json=table3()).json()["id"]
+    doc = plan_of(item(22, z=50), item(16, 4000, 1000, 300), item(16, 6000, 7000, 300))
+    doc["geoFence"] = {"polygons": [], "circles": [
+        {"circle": {"center": [47.43, 8.58], "radius": 300}, "inclusion": False}]}  # fmt: skip
+    without = client.post(f"/missions/{mid}/zones", json=doc)
+    assert without.json()["mission"]["route"] == []
+    ok = client.post(f"/missions/{mid}/zones?route=true", json=doc)
+    assert ok.status_code == 200, ok.text
+    mission = ok.json()["mission"]
+    assert len(mission["zones"]) == 2
+    assert [round(c) for c in mission["route"][0]["position"]] == [4000, 1000, 300]
+    assert [round(c) for c in mission["target"]] == [6000, 7000, 300]
+    doc["mission"]["items"].append({"type": "ComplexItem"})
+    bad = client.post(f"/missions/{mid}/zones?route=true", json=doc)
+    assert bad.status_code == 422
+    assert "mission.items[3].type" in bad.json()["detail"]
+    assert len(client.get(f"/missions/{mid}").json()["mission"]["zones"]) == 2
 
 
 def test_zones_in_the_missions_own_form_as_the_page_draws_them(client: TestClient) -> None:
