@@ -15,7 +15,7 @@ LOCK   := requirements-lock.txt
 UV_VERSION   := 0.13.9
 LOCK_UPGRADE ?= --upgrade
 
-.PHONY: install run plan sitl test lint bench sitl-bench clean lock chromium socat web-bench compose-check campaign-check
+.PHONY: install run plan sitl test lint bench sitl-bench clean lock chromium socat web-bench compose-check campaign-check mavproxy-check
 
 # Exactly the locked set (pip refuses anything unpinned or with another hash), then gcs-ppf
 # itself on top, editable, without dependencies, built by the locked setuptools; pip check
@@ -96,6 +96,17 @@ bench: install
 campaign-check: install
 	$(VENV)/bin/pytest -m campaign tests/integration/test_campaign.py tests/integration/test_crash_recovery.py tests/integration/test_fences.py tests/integration/test_serial.py \
 		tests/integration/test_service_sitl.py
+
+# MAVProxy beside the service (tests/integration/test_mavproxy.py), from PyPI into a venv of
+# its own: it pulls OpenCV, matplotlib and more, too heavy for the project's.
+MAVPROXY_VENV    := .venv-mavproxy
+MAVPROXY_VERSION := 1.8.75
+$(MAVPROXY_VENV)/bin/mavproxy.py:
+	python3 -m venv $(MAVPROXY_VENV)
+	$(MAVPROXY_VENV)/bin/pip install --quiet MAVProxy==$(MAVPROXY_VERSION)
+
+mavproxy-check: install $(MAVPROXY_VENV)/bin/mavproxy.py
+	MAVPROXY=$(abspath $(MAVPROXY_VENV))/bin/mavproxy.py $(VENV)/bin/pytest -m mavproxy -s tests/integration/test_mavproxy.py
 
 # The operator's page with 50 vehicles at 10 Hz in headless chromium: fps and JS heap
 # (WEB_BENCH="--minutes 1" for a short run).
