@@ -287,6 +287,12 @@ class Mission(_Strict):
     """How the leader turns in formation: ``"hold"`` keeps its speed and turn rate to what
     every slot can follow (``gcs_ppf.planning.turns``); ``"free"`` is the paper's leader.
     None (default): ``"hold"`` on a route, ``"free"`` without one."""
+    at_end: Literal["loiter", "rtl"] = "loiter"
+    """What the formation does once the leader is at the target: ``"loiter"``, every vehicle
+    holds on a circle clear of every keep-out, stacked above the target; ``"rtl"``, the same
+    circles at levels over every keep-out, then each vehicle flies ArduPlane's RTL home at
+    its level where the way there is clear (``gcs_ppf.guidance.failsafe.ways_home``), and
+    holds where it is not."""
     ground: float | None = None
     """ICS z (metres) of flat ground that vehicles keep ``limits.safe_distance_obstacle``
     above; None (default) is the paper's free space.  The service falls back on the

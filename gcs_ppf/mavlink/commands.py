@@ -50,8 +50,13 @@ from gcs_ppf.mavlink.enums import (
     MAV_CMD_GUIDED_CHANGE_HEADING as MAV_CMD_GUIDED_CHANGE_HEADING,
 )
 from gcs_ppf.mavlink.enums import (
+    MAV_CMD_REQUEST_MESSAGE as MAV_CMD_REQUEST_MESSAGE,
+)
+from gcs_ppf.mavlink.enums import (
     MAV_CMD_SET_MESSAGE_INTERVAL as MAV_CMD_SET_MESSAGE_INTERVAL,
 )
+
+HOME_POSITION_ID = 242
 
 TELEMETRY_STREAMS: tuple[int, ...] = (
     MAV_DATA_STREAM_EXTENDED_STATUS,
@@ -347,6 +352,18 @@ def set_message_interval(
         MAV_CMD_SET_MESSAGE_INTERVAL,
         float(message_id),
         float(interval_us),
+    )
+
+
+def request_message(
+    target_system: int, message_id: int, *, target_component: int = AUTOPILOT_COMPONENT_ID
+) -> MAVLinkMessage:
+    """COMMAND_LONG ``MAV_CMD_REQUEST_MESSAGE``: param1 the message id, sent once (as
+    QGroundControl asks for ``HOME_POSITION``, ``HOME_POSITION_ID``)."""
+    if not 0 <= message_id <= 0xFFFFFF:
+        raise ValueError(f"message_id must be a MAVLink message id (0..16777215), got {message_id}")
+    return _command_long(
+        target_system, target_component, MAV_CMD_REQUEST_MESSAGE, float(message_id)
     )
 
 

@@ -166,6 +166,10 @@ class VehicleTelemetry:
     arming_reasons: tuple[ArmingReason, ...] = ()
     """The vehicle's own reasons not to arm: its latest ``PreArm:`` / ``Arm:`` STATUSTEXTs,
     one per text (the newest of each), newest last, at most ``ARMING_REASONS_KEPT``."""
+    home_lat_deg: float | None = None
+    """HOME_POSITION: where RTL flies to (where the vehicle armed), when it has said."""
+    home_lon_deg: float | None = None
+    home_alt_amsl_m: float | None = None
 
     @property
     def mode_name(self) -> str | None:
@@ -216,7 +220,8 @@ def apply(tel: VehicleTelemetry | None, msg: MAVLinkMessage, now_s: float) -> Ve
     component than ``tel``'s, and message types not decoded here, return ``tel`` unchanged.
     Decoded: HEARTBEAT, GLOBAL_POSITION_INT, ATTITUDE, VFR_HUD, SYSTEM_TIME, COMMAND_ACK,
     PARAM_VALUE of ``AIRFRAME_PARAMS`` (and the pitch limits among them as their own fields),
-    SYS_STATUS's pre-arm bit, GPS_RAW_INT's fix, the arming reasons of STATUSTEXT;
+    SYS_STATUS's pre-arm bit, GPS_RAW_INT's fix, the arming reasons of STATUSTEXT,
+    HOME_POSITION;
     the ``time_boot_ms`` of any message carrying one.
     """
     src = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
@@ -451,6 +456,16 @@ def _statustext(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dic
     return {"arming_reasons": tuple(kept[-ARMING_REASONS_KEPT:])}
 
 
+def _home_position(tel: VehicleTelemetry, msg: MAVLinkMessage, now_s: float) -> dict[str, Any]:
+    if abs(msg.latitude) < NULL_ISLAND_E7 and abs(msg.longitude) < NULL_ISLAND_E7:
+        return {}  # no home yet
+    return {
+        "home_lat_deg": msg.latitude * 1e-7,
+        "home_lon_deg": msg.longitude * 1e-7,
+        "home_alt_amsl_m": msg.altitude * 1e-3,
+    }
+
+
 _DECODERS = {
     "HEARTBEAT": _heartbeat,
     "GLOBAL_POSITION_INT": _global_position_int,
@@ -462,4 +477,5 @@ _DECODERS = {
     "SYS_STATUS": _sys_status,
     "GPS_RAW_INT": _gps_raw_int,
     "STATUSTEXT": _statustext,
+    "HOME_POSITION": _home_position,
 }

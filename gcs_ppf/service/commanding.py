@@ -429,6 +429,7 @@ def hold_plan(
     stacked: bool,
     event: Callable[..., None],
     heard: set[int],
+    floor_z_m: float = -math.inf,
 ) -> HoldPlan:
     """Each vehicle to a holding circle (``gcs_ppf.guidance.holding``) that cuts no obstacle's
     or zone's keep-out (twice the safe distance), at ``HOLD_TURN_RADII`` turn radii at its
@@ -446,7 +447,8 @@ def hold_plan(
     got the higher level, dived 70 m more before it climbed, and climbed through the other's
     level 42 m from it, 7.7 s after a run, ×5 on a lossy link). A vehicle without a state is
     put in LOITER; one not ``heard`` (lost) is not commanded. A ``hold_not_clear`` event
-    when no circle keeps the keep-out."""
+    when no circle keeps the keep-out.  The stack's lowest level is at least ``floor_z_m``
+    (a return home over every keep-out: ``failsafe.return_floor_m``)."""
     mission = orders.mission
     obstacles = obstacles_from_mission(mission).at(mission_time_s)
     keep_out = 2.0 * mission.limits.safe_distance_obstacle
@@ -476,7 +478,7 @@ def hold_plan(
         airframe_omega = airframes[v.id].max_turn_rate(s.speed_m_s)
         omega = min(airframe_omega or math.inf, mission.limits.max_yaw_rate)
         radius = max(HOLD_MIN_RADIUS_M, HOLD_TURN_RADII * s.speed_m_s / omega)
-        base = mission.target[2] if stacked else highest
+        base = max(mission.target[2] if stacked else highest, floor_z_m)
         z = base + spacing * stack_level(v.id, heights)
         requests[v.id] = holding.HoldRequest(
             np.array(s.pos_m), s.yaw_rad, z, radius, motion(s, airframes[v.id], mission)

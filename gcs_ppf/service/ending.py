@@ -8,10 +8,19 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import math
 
+from gcs_ppf.guidance import failsafe
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import VehicleState
-from gcs_ppf.service import commanding, confirmation, hold_flight, launch, vehicle_fences
+from gcs_ppf.service import (
+    commanding,
+    confirmation,
+    hold_flight,
+    launch,
+    returning,
+    vehicle_fences,
+)
 from gcs_ppf.service.fleet import planning_states
 from gcs_ppf.service.run import FINISHED, Run, RunState, summary
 from gcs_ppf.service.station import Station
@@ -70,7 +79,8 @@ async def hold(station: Station, run: Run, states: dict[int, VehicleState], stac
     is left alone: ``holds_not_on_ground``; a hold's course commands a vehicle standing
     still cannot turn at all) flown to its holding circle and round it by the service,
     under run-time assurance (``fly``), then the circles handed to the autopilots, every
-    command confirmed (``confirmation.confirm_all``), then the safety watch for the rest of
+    command confirmed (``confirmation.confirm_all``), then (a completion whose mission ends in
+    RTL) each sent home (``returning.return_home``), then the safety watch for the rest of
     its time after the end."""
     heard = {i for i, v in station.fleet.by_id.items() if not v.lost}
     heard -= run.taken_over  # another ground station flies them: not ours to hold
@@ -85,6 +95,10 @@ async def hold(station: Station, run: Run, states: dict[int, VehicleState], stac
     mine = [o for o in plan.orders if o.vehicle_id not in taken]
     await _confirm(station, run, mine)
     station.event(run, "holds_loitering", None, vehicles=sorted({o.vehicle_id for o in mine}))
+    if stacked and run.mission.at_end == "rtl":  # completed: home from the holds
+        holding_ids = {o.vehicle_id for o in mine}
+        circles = {vid: c for vid, c in plan.circles.items() if vid in holding_ids}
+        await returning.return_home(station, run, circles)
     if run.fences_before:  # the vehicles' own fences back, beside the watch
         station.spawn(vehicle_fences.take_down(station, run))
     await watch_after_end(station, run)
@@ -93,12 +107,25 @@ async def hold(station: Station, run: Run, states: dict[int, VehicleState], stac
 def _plan(
     station: Station, run: Run, states: dict[int, VehicleState], stacked: bool, heard: set[int]
 ) -> commanding.HoldPlan:
-    """``commanding.hold_plan`` for the run's vehicles as the fleet reports them."""
+    """``commanding.hold_plan`` for the run's vehicles as the fleet reports them; after a
+    completion whose mission ends in RTL, its stack over every keep-out
+    (``failsafe.return_floor_m``)."""
     airframes = {
         vid: Airframe.from_telemetry(v.telemetry) for vid, v in station.fleet.by_id.items()
     }
+    floor = -math.inf
+    homes = returning.home_heights(station, run)
+    if stacked and run.mission.at_end == "rtl" and homes:  # levels to fly home at
+        floor = failsafe.return_floor_m(run.mission, homes, run.mission_time_s)
     return commanding.hold_plan(
-        run.orders, states, airframes, run.mission_time_s, stacked, station.events_of(run), heard
+        run.orders,
+        states,
+        airframes,
+        run.mission_time_s,
+        stacked,
+        station.events_of(run),
+        heard,
+        floor,
     )
 
 

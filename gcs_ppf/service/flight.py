@@ -37,6 +37,7 @@ from gcs_ppf.planning.scene import FloatArray, Obstacles, obstacles_from_mission
 from gcs_ppf.service import commanding, launch, vehicle_fences
 from gcs_ppf.service.ending import end, hold_during_launch
 from gcs_ppf.service.fleet import planning_states
+from gcs_ppf.service.returning import home_heights
 from gcs_ppf.service.run import NOT_RESPONDING_S, Run, RunState, changes, min_of, slots
 from gcs_ppf.service.station import Station
 from gcs_ppf.service.tick_rate import TickRate
@@ -130,11 +131,7 @@ async def set_failsafe_altitudes(station: Station, run: Run, ids: list[int]) -> 
     """Each vehicle's RTL_ALTITUDE set and read back (``guidance.failsafe``: over every
     keep-out, one holding level apart), all at once: a ``failsafe_rtl_altitude`` event with
     the altitude above its home as read back (None: never answered), and the value it had."""
-    homes = {}
-    for vehicle, pos in station.located(run):
-        h = vehicle.telemetry.relative_alt_m
-        if vehicle.system_id in ids and h is not None:
-            homes[vehicle.system_id] = pos[2] - h
+    homes = {vid: z for vid, z in home_heights(station, run).items() if vid in ids}
     altitudes = failsafe.rtl_altitudes_m(
         run.mission, homes, run.mission_time_s, commanding.stack_spacing_m(run.mission)
     )

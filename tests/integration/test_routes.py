@@ -4,16 +4,22 @@ the waypoints judged from an independent pymavlink listener's record of the lead
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
+from gcs_ppf.geodesy import geodetic_to_enu
+from gcs_ppf.guidance import failsafe
+from gcs_ppf.mission import Mission
 from gcs_ppf.planning.route import leg_flown, legs
 from gcs_ppf.tools.demo import http_json as http
+from gcs_ppf.tools.observer import resample
+from tests.checks import wait_for
 from tests.conftest import EXAMPLES
-from tests.integration.test_service_sitl import check_safety, fly
+from tests.integration.test_service_sitl import SPEEDUP, check_safety, fly
 
 
 @pytest.mark.integration
@@ -50,3 +56,70 @@ def test_the_arduplane_route_is_flown_waypoint_by_waypoint(tmp_path: Path) -> No
     status, runs = seen["runs"]
     summary = runs[-1]["summary"]
     assert np.allclose(summary["waypoint_times_s"], times, atol=1e-3)
+
+
+@pytest.mark.integration
+def test_a_mission_that_ends_in_rtl_brings_every_vehicle_home_over_every_keep_out(
+    tmp_path: Path,
+) -> None:
+    """Table 3 with ``at_end: "rtl"``: after the arrival each vehicle holds on a circle at a
+    level over every sphere, then flies ArduPlane's RTL home at it (``returning_home``, its
+    RTL_ALTITUDE read back).  The observer sees every vehicle over its home's vertical at the
+    end, and the whole flight, the way home included, keeps both safe distances."""
+    doc = json.loads((EXAMPLES / "paper_table3.json").read_text())
+    doc["at_end"] = "rtl"
+    homes = {v["id"]: np.array(v["position"]) for v in doc["vehicles"]}
+    seen: dict[str, Any] = {}
+
+    def home_events(api: str, mid: int) -> list[dict[str, Any]]:
+        status, events = http("GET", f"{api}/missions/{mid}/events")
+        kinds = ("returning_home", "return_not_clear")
+        return [e for e in events if e["kind"] in kinds] if status == 200 else []
+
+    def until_home(api: str, mid: int) -> None:
+        seen["returns"] = wait_for(
+            lambda: (r := home_events(api, mid)) and len(r) == len(homes) and r, 60, "returns"
+        )
+
+        def all_home() -> bool:
+            _, vehicles = http("GET", f"{api}/vehicles")
+            for v in vehicles:
+                p = v["position"]
+                x, y, _ = geodetic_to_enu(p["lat_deg"], p["lon_deg"], p["alt_amsl_m"], origin)
+                if np.hypot(x - homes[v["system_id"]][0], y - homes[v["system_id"]][1]) > 1000:
+                    return False
+            return True
+
+        wait_for(all_home, 60, "every vehicle near its home")
+        time.sleep(20.0 / SPEEDUP)  # round its home for 20 of its seconds
+
+    origin = Mission.model_validate(doc).origin
+    flight = fly(tmp_path, doc, after=until_home)
+    assert flight.final["state"] == "completed", flight.final
+    check_safety(flight)
+    returns = seen["returns"]
+    assert sorted(e["vehicle_id"] for e in returns) == sorted(homes)
+    assert {e["kind"] for e in returns} == {"returning_home"}, returns
+    floor = failsafe.return_floor_m(flight.mission, {v: 0.0 for v in homes}, 0.0)
+    tracks = flight.tracks
+    first, last = max(tr[0, 0] for tr in tracks.values()), min(tr[-1, 0] for tr in tracks.values())
+    pos = resample(tracks, np.arange(first, last, 0.05))  # the run and the way home
+    gaps = np.linalg.norm(pos[:, :, None] - pos[:, None], axis=-1)
+    gaps[:, np.arange(len(homes)), np.arange(len(homes))] = np.inf
+    separation = float(gaps.min())
+    clearance = min(
+        float((np.linalg.norm(pos - np.array(o.center), axis=-1) - o.radius).min())
+        for o in flight.mission.obstacles
+    )
+    for vid, tr in tracks.items():
+        end = tr[-1, 1:4]
+        assert np.hypot(*(end[:2] - homes[vid][:2])) < 1000.0, (vid, end)
+        assert end[2] >= floor - 50.0, (vid, end)
+    levels = sorted(e["detail"]["rtl_altitude_m"] for e in returns)
+    print(
+        f"\nRTL at the end: every vehicle home, {levels} m over their homes; the whole "
+        f"flight: separation {separation:.1f} m, clearance {clearance:.1f} m"
+    )
+    lim = flight.mission.limits
+    assert separation >= lim.safe_distance_uav
+    assert clearance >= lim.safe_distance_obstacle

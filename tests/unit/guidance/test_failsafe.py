@@ -37,3 +37,28 @@ def test_without_keep_outs_over_the_homes_and_zones_by_their_ceilings() -> None:
     zoned = Mission.model_validate(doc)
     assert failsafe.keep_outs_top_m(zoned, 0.0) == pytest.approx(425.0)
     assert failsafe.rtl_altitudes_m(zoned, {}, 0.0, 100.0) == {}
+
+
+def test_a_way_home_over_every_sphere_is_clear_and_one_into_a_zone_is_not() -> None:
+    """From circles above Table 3's target at the return floor (twice the safe distance over
+    the highest sphere, 1,000 m) and a level above it, straight home to two starts: clear,
+    the RTL altitude the level over the home.  A no-fly cylinder without a ceiling across
+    the way, a level too low over the home: not clear."""
+    floor = failsafe.return_floor_m(TABLE3, {1: 300.0, 2: 0.0}, 0.0)
+    assert floor == pytest.approx(1000.0)
+    circles = {1: ((6000.0, 7000.0, floor), 300.0), 2: ((6000.0, 7000.0, floor + 150.0), 300.0)}
+    homes = {1: (1500.0, 2000.0, 300.0), 2: (2000.0, 1500.0, 0.0)}
+    ways = failsafe.ways_home(TABLE3, circles, homes, 0.0)
+    assert ways[1].clear
+    assert ways[2].clear
+    assert (ways[1].rtl_altitude_m, ways[2].rtl_altitude_m) == (700.0, 1150.0)
+    assert ways[1].clearance_m == pytest.approx(77.3, abs=0.1)  # over the 850 m sphere
+    doc = TABLE3.model_dump()
+    doc["zones"] = [{"kind": "cylinder", "center": [3750.0, 4500.0], "radius": 200.0}]
+    walled = Mission.model_validate(doc)
+    assert not failsafe.ways_home(walled, circles, homes, 0.0)[1].clear
+    under = {1: (3000.0, 3000.0, 400.0)}  # under the first sphere's top: home at the level
+    assert failsafe.ways_home(TABLE3, {1: circles[1]}, under, 0.0)[1].clear
+    low = {1: (1500.0, 2000.0, 990.0)}
+    assert not failsafe.ways_home(TABLE3, {1: circles[1]}, low, 0.0)[1].clear
+    assert failsafe.ways_home(TABLE3, circles, {}, 0.0) == {}

@@ -334,3 +334,17 @@ def test_arming_reasons_from_statustext_newest_last_one_per_text() -> None:
         tel = apply(tel, text(f"PreArm: check {k}"), 10.0 + k)
     assert len(tel.arming_reasons) == ARMING_REASONS_KEPT
     assert tel.arming_reasons[-1].text == f"PreArm: check {2 * ARMING_REASONS_KEPT - 1}"
+
+
+def test_home_position_is_kept_once_the_vehicle_has_one() -> None:
+    def home(lat_e7: int, lon_e7: int, alt_mm: int) -> MAVLinkMessage:
+        q = [1.0, 0.0, 0.0, 0.0]
+        return _wire(
+            mavlink2.MAVLink_home_position_message(lat_e7, lon_e7, alt_mm, 0, 0, 0, q, 0, 0, 0, 0)
+        )
+
+    tel = apply(None, _heartbeat(), 1.0)
+    assert apply(tel, home(0, 0, 0), 2.0).home_lat_deg is None  # not yet: 0°, 0°
+    tel = apply(tel, home(473977420, 85455940, 488_500), 3.0)
+    assert (tel.home_lat_deg, tel.home_lon_deg) == pytest.approx((47.397742, 8.545594))
+    assert tel.home_alt_amsl_m == pytest.approx(488.5)
