@@ -13,6 +13,7 @@ import json
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +21,7 @@ import httpx
 import numpy as np
 import pytest
 
+from gcs_ppf.geodesy import geodetic_to_enu
 from gcs_ppf.mission import Mission
 from gcs_ppf.service.store import Store
 from gcs_ppf.tools.arduplane_sitl import find_plane_parm
@@ -65,6 +67,7 @@ def fly_arduplane(
     extra_defaults: str = "",
     env_extra: dict[str, str] | None = None,
     kill_after_s: float | None = None,
+    after_end: Callable[[str, int], None] | None = None,
 ) -> dict[Any, Any]:
     """Fly ``mission_path`` on real ArduPlane SITL and judge it (the run completed, safe
     distances kept, no ground hit; with ``formation`` also formed and held ``HELD_S``);
@@ -72,7 +75,9 @@ def fly_arduplane(
     healthy (otherwise the moment the service hears them all, after boot);
     ``extra_defaults``: parameter lines added to plane.parm for every instance;
     ``kill_after_s``: the service killed (SIGKILL) this long (wall) after the run is
-    running, and what the vehicles do then returned (``fenced_after_kill``)."""
+    running, and what the vehicles do then returned (``fenced_after_kill``);
+    ``after_end``: called with the API and the mission once the run has ended, the observer
+    listening (its tracks, judged, run on to its return)."""
     doc = json.loads(mission_path.read_text())
     mission = Mission.model_validate(doc)
     lim, n = mission.limits, len(mission.vehicles)
@@ -128,6 +133,8 @@ def fly_arduplane(
                 return dict(final)
             end_s = (time.time() - t0_wall) * SPEEDUP  # on the common clock
             end_ms = obs.latest_boot_ms()
+            if after_end is not None:
+                after_end(api, mid)
 
             def watched_after() -> bool:
                 now_ms = obs.latest_boot_ms()
@@ -343,3 +350,50 @@ def test_with_the_service_dead_real_arduplane_s_own_fence_turns_it_home(tmp_path
     print(f"the service killed; each vehicle then: {seen}")
     for vid in (1, 2, 3):
         assert seen[vid]["modes"][-1] == 11, seen[vid]  # RTL, by its own fence
+
+
+@pytest.mark.arduplane
+def test_a_mission_ending_in_rtl_brings_real_arduplane_home(tmp_path: Path) -> None:
+    """Line abreast 3 with ``at_end: "rtl"``: after the arrival every ArduPlane holds at a
+    level over the sphere, says where its home is (HOME_POSITION) and flies RTL home at it
+    (``returning_home``, RTL_ALTITUDE read back); the observer's tracks, the way home
+    included, keep both safe distances (``fly_arduplane``) and end over each home."""
+    doc = json.loads((EXAMPLES / "arduplane_3.json").read_text())
+    doc["at_end"] = "rtl"
+    path = tmp_path / "arduplane_3_rtl.json"
+    path.write_text(json.dumps(doc))
+    mission = Mission.model_validate(doc)
+    seen: dict[str, Any] = {}
+
+    def home(api: str, mid: int) -> None:
+        def returns() -> list[dict[str, Any]]:
+            events = httpx.get(f"{api}/missions/{mid}/events", timeout=10).json()
+            kinds = ("returning_home", "return_not_clear")
+            found = [e for e in events if e["kind"] in kinds]
+            return found if len(found) == len(mission.vehicles) else []
+
+        seen["returns"] = wait_for(returns, 300 / SPEEDUP + 30, "every vehicle's return")
+
+        def all_home() -> bool:
+            vehicles = httpx.get(f"{api}/vehicles", timeout=10).json()
+            modes = {v["system_id"]: v["mode"] for v in vehicles}
+            seen["modes"] = modes
+            return all(m == "RTL" for m in modes.values()) and all(
+                _horizontal_m(v, mission) < 300.0 for v in vehicles
+            )
+
+        wait_for(all_home, 300 / SPEEDUP + 30, "every vehicle over its home")
+
+    fly_arduplane(tmp_path, path, formation=False, after_end=home)
+    kinds = sorted((e["vehicle_id"], e["kind"]) for e in seen["returns"])
+    assert kinds == [(v.id, "returning_home") for v in mission.vehicles], seen["returns"]
+    levels = [e["detail"]["rtl_altitude_m"] for e in seen["returns"]]
+    print(f"RTL at the end on ArduPlane: every vehicle home, RTL_ALTITUDE {sorted(levels)} m")
+
+
+def _horizontal_m(vehicle: dict[str, Any], mission: Mission) -> float:
+    """How far (m) a vehicle of GET /vehicles is from its start (its home) across the ground."""
+    p = vehicle["position"]
+    x, y, _ = geodetic_to_enu(p["lat_deg"], p["lon_deg"], p["alt_amsl_m"], mission.origin)
+    start = next(v.position for v in mission.vehicles if v.id == vehicle["system_id"])
+    return float(np.hypot(x - start[0], y - start[1]))
