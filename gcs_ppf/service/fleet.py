@@ -28,7 +28,7 @@ from gcs_ppf.guidance import lag
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.online import VehicleState, state_from_velocity
 from gcs_ppf.guidance.vehicle_clock import VehicleClock
-from gcs_ppf.mavlink import commands
+from gcs_ppf.mavlink import commands, radio_budget
 from gcs_ppf.mavlink.ardupilot import mode_name
 from gcs_ppf.mavlink.codec import signing_timestamp
 from gcs_ppf.mavlink.telemetry import AIRFRAME_PARAMS, VehicleTelemetry, apply
@@ -121,6 +121,8 @@ class Vehicle:
     """When (ours) it last did."""
     identity_checked_s: float = -math.inf
     """When (ours) its links were last told one vehicle or two (``Fleet._check_duplicate``)."""
+    stream_rate_hz: float | None = None
+    """The position rate its streams were last asked for at (``Fleet.stream_rate_hz``)."""
     boot_history: deque[tuple[float, int]] = field(
         default_factory=lambda: deque(maxlen=BOOT_HISTORY_KEPT)
     )
@@ -309,7 +311,7 @@ class Fleet:
             vehicle = Vehicle(sysid, link_id, apply(None, msg, now), now)
             self.by_id[sysid] = vehicle
             log.info("vehicle %d discovered on link %d", sysid, link_id)
-            self._spawn(self._request_streams(vehicle))
+            self._spawn(self._fit_streams(link_id))
         else:
             vehicle.telemetry = apply(vehicle.telemetry, msg, now)
         vehicle.heard_on[link_id] = now
@@ -456,17 +458,42 @@ class Fleet:
                     out[v.system_id] = self._live_links(v, now)
         return out
 
-    async def _request_streams(self, vehicle: Vehicle) -> None:
-        """Ask a new vehicle for the telemetry the planner needs, by SET_MESSAGE_INTERVAL
-        only (a REQUEST_DATA_STREAM after it would set the whole stream group's rate and
-        override these intervals on ArduPilot), and for its airframe parameters."""
+    def stream_rate_hz(self, system_id: int) -> float:
+        """The position rate a vehicle's streams are asked for: ``settings.stream_rate_hz``,
+        or on a radio (a serial link) what fits it with every vehicle it carries
+        (``radio_budget.fitted_rate_hz``)."""
+        wanted = self.settings.stream_rate_hz
+        vehicle = self.by_id.get(system_id)
+        entry = None if vehicle is None else self._links.get(vehicle.link_id)
+        if entry is None or entry.link.url.kind is not LinkKind.SERIAL:
+            return wanted
+        carried = sum(1 for v in self.by_id.values() if v.link_id == entry.id and not v.lost)
+        return radio_budget.fitted_rate_hz(entry.link.url.port, carried, wanted)
+
+    async def _fit_streams(self, link_id: int) -> None:
+        """Every vehicle on the link asked for its streams at ``stream_rate_hz`` where that
+        is not what it was asked for (a new one; the others on a radio when one more shares
+        it), and a new one for its airframe parameters."""
+        for vehicle in [v for v in self.by_id.values() if v.link_id == link_id]:
+            rate = self.stream_rate_hz(vehicle.system_id)
+            if vehicle.stream_rate_hz == rate:
+                continue
+            new = vehicle.stream_rate_hz is None
+            vehicle.stream_rate_hz = rate
+            await self._request_streams(vehicle, rate)
+            if new:
+                await self.request_airframe_params(vehicle.system_id)
+
+    async def _request_streams(self, vehicle: Vehicle, rate_hz: float) -> None:
+        """Ask a vehicle for the telemetry the planner needs, positions at ``rate_hz``, by
+        SET_MESSAGE_INTERVAL only (a REQUEST_DATA_STREAM after it would set the whole
+        stream group's rate and override these intervals on ArduPilot)."""
         for msg_id, factor in STREAMED.items():
-            interval_us = int(1e6 / (self.settings.stream_rate_hz * factor))
+            interval_us = int(1e6 / (rate_hz * factor))
             await self.send(
                 vehicle.system_id,
                 commands.set_message_interval(vehicle.system_id, msg_id, interval_us),
             )
-        await self.request_airframe_params(vehicle.system_id)
 
     async def request_airframe_params(self, system_id: int, *, missing_only: bool = False) -> None:
         """Ask for the parameters of the airframe's envelope (``gcs_ppf.guidance.airframe``; the

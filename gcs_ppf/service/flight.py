@@ -233,17 +233,21 @@ def run_spacing(station: Station, run: Run) -> float:
 
 
 async def tick_loop(station: Station, run: Run) -> None:
-    """A tick at ``tick_hz`` of the leader's clock, or with a position of the leader's
+    """A tick at ``tick_hz`` of the leader's clock (lower where a radio carries the run's
+    vehicles: ``Station.rates_hz``, a ``rates_fitted`` event), or with a position of the leader's
     (``due``), woken by fresh telemetry, until the run is aborted or ends; a telemetry
     sample at ``telemetry_sample_hz`` of mission time.  A new leader's clock carries the
     mission time on from where the last one left it."""
     fleet = station.fleet
-    period = 1.0 / station.settings.tick_hz
+    tick_hz, positions_hz = station.rates_hz(run.mission)
+    if tick_hz < station.settings.tick_hz:  # a radio carries its vehicles
+        station.event(run, "rates_fitted", None, tick_hz=tick_hz, positions_hz=positions_hz)
+    period = 1.0 / tick_hz
     sample_period = 1.0 / station.settings.telemetry_sample_hz
     last_tick: float | None = None
     last_fix: float | None = None
     last_sample = -math.inf
-    run.tick_rate = TickRate(station.settings.tick_hz)
+    run.tick_rate = TickRate(tick_hz)
     clock_of = run.mission.leader.id
     spacing = run_spacing(station, run)
     while not run.abort.is_set():
@@ -595,7 +599,8 @@ async def plan_and_command(
     settings = station.settings
     lim = mission.limits
     phases = run.phases
-    telemetry_interval_s = 1.0 / settings.stream_rate_hz
+    tick_hz, positions_hz = station.rates_hz(mission)
+    telemetry_interval_s = 1.0 / positions_hz
     lagging_s = telemetry_interval_s + run.fleet_lag.total_s  # what the margins must cover
     with phases.phase("planning"):
         # planned from the speeds the last plan had reached by now, not the measured ones
@@ -635,7 +640,7 @@ async def plan_and_command(
         starvation_s = settings.starvation_allowance_s * station.fleet.clock_rate()
         hold_s = lag.hold_s(
             run.tick_gaps_s,
-            1.0 / settings.tick_hz,
+            1.0 / tick_hz,
             telemetry_interval_s,
             run.fleet_lag,
             starvation_s,

@@ -59,8 +59,9 @@ async def fly_holds(
     responding, or commanded by a later run (``taken_over``; when every one is, the holds
     end there)."""
     fleet, settings, mission = station.fleet, station.settings, run.mission
-    period = 1.0 / settings.tick_hz
-    telemetry_interval = 1.0 / settings.stream_rate_hz
+    tick_hz, positions_hz = station.rates_hz(mission)
+    period = 1.0 / tick_hz
+    telemetry_interval = 1.0 / positions_hz
     ended = run.ended_vehicle_s
     if ended is None and not launching:
         return

@@ -69,6 +69,15 @@ class Station:
         """``event`` for this run, as the launch and commanding take it."""
         return partial(self.event, run)
 
+    def rates_hz(self, mission: Mission) -> tuple[float, float]:
+        """(ticks, positions) a vehicle second for ``mission``'s vehicles: the settings', or
+        where a radio carries them what fits it (``Fleet.stream_rate_hz``), the slowest's."""
+        heard = [v.id for v in mission.vehicles if v.id in self.fleet.by_id]
+        positions = min(
+            (self.fleet.stream_rate_hz(i) for i in heard), default=self.settings.stream_rate_hz
+        )
+        return min(self.settings.tick_hz, positions), positions
+
     def located(self, run: Run) -> Iterator[tuple[Vehicle, tuple[float, float, float]]]:
         """The run's vehicles that have reported a position, with it in the ICS (all
         converted in one call)."""

@@ -142,6 +142,12 @@ CONDITIONS: dict[str, Condition] = {
         radios="one",
         service_env=(("GCS_PPF_STREAM_RATE_HZ", "5"), ("GCS_PPF_TICK_HZ", "5")),
     ),
+    "p": Condition(
+        "p",
+        "x10, every vehicle on one 57,600-baud radio, rates fitted by the service",
+        10.0,
+        radios="one",
+    ),
 }
 
 
@@ -182,6 +188,7 @@ def radio(directory: Path, name: str) -> Iterator[tuple[Path, Path]]:
     ground's end), for the block's duration."""
     if shutil.which("socat") is None:
         raise RuntimeError("the radio conditions need Debian's socat (make install adds it)")
+    directory = directory.resolve()  # the service opens the path it is given: absolute
     air, ground = directory / f"{name}-air", directory / f"{name}-ground"
     args = ["socat", f"pty,raw,echo=0,link={air}", f"pty,raw,echo=0,link={ground}"]
     with process(args, directory / f"{name}-socat.log") as p:

@@ -82,12 +82,14 @@ def _links(api: str) -> list[dict[str, Any]]:
 @pytest.mark.integration
 def test_table3_on_one_radio_carrying_every_vehicle(tmp_path: Path) -> None:
     """All five vehicles on one serial line (one radio for the fleet, as a SiK mesh or a
-    multipoint RFD900 carries it): discovered by system id on the one link, flown, and
-    the observer finds the run safe."""
+    multipoint RFD900 carries it): discovered by system id on the one link, their streams
+    and the ticks fitted to what a 57,600-baud radio carries for five (4.6 Hz,
+    ``radio_budget``), flown, and the observer finds the run safe."""
     seen: dict[str, Any] = {}
 
     def after(api: str, mid: int) -> None:
         seen["links"] = _links(api)
+        seen["events"] = http("GET", f"{api}/missions/{mid}/events")[1]
 
     with radios(tmp_path, ["fleet"]) as r:
         flight = fly(
@@ -102,8 +104,10 @@ def test_table3_on_one_radio_carrying_every_vehicle(tmp_path: Path) -> None:
     assert link["url"] == f"serial:{r['fleet'].ground}:{BAUD}"
     assert link["vehicles"] == [1, 2, 3, 4, 5]
     load = link["radio_load"]  # a pty carries it all; a 57,600-baud radio could not
-    assert load["down"] > 0.0
-    assert load["up"] > 0.0
+    assert 0.0 < load["down"] <= 1.0  # within the radio's 57,600 baud
+    assert 0.0 < load["up"] <= 1.0
+    (fitted,) = [e for e in seen["events"] if e["kind"] == "rates_fitted"]
+    assert fitted["detail"] == {"tick_hz": 4.6, "positions_hz": 4.6}
     _, separation, clearance = check_safety(flight)
     seconds = flight.final["mission_time_s"]
     print(
