@@ -16,8 +16,8 @@ from gcs_ppf.service import confirmation, launch
 from gcs_ppf.service.run import Run
 from gcs_ppf.service.station import Station
 
-HOME_WAIT_S = 5.0
-"""Vehicle seconds a vehicle has to say where its home is (HOME_POSITION, asked for)."""
+HOME_ASKS = 5
+"""Times a vehicle is asked where its home is (HOME_POSITION), a vehicle second apart."""
 
 
 def home_heights(station: Station, run: Run) -> dict[int, float]:
@@ -44,13 +44,16 @@ async def return_home(station: Station, run: Run, circles: dict[int, holding.Hol
     ``return_not_clear`` (it holds) where the way is not clear, its home is not known or
     the altitude did not read back."""
     ids = sorted(circles)
-    for vid in ids:
-        await station.fleet.send(vid, commands.request_message(vid, commands.HOME_POSITION_ID))
-    await confirmation.wait_until(
-        lambda: all(home_of(station, run, vid) is not None for vid in ids),
-        HOME_WAIT_S / station.fleet.clock_rate(),
-        0.05,
-    )
+    rate = station.fleet.clock_rate()
+    for _ in range(HOME_ASKS):  # asked again each vehicle second (a lossy link)
+        unknown = [vid for vid in ids if home_of(station, run, vid) is None]
+        if not unknown:
+            break
+        for vid in unknown:
+            await station.fleet.send(vid, commands.request_message(vid, commands.HOME_POSITION_ID))
+        await confirmation.wait_until(
+            lambda: all(home_of(station, run, vid) is not None for vid in ids), 1.0 / rate, 0.05
+        )
     homes = {vid: h for vid in ids if (h := home_of(station, run, vid)) is not None}
     ways = failsafe.ways_home(
         run.mission,
