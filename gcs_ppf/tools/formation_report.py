@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -192,6 +193,60 @@ def axes_report(records: list[dict[str, Any]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+TURNING_RAD_S = math.radians(0.5)
+"""The leader turns while its course changes faster than this (over ``COURSE_SPAN_S``)."""
+COURSE_SPAN_S = 1.0
+
+
+def run_turns(rec: dict[str, Any], after_s: float = AFTER_S) -> tuple[float, float] | None:
+    """The worst wingman's RMS slot error (m) on the straight legs and in the turns of one
+    campaign record, from the first moment in formation (None if it never formed, or it
+    never turned): the leader turns while its course over the ground changes faster than
+    ``TURNING_RAD_S``."""
+    mission, tracks, start, end = _observed(rec, after_s)
+    flown_tracks = _formation_tracks(mission, tracks, start, end)
+    if flown_tracks is None:
+        return None
+    t = np.arange(start, end, STEP_S)
+    offsets = slot_distances(mission, flown_tracks, t)
+    worst = np.max(np.stack(list(offsets.values())), axis=0)
+    formed = worst <= mission.limits.target_accuracy
+    if not formed.any():
+        return None
+    leader = flown_tracks[mission.leader.id]
+    x, y = np.interp(t, leader[:, 0], leader[:, 1]), np.interp(t, leader[:, 0], leader[:, 2])
+    span = max(1, round(COURSE_SPAN_S / STEP_S))
+    course = np.unwrap(np.arctan2(np.gradient(y), np.gradient(x)))
+    rate = np.abs(course[span:] - course[:-span]) / (span * STEP_S)
+    turning = np.concatenate([rate, np.full(span, rate[-1] if rate.size else 0.0)]) > TURNING_RAD_S
+    after = np.arange(t.size) >= int(np.argmax(formed))
+    if not (turning & after).any():
+        return None
+    return (
+        float(np.sqrt(np.mean(worst[after & ~turning] ** 2))),
+        float(np.sqrt(np.mean(worst[after & turning] ** 2))),
+    )
+
+
+def turns_report(records: list[dict[str, Any]]) -> str:
+    """One line per (mission, condition): the median over its runs of the worst wingman's
+    RMS slot error on the straight legs and in the turns (``run_turns``)."""
+    groups: dict[tuple[str, str], list[tuple[float, float]]] = {}
+    for rec in records:
+        split = run_turns(rec)
+        if split is not None:
+            groups.setdefault((rec["mission"], rec["condition"]), []).append(split)
+    lines = [f"{'mission':<14}{'cond':>5}{'runs':>5}  rms m straight / turns (min–max)"]
+    for (name, cond), runs in sorted(groups.items()):
+        straight, turns = (np.array([r[k] for r in runs]) for k in (0, 1))
+        lines.append(
+            f"{name:<14}{cond:>5}{len(runs):>5}  {np.median(straight):.1f} / "
+            f"{np.median(turns):.1f} ({straight.min():.1f}–{straight.max():.1f} / "
+            f"{turns.min():.1f}–{turns.max():.1f})"
+        )
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m gcs_ppf.tools.formation_report", description=__doc__.split("\n\n")[0]
@@ -199,6 +254,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("campaign", type=Path, help="a campaign's --out directory")
     parser.add_argument(
         "--axes", action="store_true", help="each wingman's slot error forward / left / up"
+    )
+    parser.add_argument(
+        "--turns", action="store_true", help="the slot error on the straight legs and in turns"
     )
     args = parser.parse_args(argv)
     files = sorted(args.campaign.rglob("runs.jsonl"))
@@ -208,6 +266,8 @@ def main(argv: list[str] | None = None) -> int:
     print(report(records), end="")
     if args.axes:
         print(axes_report(records), end="")
+    if args.turns:
+        print(turns_report(records), end="")
     return 0
 
 

@@ -334,6 +334,10 @@ def fleet_step(
         cp, sp, cy, sy = trig[i, 0], trig[i, 1], trig[i, 2], trig[i, 3]
         # Attraction (Eq. 14): the way to the target point, passing teammates.
         g = target if i == 0 else local_target[i]
+        turn_rate = 0.0  # the leader's, in a held turn (decided first, i = 0)
+        if i > 0 and active[0] and lim.leader_turn_rate < math.inf:
+            turn = next_motion[0, 2] - yaw[0]
+            turn_rate = (turn - 2.0 * math.pi * round(turn / (2.0 * math.pi))) / dt
         # Its reach among teammates: R(v_i) of the safe distance (Eq. 10–11) and a step.
         own_reach = influence_radius(speed[i], omega, lim.safe_distance_uav) + speed[i] * dt
         fx, fy, fz, ax, ay, az = attraction(
@@ -353,6 +357,7 @@ def fleet_step(
             dt,
             cy,
             sy,
+            turn_rate,
         )
         # Repulsion (Eq. 12–13): the obstacles', then the teammates' of higher priority,
         # never pushing the vehicle into an obstacle (``obstacles_first``) unless it has
@@ -428,14 +433,12 @@ def fleet_step(
         )
         slot_speed = speed[0]
         if i > 0 and active[0] and lim.leader_turn_rate < math.inf:  # a held turn
-            turn = next_motion[0, 2] - yaw[0]  # the leader's, decided first (i = 0)
-            turn = turn - 2.0 * math.pi * round(turn / (2.0 * math.pi))
             slot_speed = slot_point_speed(
                 speed[0],
                 ux,
                 uy,
                 uz,
-                turn / dt,
+                turn_rate,
                 local_target[i, 0] - pos[0, 0],
                 local_target[i, 1] - pos[0, 1],
             )

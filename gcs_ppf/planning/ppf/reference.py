@@ -318,12 +318,24 @@ def _aims(
 
 
 def _follow(
-    pos: FloatArray, aim: FloatArray, speed: FloatArray, a: Attitude, lim: KernelLimits
+    pos: FloatArray,
+    aim: FloatArray,
+    speed: FloatArray,
+    a: Attitude,
+    lim: KernelLimits,
+    g: FloatArray,
+    leader_turn: float = 0.0,
 ) -> FloatArray:
     """Eq. 14: the unit attraction towards the points made for (``_aims``), a wingman's one
-    turn time ahead along the leader's flight, no steeper than MAX_FOLLOW_PITCH."""
+    turn time ahead along its slot's flight (the leader's, and in a held turn at
+    ``leader_turn`` rad/s the slot's swing round it, ``g`` the local target points), no
+    steeper than MAX_FOLLOW_PITCH."""
+    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     aim = aim.copy()
-    aim[1:] += (speed[0] / min(lim.max_pitch_rate, lim.max_yaw_rate)) * a.u[0]
+    aim[1:] += (speed[0] / omega) * a.u[0]
+    rel = g[1:] - pos[0]
+    aim[1:, 0] -= leader_turn / omega * rel[:, 1]
+    aim[1:, 1] += leader_turn / omega * rel[:, 0]
     to_aim = aim - pos
     horizontal = np.hypot(to_aim[:, 0], to_aim[:, 1])
     heading = np.where(
@@ -576,27 +588,37 @@ def reference_step(
     f = _formation(pos, slot, active, a, lim)
     obstacles = _obstacle_repulsion(pos, speed, a.u, obs_center, obs_radius, obs_velocity, lim, dt)
     aim = _aims(pos, target, speed, a, f, rank, active, lim, dt)
-    follow = _follow(pos, aim, speed, a, lim)
-    r = _repulsion(pos, speed, a, follow, rank, active, f.formed, obstacles, lim, dt)
-    field = _field(follow, a, r)
-    fv, d, lowest, s2, along_field = _wanted_direction(field, pos, speed, a, r, lim, dt)
-    state = np.where(s2, S2_LOCAL_MINIMUM, S1_FOLLOW).astype(np.int64)
-    yaw_rate = np.full(pos.shape[0], lim.max_yaw_rate)
-    if not (r.rep[0] != 0).any():  # the leader following its target (``leader_limits``)
-        inside = inside_turn(
-            float(pos[0, 0]),
-            float(pos[0, 1]),
-            float(a.cy[0]),
-            float(a.sy[0]),
-            float(speed[0]),
-            lim.leader_turn_rate,
-            float(target[0]),
-            float(target[1]),
-        )
-        yaw_rate[0] = leader_limits(lim, inside).max_yaw_rate
-    f_pitch, f_yaw = _turn_trends(fv, d, lowest, pitch, yaw, a, r, lim, dt, yaw_rate)
+
+    def steered(
+        leader_turn: float,
+    ) -> tuple[Repulsion, FloatArray, FloatArray, FloatArray, FloatArray, IntArray]:
+        """The field and the turn trends with the wingmen led by ``leader_turn``."""
+        follow = _follow(pos, aim, speed, a, lim, f.g, leader_turn)
+        r = _repulsion(pos, speed, a, follow, rank, active, f.formed, obstacles, lim, dt)
+        field = _field(follow, a, r)
+        fv, d, lowest, s2, along_field = _wanted_direction(field, pos, speed, a, r, lim, dt)
+        state = np.where(s2, S2_LOCAL_MINIMUM, S1_FOLLOW).astype(np.int64)
+        yaw_rate = np.full(pos.shape[0], lim.max_yaw_rate)
+        if not (r.rep[0] != 0).any():  # the leader following its target (``leader_limits``)
+            inside = inside_turn(
+                float(pos[0, 0]),
+                float(pos[0, 1]),
+                float(a.cy[0]),
+                float(a.sy[0]),
+                float(speed[0]),
+                lim.leader_turn_rate,
+                float(target[0]),
+                float(target[1]),
+            )
+            yaw_rate[0] = leader_limits(lim, inside).max_yaw_rate
+        f_pitch, f_yaw = _turn_trends(fv, d, lowest, pitch, yaw, a, r, lim, dt, yaw_rate)
+        return r, along_field, f_pitch, f_yaw, yaw_rate, state
+
+    r, along_field, f_pitch, f_yaw, yaw_rate, state = steered(0.0)
     held_turn = bool(active[0]) and lim.leader_turn_rate < math.inf
     leader_turn = float(f_yaw[0] * yaw_rate[0]) if held_turn else 0.0
+    if leader_turn != 0.0:  # the leader decides first; its wingmen lead its turn
+        r, along_field, f_pitch, f_yaw, yaw_rate, state = steered(leader_turn)
     f_speed = _speed_trend(along_field, pos, aim, speed, a, f, r, state, lim, dt, leader_turn)
     new = _kinematics(pos, pitch, yaw, speed, active, f_speed, f_pitch, f_yaw, lim, dt, yaw_rate)
     return (*new, state)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from gcs_ppf.mission import load_mission_file
-from gcs_ppf.offline.plan import PlanRun
+from gcs_ppf.offline.plan import PlanRun, plan_mission
 from gcs_ppf.offline.sweep.families import FEASIBLE
 from gcs_ppf.offline.sweep.scenes import draw_scene
 from gcs_ppf.planning.planner import Trajectory, advance
@@ -149,3 +149,15 @@ def test_one_step_agrees_under_an_airframes_flight_path_limits(name: str) -> Non
     assert tr.pitch.max() <= math.radians(20.0) + 1e-9
     assert tr.pitch.min() >= -math.radians(25.0) - 1e-9
     assert 1 in _agree_step_by_step(scene, tr, 0.01, 150)
+
+
+def test_one_step_agrees_in_held_turns_where_the_wingmen_lead_the_slots_swing() -> None:
+    """ArduPlane's route with its 90° and 180° turns held (``turns: "hold"``): from states
+    along its plan, the leader turning, the wingmen leading their slots round with it."""
+    run = plan_mission(load_mission_file(EXAMPLES / "arduplane_route_uturn_3.json"))
+    tr = run.trajectory
+    assert run.scene.limits.leader_turn_rate < math.inf
+    rate = np.abs(np.diff(np.unwrap(tr.yaw[:, 0]))) / np.diff(tr.t)
+    turning = np.flatnonzero(rate > math.radians(1.0))[:: max(1, len(tr) // 4000)]
+    assert turning.size > 20
+    _agree_at(run.scene, tr, run.dt, turning[np.linspace(0, turning.size - 1, 60).astype(int)])
