@@ -15,9 +15,10 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -54,17 +55,28 @@ def _formation_tracks(
     return {v: tracks[v] for v in ids}
 
 
-def formation_flown(
+def _worst(
     mission: Mission, tracks: dict[int, FloatArray], start_s: float, end_s: float
-) -> FormationFlown | None:
-    """The formation over [start_s, end_s] of vehicle time (None for a lone leader or a
-    vehicle never heard)."""
+) -> tuple[FloatArray, FloatArray, dict[int, FloatArray]] | None:
+    """The times over [start_s, end_s] every ``STEP_S``, the worst wingman's distance from
+    its slot at each, and the tracks (None: no formation to judge, ``_formation_tracks``)."""
     flown_tracks = _formation_tracks(mission, tracks, start_s, end_s)
     if flown_tracks is None:
         return None
     t = np.arange(start_s, end_s, STEP_S)
     offsets = slot_distances(mission, flown_tracks, t)
-    worst = np.max(np.stack(list(offsets.values())), axis=0)
+    return t, np.max(np.stack(list(offsets.values())), axis=0), flown_tracks
+
+
+def formation_flown(
+    mission: Mission, tracks: dict[int, FloatArray], start_s: float, end_s: float
+) -> FormationFlown | None:
+    """The formation over [start_s, end_s] of vehicle time (None for a lone leader or a
+    vehicle never heard)."""
+    worst_of = _worst(mission, tracks, start_s, end_s)
+    if worst_of is None:
+        return None
+    t, worst, _ = worst_of
     accuracy = mission.limits.target_accuracy
     formed = worst <= accuracy
     flown = end_s - start_s
@@ -176,14 +188,25 @@ def run_axes(rec: dict[str, Any], after_s: float = AFTER_S) -> dict[int, FloatAr
     return {vid: np.sqrt(np.mean(e[first:] ** 2, axis=0)) for vid, e in errors.items()}
 
 
+Measured = TypeVar("Measured")
+
+
+def _by_row(
+    records: list[dict[str, Any]], measure: Callable[[dict[str, Any]], Measured | None]
+) -> dict[tuple[str, str], list[Measured]]:
+    """Each run's ``measure`` (those not None), grouped by (mission, condition)."""
+    groups: dict[tuple[str, str], list[Measured]] = {}
+    for rec in records:
+        m = measure(rec)
+        if m is not None:
+            groups.setdefault((rec["mission"], rec["condition"]), []).append(m)
+    return groups
+
+
 def axes_report(records: list[dict[str, Any]]) -> str:
     """One line per (mission, condition, wingman): the median over the runs of its RMS
     slot error forward / left / up after first forming (``run_axes``)."""
-    groups: dict[tuple[str, str], list[dict[int, FloatArray]]] = {}
-    for rec in records:
-        axes = run_axes(rec)
-        if axes is not None:
-            groups.setdefault((rec["mission"], rec["condition"]), []).append(axes)
+    groups = _by_row(records, run_axes)
     lines = [f"{'mission':<14}{'cond':>5}{'wingman':>8}{'runs':>5}  rms m forward / left / up"]
     for (name, cond), runs in sorted(groups.items()):
         for vid in sorted(runs[0]):
@@ -204,12 +227,10 @@ def run_turns(rec: dict[str, Any], after_s: float = AFTER_S) -> tuple[float, flo
     never turned): the leader turns while its course over the ground changes faster than
     ``TURNING_RAD_S``."""
     mission, tracks, start, end = _observed(rec, after_s)
-    flown_tracks = _formation_tracks(mission, tracks, start, end)
-    if flown_tracks is None:
+    worst_of = _worst(mission, tracks, start, end)
+    if worst_of is None:
         return None
-    t = np.arange(start, end, STEP_S)
-    offsets = slot_distances(mission, flown_tracks, t)
-    worst = np.max(np.stack(list(offsets.values())), axis=0)
+    t, worst, flown_tracks = worst_of
     formed = worst <= mission.limits.target_accuracy
     if not formed.any():
         return None
@@ -231,11 +252,7 @@ def run_turns(rec: dict[str, Any], after_s: float = AFTER_S) -> tuple[float, flo
 def turns_report(records: list[dict[str, Any]]) -> str:
     """One line per (mission, condition): the median over its runs of the worst wingman's
     RMS slot error on the straight legs and in the turns (``run_turns``)."""
-    groups: dict[tuple[str, str], list[tuple[float, float]]] = {}
-    for rec in records:
-        split = run_turns(rec)
-        if split is not None:
-            groups.setdefault((rec["mission"], rec["condition"]), []).append(split)
+    groups = _by_row(records, run_turns)
     lines = [f"{'mission':<14}{'cond':>5}{'runs':>5}  rms m straight / turns (min–max)"]
     for (name, cond), runs in sorted(groups.items()):
         straight, turns = (np.array([r[k] for r in runs]) for k in (0, 1))
