@@ -55,8 +55,9 @@ from gcs_ppf.mavlink.enums import (
 from gcs_ppf.mavlink.enums import (
     MAV_CMD_SET_MESSAGE_INTERVAL as MAV_CMD_SET_MESSAGE_INTERVAL,
 )
-
-HOME_POSITION_ID = 242
+from gcs_ppf.mavlink.enums import (
+    MAVLINK_MSG_ID_HOME_POSITION as MAVLINK_MSG_ID_HOME_POSITION,
+)
 
 TELEMETRY_STREAMS: tuple[int, ...] = (
     MAV_DATA_STREAM_EXTENDED_STATUS,
@@ -359,7 +360,7 @@ def request_message(
     target_system: int, message_id: int, *, target_component: int = AUTOPILOT_COMPONENT_ID
 ) -> MAVLinkMessage:
     """COMMAND_LONG ``MAV_CMD_REQUEST_MESSAGE``: param1 the message id, sent once (as
-    QGroundControl asks for ``HOME_POSITION``, ``HOME_POSITION_ID``)."""
+    QGroundControl asks for HOME_POSITION, ``MAVLINK_MSG_ID_HOME_POSITION``)."""
     if not 0 <= message_id <= 0xFFFFFF:
         raise ValueError(f"message_id must be a MAVLink message id (0..16777215), got {message_id}")
     return _command_long(

@@ -114,9 +114,10 @@ def _plan(
         vid: Airframe.from_telemetry(v.telemetry) for vid, v in station.fleet.by_id.items()
     }
     floor = -math.inf
-    homes = returning.home_heights(station, run)
-    if stacked and run.mission.at_end == "rtl" and homes:  # levels to fly home at
-        floor = failsafe.return_floor_m(run.mission, homes, run.mission_time_s)
+    if stacked and run.mission.at_end == "rtl":  # levels to fly home at
+        homes = returning.home_heights(station, run)
+        if homes:
+            floor = failsafe.return_floor_m(run.mission, homes, run.mission_time_s)
     return commanding.hold_plan(
         run.orders,
         states,

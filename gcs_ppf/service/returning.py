@@ -50,7 +50,9 @@ async def return_home(station: Station, run: Run, circles: dict[int, holding.Hol
         if not unknown:
             break
         for vid in unknown:
-            await station.fleet.send(vid, commands.request_message(vid, commands.HOME_POSITION_ID))
+            await station.fleet.send(
+                vid, commands.request_message(vid, commands.MAVLINK_MSG_ID_HOME_POSITION)
+            )
         await confirmation.wait_until(
             lambda: all(home_of(station, run, vid) is not None for vid in ids), 1.0 / rate, 0.05
         )

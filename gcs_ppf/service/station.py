@@ -71,10 +71,13 @@ class Station:
 
     def rates_hz(self, mission: Mission) -> tuple[float, float]:
         """(ticks, positions) a vehicle second for ``mission``'s vehicles: the settings', or
-        where a radio carries them what fits it (``Fleet.stream_rate_hz``), the slowest's."""
-        heard = [v.id for v in mission.vehicles if v.id in self.fleet.by_id]
+        the slowest rate a vehicle's positions were asked for (less where a radio carries
+        it: ``Fleet.stream_rate_hz``)."""
+        wanted = self.settings.stream_rate_hz
+        asked = (self.fleet.by_id.get(v.id) for v in mission.vehicles)
         positions = min(
-            (self.fleet.stream_rate_hz(i) for i in heard), default=self.settings.stream_rate_hz
+            (v.stream_rate_hz for v in asked if v is not None and v.stream_rate_hz is not None),
+            default=wanted,
         )
         return min(self.settings.tick_hz, positions), positions
 
