@@ -30,6 +30,7 @@ from typing import Any, BinaryIO
 import serial_asyncio
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from gcs_ppf.datagrams import DatagramSocket
 from gcs_ppf.mavlink.codec import guard_stream_timestamps, signing_key_from_text
 from gcs_ppf.mavlink.enums import MAV_SEVERITY_WARNING
 from sitl.autopilot import Outbox
@@ -274,26 +275,21 @@ class _TcpClient(asyncio.Protocol):
             self.link.peers.remove(self.peer)
 
 
-class _UdpOut(asyncio.DatagramProtocol):
-    def __init__(self, link: VehicleLink) -> None:
-        self.link = link
-        self.peer: Peer | None = None
-
-    def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        self.transport: Any = transport  # a _SelectorDatagramTransport, not a DatagramTransport
-        self.peer = Peer(self.link, self._write, "udp-out")
-        self.link.peers.append(self.peer)
-
-    def _write(self, data: bytes) -> None:
-        with contextlib.suppress(OSError):
-            self.transport.sendto(data)
-
-    def datagram_received(self, data: bytes, addr: tuple[str | Any, int]) -> None:
-        if self.peer is not None:
-            self.link.receive(self.peer, data)
-
-    def error_received(self, exc: Exception) -> None:  # nobody listening yet: keep sending
-        pass
+async def _stream_udp(link: VehicleLink, out: tuple[str, int]) -> None:
+    """Stream ``link``'s vehicle to ``out`` from a socket of its own and take commands from
+    it, the whole backlog at each wake-up (``DatagramSocket``: read one datagram a wake-up,
+    the service's commands at ×10 came faster than the loop woke, and 4 in 10 were lost)."""
+    udp = await DatagramSocket.open(remote=out)
+    peer = Peer(link, udp.sendto, "udp-out")
+    link.peers.append(peer)
+    try:
+        while (batch := await udp.batches.get()) is not None:
+            for data, _ in batch:
+                link.receive(peer, data)
+    finally:
+        udp.close()
+        if peer in link.peers:
+            link.peers.remove(peer)
 
 
 class _SerialLine(asyncio.Protocol):
@@ -453,10 +449,8 @@ async def serve(
             )
             stack.push_async_callback(_close_server, server)
             if cfg.out is not None:
-                transport, _ = await loop.create_datagram_endpoint(
-                    functools.partial(_UdpOut, link), remote_addr=cfg.out
-                )
-                stack.callback(transport.close)
+                streaming = asyncio.create_task(_stream_udp(link, cfg.out))
+                stack.callback(streaming.cancel)
             ready(f"vehicle {ap.sysid}: tcp:{cfg.host}:{port}")
         lines = serial_lines(links, cfg.serial)
         serials = [

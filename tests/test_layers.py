@@ -88,9 +88,12 @@ LAYERS = (
             "gcs_ppf.guidance",
             "gcs_ppf.service",
             "gcs_ppf.tokens",
+            "gcs_ppf.datagrams",
         ),
         frozenset({"matplotlib", "api", "sitl"}),
     ),
+    # a UDP socket read a whole backlog at a time: the service's links and the SITL's
+    Layer("datagrams", ("gcs_ppf.datagrams",), ("gcs_ppf.datagrams",), frozenset({"api", "sitl"})),
     # zones from operators' files (GeoJSON, QGroundControl .plan): parsing only, pure
     Layer(
         "imports",
@@ -117,7 +120,12 @@ LAYERS = (
         ),
         frozenset(),
     ),
-    Layer("sitl", ("sitl",), (*CONTRACTS, "gcs_ppf.mavlink", "sitl"), frozenset({"api"})),
+    Layer(
+        "sitl",
+        ("sitl",),
+        (*CONTRACTS, "gcs_ppf.mavlink", "gcs_ppf.datagrams", "sitl"),
+        frozenset({"api"}),
+    ),
 )
 
 PROJECT = ("gcs_ppf", "sitl", "api")

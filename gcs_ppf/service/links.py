@@ -32,6 +32,7 @@ from typing import IO
 
 import serial_asyncio
 
+from gcs_ppf.datagrams import DatagramSocket
 from gcs_ppf.mavlink.ardupilot import GCS_COMPONENT_ID, GCS_SYSTEM_ID
 from gcs_ppf.mavlink.codec import Codec, MAVLinkMessage, message_id, signing_timestamp
 
@@ -188,24 +189,6 @@ class LinkStats:
 OnMessage = Callable[["MavlinkLink", MAVLinkMessage], None]
 
 
-class _Datagrams(asyncio.DatagramProtocol):
-    """Queues received datagrams; None in the queue means the socket closed."""
-
-    def __init__(self) -> None:
-        self.queue: asyncio.Queue[tuple[bytes, tuple[str, int]] | None] = asyncio.Queue()
-        self.errors = 0
-
-    def datagram_received(self, data: bytes, addr: tuple[str, int]) -> None:
-        self.queue.put_nowait((data, addr))
-
-    def error_received(self, exc: Exception) -> None:
-        # ICMP "port unreachable" after a send to a peer not listening (yet): not fatal.
-        self.errors += 1
-
-    def connection_lost(self, exc: Exception | None) -> None:
-        self.queue.put_nowait(None)
-
-
 class MavlinkLink:
     """One MAVLink link to one or more vehicles; see the module docstring."""
 
@@ -262,7 +245,7 @@ class MavlinkLink:
         self._traffic = [0, 0, 0, 0]
         # The live connection: set by a session, cleared when it ends.
         self._writer: asyncio.StreamWriter | None = None
-        self._udp: asyncio.DatagramTransport | None = None
+        self._udp: DatagramSocket | None = None
         self._peer: tuple[str, int] | None = None
         self._peers: dict[int, tuple[str, int]] = {}
         """``udpin``: each system's address, where it was last heard from (several vehicles
@@ -399,31 +382,30 @@ class MavlinkLink:
             self._drop_connection()
 
     async def _udp_session(self) -> bool:
-        loop = asyncio.get_running_loop()
         address = (self.url.host, self.url.port)
         if self.url.kind is LinkKind.UDP_IN:
-            transport, proto = await loop.create_datagram_endpoint(_Datagrams, local_addr=address)
+            udp = await DatagramSocket.open(local=address)
             self._peer = None
         else:
-            transport, proto = await loop.create_datagram_endpoint(_Datagrams, remote_addr=address)
+            udp = await DatagramSocket.open(remote=address)
             self._peer = address
-        self._udp = transport
+        self._udp = udp
         self._connected_once()
         heard = False
         try:
             while not self._closed:
-                item = await proto.queue.get()
-                if item is None:
+                batch = await udp.batches.get()
+                if batch is None:
                     return heard
-                data, addr = item
-                start = time.perf_counter()
-                messages = self._codec.parse_datagram(data)
-                if self.url.kind is LinkKind.UDP_IN:
-                    self._peer = addr  # answer whoever spoke last...
-                    for msg in messages:  # ...and each system where it speaks from
-                        self._peers[int(msg.get_srcSystem())] = addr
-                heard = self._received(messages, len(data)) or heard
-                self.receiving_s += time.perf_counter() - start
+                for data, addr in batch:
+                    start = time.perf_counter()
+                    messages = self._codec.parse_datagram(data)
+                    if self.url.kind is LinkKind.UDP_IN:
+                        self._peer = addr  # answer whoever spoke last...
+                        for msg in messages:  # ...and each system where it speaks from
+                            self._peers[int(msg.get_srcSystem())] = addr
+                    heard = self._received(messages, len(data)) or heard
+                    self.receiving_s += time.perf_counter() - start
             return heard
         finally:
             self._drop_connection()
