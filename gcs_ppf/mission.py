@@ -259,13 +259,33 @@ def zone_clearances_m(
     return out
 
 
+class Loiter(_Strict):
+    """Circles the leader flies round a waypoint once it has reached it, before the next
+    leg, as ArduPlane's ``MAV_CMD_NAV_LOITER_TURNS`` and ``_TIME``: ``turns`` whole circles
+    or ``time_s`` seconds (one of the two), on a circle of ``radius_m`` about the
+    waypoint at its altitude, clockwise seen from above unless ``clockwise`` is false."""
+
+    radius_m: PositiveFloat
+    turns: PositiveFloat | None = None
+    time_s: PositiveFloat | None = None
+    clockwise: bool = True
+
+    @model_validator(mode="after")
+    def _turns_or_time(self) -> Loiter:
+        if (self.turns is None) == (self.time_s is None):
+            raise ValueError("turns: give exactly one of turns and time_s")
+        return self
+
+
 class Waypoint(_Strict):
     """A point of the leader's route, reached when the leader passes within
     ``acceptance_radius`` of it or crosses the line through it square to the leg (as
-    ArduPlane's WP_RADIUS and its finish line)."""
+    ArduPlane's WP_RADIUS and its finish line); with a ``loiter``, the leg ends once its
+    circles are flown."""
 
     position: Vec3
     acceptance_radius: PositiveFloat = 100.0
+    loiter: Loiter | None = None
 
 
 def _distance(a: Sequence[float], b: Sequence[float]) -> float:
@@ -359,6 +379,13 @@ def mission_problems(mission: Mission) -> list[str]:
                     f"route[{w}].position: inside obstacles[{j}] "
                     f"(closer than radius + limits.safe_distance_obstacle)"
                 )
+    tightest_m = lim.v_min / min(lim.max_yaw_rate, lim.max_pitch_rate)
+    for w, wp in enumerate(mission.route):
+        if wp.loiter is not None and wp.loiter.radius_m < tightest_m:
+            problems.append(
+                f"route[{w}].loiter.radius_m: {wp.loiter.radius_m:g} m is tighter than the "
+                f"leader turns at limits.v_min ({tightest_m:.1f} m)"
+            )
 
     problems += _zone_problems(mission)
 

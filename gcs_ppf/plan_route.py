@@ -4,8 +4,12 @@
 Each ``MAV_CMD_NAV_WAYPOINT`` (16) item is a waypoint, in order: its acceptance radius is
 the item's param2 (0: the route's default, 100 m), its position the item's lat/lon and
 altitude (``frame`` 3, above the plan's home, or 0, above mean sea level) in the mission's
-ICS.  The last is the target, the others the route.  Items that are not places to fly
-through — takeoff, land, RTL, loiters, ``DO_`` commands — are left out and named; a
+ICS.  ``MAV_CMD_NAV_LOITER_TURNS`` (18) and ``_LOITER_TIME`` (19) are waypoints with a
+loiter: param1 turns or seconds, param3 the radius (negative: anticlockwise; 0:
+ArduPlane's default WP_LOITER_RAD, 60 m).  The last is the target (a loiter there is
+refused: the formation's end is ``at_end``), the others the route.  Items that are not
+places to fly through — takeoff, land, RTL, unlimited loiters, ``DO_`` commands — are
+left out and named; a
 ``ComplexItem`` (a survey, a corridor) and terrain-relative altitudes are refused.  Every
 error names the item (``mission.items[k]``); nothing is half read.
 """
@@ -16,9 +20,13 @@ from dataclasses import dataclass
 from typing import Any
 
 from gcs_ppf.geodesy import geodetic_to_enu
-from gcs_ppf.mission import Origin, Waypoint
+from gcs_ppf.mission import Loiter, Origin, Waypoint
 
 NAV_WAYPOINT = 16
+NAV_LOITER_TURNS = 18
+NAV_LOITER_TIME = 19
+DEFAULT_LOITER_RADIUS_M = 60.0
+"""ArduPlane's WP_LOITER_RAD default: a loiter item's radius when its param3 is 0."""
 FRAME_GLOBAL = 0  # altitude above mean sea level
 FRAME_RELATIVE = 3  # altitude above the plan's home
 DEFAULT_ACCEPTANCE_M = 100.0
@@ -60,7 +68,7 @@ def route_from_plan(doc: Any, origin: Origin) -> PlanRoute:
             kind = item.get("type") if isinstance(item, dict) else item
             raise RouteImportError(f"{where}.type: {kind!r} is not a SimpleItem waypoint")
         command = item.get("command")
-        if command != NAV_WAYPOINT:
+        if command not in (NAV_WAYPOINT, NAV_LOITER_TURNS, NAV_LOITER_TIME):
             left_out.append((k, int(command) if isinstance(command, int) else -1))
             continue
         params = item.get("params")
@@ -82,13 +90,31 @@ def route_from_plan(doc: Any, origin: Origin) -> PlanRoute:
             )
         if not (-90.0 <= lat <= 90.0 and -180.0 <= lon <= 180.0):
             raise RouteImportError(f"{where}.params: latitude {lat}, longitude {lon} off the Earth")
-        radius = _number(f"{where}.params[1]", params[1] if params[1] is not None else 0.0)
         x, y, z = geodetic_to_enu(lat, lon, alt, origin)
-        points.append(
-            Waypoint(
-                position=(x, y, z), acceptance_radius=radius if radius > 0 else DEFAULT_ACCEPTANCE_M
-            )
-        )
+        if command == NAV_WAYPOINT:
+            radius = _number(f"{where}.params[1]", params[1] if params[1] is not None else 0.0)
+            accept = radius if radius > 0 else DEFAULT_ACCEPTANCE_M
+            points.append(Waypoint(position=(x, y, z), acceptance_radius=accept))
+        else:
+            points.append(Waypoint(position=(x, y, z), loiter=_loiter(where, command, params)))
     if not points:
         raise RouteImportError("mission.items: no waypoint (MAV_CMD_NAV_WAYPOINT) in the plan")
+    if points[-1].loiter is not None:
+        raise RouteImportError(
+            "mission.items: the last place is a loiter; the target is flown to, and the "
+            "formation's end is the mission's at_end"
+        )
     return PlanRoute(points[:-1], points[-1].position, left_out)
+
+
+def _loiter(where: str, command: int, params: list[Any]) -> Loiter:
+    """A loiter item's circles: param1 turns (18) or seconds (19), param3 the radius."""
+    amount = _number(f"{where}.params[0]", params[0])
+    if amount <= 0:
+        what = "turns" if command == NAV_LOITER_TURNS else "seconds"
+        raise RouteImportError(f"{where}.params[0]: {what} must be > 0, got {amount:g}")
+    radius = _number(f"{where}.params[2]", params[2] if params[2] is not None else 0.0)
+    size = abs(radius) if radius != 0 else DEFAULT_LOITER_RADIUS_M
+    if command == NAV_LOITER_TURNS:
+        return Loiter(radius_m=size, turns=amount, clockwise=radius >= 0)
+    return Loiter(radius_m=size, time_s=amount, clockwise=radius >= 0)

@@ -17,7 +17,7 @@ from gcs_ppf.guidance.airframe import Airframe, guard_tuning, tick_envelope
 from gcs_ppf.guidance.online import Guidance, VehicleState, guidance, scene_now
 from gcs_ppf.guidance.speed_reference import follows_speed_plan
 from gcs_ppf.mission import Mission
-from gcs_ppf.planning.route import Leg
+from gcs_ppf.planning.route import Leg, loiter_point
 from gcs_ppf.planning.scene import Obstacles
 
 
@@ -96,7 +96,8 @@ def plan(
     leg: Leg | None = None,
 ) -> tuple[Guidance, list[Airframe]]:
     """The guidance for the ``active`` vehicles, and their airframes in its order, the
-    leader flying the route's ``leg`` (None: straight to the target).
+    leader flying the route's ``leg`` (None: straight to the target; a leg that ends in a
+    loiter, round its circle: ``route.loiter_point``).
 
     ``lagging_s`` (the telemetry interval and the measured lag, vehicle seconds) is what the
     planning margin and the guard's margins must cover (``gcs_ppf.guidance.airframe``)."""
@@ -123,7 +124,12 @@ def plan(
         teammate_margin_m=teammate_margin_m(mission, margin),
     )
     if leg is not None:
-        scene = replace(scene, target=leg.end_m)
+        leader = states.get(mission.leader.id)
+        if leg.loiter is not None and leader is not None:  # steered round the circle
+            target = loiter_point(leg, np.array(leader.pos_m, dtype=float))
+        else:
+            target = leg.end_m
+        scene = replace(scene, target=target)
     g = guidance(
         scene,
         lookahead_s=tuning.lookahead_s,

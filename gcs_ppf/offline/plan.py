@@ -16,7 +16,7 @@ import numpy as np
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.metrics import FlightContext, compute_metrics
 from gcs_ppf.planning.planner import Method, Trajectory, advance, initial_record
-from gcs_ppf.planning.route import legs
+from gcs_ppf.planning.route import Loitering, legs, loiter_point
 from gcs_ppf.planning.scene import FloatArray, Scene, scene_from_mission
 
 Progress = Callable[[float], None]  # called with the flight time planned so far
@@ -81,8 +81,11 @@ def plan_mission(
     state, t, steps, wall, arrived = scene, 0.0, 0, 0.0, False
     leg, leg_times = route[0], []
     state = replace(state, target=leg.end_m)
+    loiter = Loitering(state.fleet.pos[0].copy()) if leg.loiter else None
     while steps < total_steps and not arrived:
-        n = min(PROGRESS_CHUNKS * chunk, total_steps - steps)
+        n = min((1 if loiter else PROGRESS_CHUNKS) * chunk, total_steps - steps)
+        if loiter is not None:  # steered a little ahead on the circle, one chunk at a time
+            state = replace(state, target=loiter_point(leg, state.fleet.pos[0]))
         start = time.perf_counter()
         result = advance(
             state,
@@ -91,18 +94,22 @@ def plan_mission(
             method=method,
             t0=t,
             chunk_steps=chunk,
-            goal_radius_m=leg.radius_m,
-            finish_normal=leg.finish_normal,
+            goal_radius_m=0.0 if loiter else leg.radius_m,
+            finish_normal=None if loiter else leg.finish_normal,
         )
         wall += time.perf_counter() - start
         parts.append(result.trajectory)
         state, arrived = result.scene, result.arrived
         steps += result.steps
         t = result.t_s
+        if loiter is not None and leg.loiter is not None:
+            loiter = loiter.on(leg, result.trajectory.pos[:, 0], t)
+            arrived = loiter.flown(leg.loiter, t)
         if arrived and not leg.final:  # on to the next leg
             leg_times.append(round(t, 3))
             leg, arrived = route[leg.index + 1], False
             state = replace(state, target=leg.end_m)
+            loiter = Loitering(state.fleet.pos[0].copy()) if leg.loiter else None
         if progress is not None:
             progress(t)
     trajectory = Trajectory.concatenate(parts)

@@ -5,6 +5,13 @@ target.  Leg k ends at waypoint k (the last leg at the target).  A leg is flown 
 leader passes within the waypoint's acceptance radius or, as ArduPlane counts a waypoint
 passed wide, crosses its finish line: the vertical plane through the waypoint square to
 the leg.  The target has no finish line: it is reached within the target accuracy.
+
+A waypoint with a loiter (``Waypoint.loiter``) ends its leg once the leader has flown its
+circles round it, as ArduPlane flies ``NAV_LOITER_TURNS``: from the leg's start the leader
+is steered to a point on the circle a little ahead of it (``loiter_point``), which brings
+it onto the circle along a tangent; the turns are counted by the angle it sweeps round the
+waypoint while on the circle (``swept_rad``), the time from when it first came onto it.
+The waypoint's acceptance radius does not apply.
 """
 
 from __future__ import annotations
@@ -14,21 +21,31 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs_ppf.mission import Mission
-from gcs_ppf.planning.scene import FloatArray
+from gcs_ppf.mission import Loiter, Mission
+from gcs_ppf.planning.scene import FloatArray, kernel_limits
+from gcs_ppf.planning.turns import turn_envelope
+
+LOITER_LEAD_RAD = math.radians(30.0)
+"""How far round the circle, ahead of the leader, the point it is steered to lies."""
+ON_CIRCLE = 0.25
+"""The leader is on the circle within this fraction of its radius of it."""
 
 
 @dataclass(frozen=True)
 class Leg:
     """One leg of the route: from ``start_m`` to ``end_m`` (ICS), reached within
     ``radius_m`` or across the plane through ``end_m`` square to ``finish_normal``
-    (horizontal unit vector along the leg; zeros for the target's leg)."""
+    (horizontal unit vector along the leg; zeros for the target's leg); ``loiter``, the
+    circles flown round ``end_m`` once it is reached, on a circle of ``loiter_radius_m``
+    (its radius, or the tightest turn the formation holds if that is wider)."""
 
     index: int
     start_m: FloatArray
     end_m: FloatArray
     radius_m: float
     finish_normal: FloatArray
+    loiter: Loiter | None = None
+    loiter_radius_m: float = 0.0
 
     @property
     def final(self) -> bool:
@@ -36,16 +53,26 @@ class Leg:
 
 
 def legs(mission: Mission) -> list[Leg]:
-    """The route's legs in order, from the leader's start; one leg without a route."""
+    """The route's legs in order, from the leader's start; one leg without a route.  A
+    loiter is flown no tighter than the formation turns in formation (``turns``) when
+    the leader holds its turns to that."""
+    held_m = 0.0
+    if mission.holds_turns and mission.wingmen:
+        slots = np.array([w.slot for w in mission.wingmen], dtype=float)
+        held_m = turn_envelope(slots, kernel_limits(mission.limits, mission.ground)).turn_radius_m
     points = [np.array(w.position, dtype=float) for w in mission.route]
     radii = [w.acceptance_radius for w in mission.route]
+    loiters = [w.loiter for w in mission.route]
     points.append(np.array(mission.target, dtype=float))
     radii.append(mission.limits.target_accuracy)
+    loiters.append(None)
     out: list[Leg] = []
     start = np.array(mission.leader.position, dtype=float)
-    for k, (end, radius) in enumerate(zip(points, radii, strict=True)):
+    for k, (end, radius, loiter) in enumerate(zip(points, radii, loiters, strict=True)):
         final = k == len(points) - 1
-        out.append(Leg(k, start, end, radius, np.zeros(3) if final else _along(start, end)))
+        normal = np.zeros(3) if final else _along(start, end)
+        circle_m = 0.0 if loiter is None else max(loiter.radius_m, held_m)
+        out.append(Leg(k, start, end, radius, normal, loiter, circle_m))
         start = end
     return out
 
@@ -74,3 +101,65 @@ def leg_flown(leg: Leg, previous_m: FloatArray | None, position_m: FloatArray) -
         return False
     n = leg.finish_normal
     return bool(float((previous_m - end) @ n) < 0.0 <= float((position_m - end) @ n))
+
+
+def loiter_point(leg: Leg, position_m: FloatArray) -> FloatArray:
+    """Where the leader loitering round ``leg``'s end is steered: on the circle,
+    ``LOITER_LEAD_RAD`` round from its own bearing from the centre in the direction of
+    circling, at the centre's altitude (from the centre itself, along the leg)."""
+    assert leg.loiter is not None
+    c = leg.end_m
+    dx, dy = float(position_m[0] - c[0]), float(position_m[1] - c[1])
+    if math.hypot(dx, dy) < 1e-6:
+        dx, dy = float(leg.finish_normal[0]), float(leg.finish_normal[1])
+    lead = -LOITER_LEAD_RAD if leg.loiter.clockwise else LOITER_LEAD_RAD  # ENU: x east, y north
+    a = math.atan2(dy, dx) + lead
+    r = leg.loiter_radius_m
+    return np.array([c[0] + r * math.cos(a), c[1] + r * math.sin(a), c[2]])
+
+
+def on_circle(leg: Leg, position_m: FloatArray) -> bool:
+    """Whether the leader is on ``leg``'s loiter circle (within ``ON_CIRCLE`` of its radius,
+    horizontally)."""
+    d = math.hypot(float(position_m[0] - leg.end_m[0]), float(position_m[1] - leg.end_m[1]))
+    return abs(d - leg.loiter_radius_m) <= ON_CIRCLE * leg.loiter_radius_m
+
+
+def swept_rad(leg: Leg, previous_m: FloatArray, position_m: FloatArray) -> float:
+    """The angle the leader swept round ``leg``'s end from ``previous_m`` to ``position_m``
+    in the loiter's direction (negative the other way); 0 unless both are on the circle
+    (``on_circle``)."""
+    assert leg.loiter is not None
+    if not (on_circle(leg, previous_m) and on_circle(leg, position_m)):
+        return 0.0
+    a, b = previous_m[:2] - leg.end_m[:2], position_m[:2] - leg.end_m[:2]
+    turn = math.atan2(float(a[0] * b[1] - a[1] * b[0]), float(a @ b))  # anticlockwise
+    return -turn if leg.loiter.clockwise else turn
+
+
+@dataclass(frozen=True)
+class Loitering:
+    """A loiter leg under way: the leader's last position, when it first came onto the
+    circle (mission time; None: not yet) and the angle swept round the waypoint since
+    (``swept_rad``)."""
+
+    last_m: FloatArray
+    began_s: float | None = None
+    swept: float = 0.0
+
+    def on(self, leg: Leg, path_m: FloatArray, t_s: float) -> Loitering:
+        """After the leader flew through ``path_m`` ([K,3], in order) to mission time
+        ``t_s``."""
+        swept, last, began = self.swept, self.last_m, self.began_s
+        for position in path_m:
+            swept += swept_rad(leg, last, position)
+            if began is None and on_circle(leg, position):
+                began = t_s
+            last = position
+        return Loitering(np.array(last, dtype=float), began, swept)
+
+    def flown(self, loiter: Loiter, t_s: float) -> bool:
+        """Whether it is done at mission time ``t_s``: its turns swept, or its time out."""
+        if loiter.turns is not None:
+            return self.swept >= 2.0 * math.pi * loiter.turns
+        return self.began_s is not None and t_s - self.began_s >= (loiter.time_s or 0.0)

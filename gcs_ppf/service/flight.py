@@ -32,7 +32,7 @@ from gcs_ppf.guidance.tick_plan import traffic_radius_m
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_HEADING
 from gcs_ppf.planning import succession
-from gcs_ppf.planning.route import leg_flown
+from gcs_ppf.planning.route import Loitering, leg_flown
 from gcs_ppf.planning.scene import FloatArray, Obstacles, obstacles_from_mission
 from gcs_ppf.service import commanding, launch, vehicle_fences
 from gcs_ppf.service.ending import end, hold_during_launch
@@ -533,11 +533,29 @@ def follow_route(
     station: Station, run: Run, previous: FloatArray | None, leader_pos: FloatArray
 ) -> None:
     """On to the route's next leg once the leader, as reported, has flown this one
-    (``route.leg_flown``): a ``waypoint_reached`` event with the waypoint's index."""
+    (``route.leg_flown``; a leg that ends in a loiter, once its circles are flown:
+    ``route.Loitering``): a ``waypoint_reached`` event with the waypoint's index, and
+    ``loiter_began`` when the leader comes onto a loiter's circle."""
     leg = run.legs[run.leg]
-    if leg.final or not leg_flown(leg, previous, leader_pos):
+    if leg.final:
+        return
+    if leg.loiter is not None:
+        was = run.loitering or Loitering(leader_pos if previous is None else previous)
+        run.loitering = was.on(leg, leader_pos[None], run.mission_time_s)
+        if was.began_s is None and run.loitering.began_s is not None:
+            station.event(
+                run,
+                "loiter_began",
+                run.mission.leader.id,
+                waypoint=leg.index,
+                radius_m=round(leg.loiter_radius_m, 1),
+            )
+        if not run.loitering.flown(leg.loiter, run.mission_time_s):
+            return
+    elif not leg_flown(leg, previous, leader_pos):
         return
     run.leg += 1
+    run.loitering = None
     run.waypoint_times_s.append(round(run.mission_time_s, 3))
     distance_m = round(float(np.linalg.norm(leader_pos - leg.end_m)), 1)
     station.event(

@@ -4,6 +4,7 @@ the API's status; with the small geometric rules the service's tick applies."""
 from __future__ import annotations
 
 import asyncio
+import math
 from collections import deque
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -17,7 +18,7 @@ from gcs_ppf.guidance.online import Guidance
 from gcs_ppf.guidance.speed_reference import SpeedPlan
 from gcs_ppf.mavlink.fences import FenceItem
 from gcs_ppf.mission import Mission
-from gcs_ppf.planning.route import Leg, legs
+from gcs_ppf.planning.route import Leg, Loitering, legs
 from gcs_ppf.planning.zones import Zones, zones_from_mission
 from gcs_ppf.service import commanding
 from gcs_ppf.service.store import StoredRun
@@ -97,8 +98,12 @@ class Run:
     """The leader's route, leg by leg (``gcs_ppf.planning.route``); one leg without one."""
     leg: int = 0
     """The leg the leader flies now (an index into ``legs``)."""
+    loitering: Loitering | None = None
+    """The loiter of a leg that ends in one, as far as it is flown (None: not begun); a
+    run resumed flies it anew."""
     waypoint_times_s: list[float] = field(default_factory=list)
-    """Mission time at which each waypoint of the route was reached."""
+    """Mission time at which each waypoint of the route was reached (one with a loiter:
+    its circles flown)."""
     formation: FormationWatch = field(init=False)
     """The formation flown (``guidance.formation_watch``): each wingman's slot error from
     the reported positions every tick, formed or broken, the run's formation figures."""
@@ -263,13 +268,26 @@ def nearest_row(nearest: tuple[str | None, float | None]) -> dict[str, Any]:
 
 
 def leg_status(run: Run) -> dict[str, Any]:
-    """The leg of the route the leader flies: its index, of how many, where it ends."""
+    """The leg of the route the leader flies: its index, of how many, where it ends; with a
+    loiter, its circle and how far it is flown (``loiter``; None without one)."""
     leg = run.legs[run.leg]
+    loiter: dict[str, Any] | None = None
+    if leg.loiter is not None:
+        going = run.loitering
+        loiter = {
+            "radius_m": round(leg.loiter_radius_m, 1),
+            "clockwise": leg.loiter.clockwise,
+            "turns": leg.loiter.turns,
+            "time_s": leg.loiter.time_s,
+            "on_circle": going is not None and going.began_s is not None,
+            "turns_flown": 0.0 if going is None else round(going.swept / (2.0 * math.pi), 2),
+        }
     return {
         "index": leg.index,
         "of": len(run.legs),
         "to_m": [round(float(c), 2) for c in leg.end_m],
         "final": leg.final,
+        "loiter": loiter,
         "waypoint_times_s": list(run.waypoint_times_s),
     }
 

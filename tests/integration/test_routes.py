@@ -14,7 +14,7 @@ import pytest
 from gcs_ppf.geodesy import geodetic_to_enu
 from gcs_ppf.guidance import failsafe
 from gcs_ppf.mission import Mission
-from gcs_ppf.planning.route import leg_flown, legs
+from gcs_ppf.planning.route import Loitering, leg_flown, legs, on_circle
 from gcs_ppf.tools.demo import http_json as http
 from gcs_ppf.tools.observer import resample
 from tests.checks import wait_for
@@ -123,3 +123,44 @@ def test_a_mission_that_ends_in_rtl_brings_every_vehicle_home_over_every_keep_ou
     lim = flight.mission.limits
     assert separation >= lim.safe_distance_uav
     assert clearance >= lim.safe_distance_obstacle
+
+
+@pytest.mark.integration
+@pytest.mark.campaign
+def test_a_loiter_at_a_waypoint_is_flown_round_it_in_formation(tmp_path: Path) -> None:
+    """``arduplane_route_loiter_3``: one clockwise turn round the first waypoint on a 632 m
+    circle (the tightest this formation holds), then on.  The leader's own track sweeps the
+    one turn round the waypoint on the circle between ``loiter_began`` and
+    ``waypoint_reached`` (the leader's clock); the run is safe.  In ``make
+    campaign-check``: ``make test`` is near its time budget."""
+    doc = json.loads((EXAMPLES / "arduplane_route_loiter_3.json").read_text())
+    seen: dict[str, Any] = {}
+
+    def read_back(api: str, mission_id: int) -> None:
+        seen["events"] = http("GET", f"{api}/missions/{mission_id}/events")
+
+    flight = fly(tmp_path, doc, after=read_back)
+    assert flight.final["state"] == "completed", flight.final
+    check_safety(flight)
+    status, events = seen["events"]
+    assert status == 200
+    kinds = [(e["kind"], e["detail"]["waypoint"]) for e in events
+             if e["kind"] in ("loiter_began", "waypoint_reached")]  # fmt: skip
+    assert kinds == [("loiter_began", 0), ("waypoint_reached", 0), ("waypoint_reached", 1)]
+    zero_s = next(e for e in events if e["kind"] == "run_running")["detail"]["leader_clock_zero_s"]
+    began_s, done_s = (next(e["mission_time_s"] for e in events if e["kind"] == kind)
+                       for kind in ("loiter_began", "waypoint_reached"))  # fmt: skip
+
+    leg = legs(flight.mission)[0]
+    track = flight.tracks[flight.mission.leader.id]  # on the leader's clock
+    during = (track[:, 0] >= zero_s + began_s - 0.5) & (track[:, 0] <= zero_s + done_s + 0.5)
+    flown = track[during, 1:4]
+    loiter = Loitering(flown[0]).on(leg, flown[1:], 0.0)
+    turns = loiter.swept / (2 * np.pi)
+    on = [on_circle(leg, p) for p in flown]
+    radii = np.hypot(*(flown[on, :2] - leg.end_m[:2]).T)
+    print(
+        f"\nloiter: {turns:.2f} turns swept by the observer's leader track, radius "
+        f"{np.median(radii):.0f} m (asked {leg.loiter_radius_m:.0f} m)"
+    )
+    assert 0.97 <= turns <= 1.2

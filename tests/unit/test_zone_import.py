@@ -207,11 +207,36 @@ def test_a_plans_waypoints_are_the_route_and_the_last_the_target() -> None:
     assert flown.left_out == [(0, 22), (2, 178)]
 
 
+def test_a_plans_loiter_items_are_waypoints_with_a_loiter() -> None:
+    """LOITER_TURNS (18) and LOITER_TIME (19): param1 turns or seconds, param3 the radius,
+    negative anticlockwise, 0 ArduPlane's WP_LOITER_RAD (60 m); an unlimited loiter (17) is
+    left out."""
+    turns = {
+        **item(18, 3000, 2000, 300),
+        "params": [2, 0, -800, None, *item(18, 3000, 2000, 300)["params"][4:]],
+    }
+    timed = {
+        **item(19, 4000, 3000, 300),
+        "params": [45, 0, 0, None, *item(19, 4000, 3000, 300)["params"][4:]],
+    }
+    flown = route_from_plan(plan(turns, item(17), timed, item(16, 6000, 7000, 300)), TABLE3.origin)
+    first, second = (w.loiter for w in flown.route)
+    assert first is not None
+    assert (first.turns, first.time_s, first.radius_m, first.clockwise) == (2, None, 800, False)
+    assert second is not None
+    assert (second.turns, second.time_s, second.radius_m, second.clockwise) == (None, 45, 60, True)
+    assert flown.left_out == [(1, 17)]
+
+
 @pytest.mark.parametrize(
     ("items", "named"),
     [
         ([item(22)], "mission.items: no waypoint"),
         ([item(16, 10, 10, 300, frame=10)], "mission.items[0].frame: 10"),
+        ([item(16), {**item(18), "params": [1, 0, 0, None, *item(18)["params"][4:]]}],
+         "mission.items: the last place is a loiter"),
+        ([{**item(18), "params": [0, 0, 0, None, *item(18)["params"][4:]]}, item(16)],
+         "mission.items[0].params[0]: turns must be > 0"),
         ([item(16), {"type": "ComplexItem", "complexItemType": "survey"}],
          "mission.items[1].type: 'ComplexItem'"),
         ([{**item(16), "params": [0, 0, 0, None, "north", 8.5, 100]}],

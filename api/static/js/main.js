@@ -291,7 +291,9 @@ function updateHeader(scene) {
   pill.dataset.state = run ? run.state : "none";
   pill.textContent = run ? `mission ${run.mission_id}: ${run.state}` : "no run";
   pill.title = run && run.outcome ? run.outcome : "";
-  const leg = run && run.leg && run.leg.of > 1 ? ` · leg ${run.leg.index + 1}/${run.leg.of}` : "";
+  const loiter = run && run.leg && run.leg.loiter && run.leg.loiter.on_circle
+    ? `, loitering ${run.leg.loiter.turns_flown.toFixed(1)}${run.leg.loiter.turns ? `/${run.leg.loiter.turns}` : ""} turns` : "";
+  const leg = run && run.leg && run.leg.of > 1 ? ` · leg ${run.leg.index + 1}/${run.leg.of}${loiter}` : "";
   $("mission-time").textContent = run && run.mission_time_s !== undefined ? `${run.mission_time_s.toFixed(1)} s${leg}` : "–";
   const lim = scene.limits;
   const active = run && ACTIVE.has(run.state);

@@ -443,6 +443,14 @@ export class TopView {
         ctx.font = font(12);
         ctx.textAlign = "left";
         ctx.fillText(`WP${j + 1}`, x + 8 * dpr, y - 6 * dpr);
+        if (w.loiter && w.loiter.radius_m > 0) { // its loiter circle (as asked; flown no tighter than the formation turns)
+          ctx.lineWidth = (s.leg === j ? 2 : 1) * dpr;
+          ctx.setLineDash([2 * dpr, 4 * dpr]);
+          ctx.beginPath();
+          ctx.arc(x, y, w.loiter.radius_m * k, 0, 2 * Math.PI);
+          ctx.stroke();
+          ctx.setLineDash([]);
+        }
       });
     }
 

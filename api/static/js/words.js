@@ -14,6 +14,7 @@ const WORDS = {
   run_resumed: (e) => `Run RESUMED: ${v(e)} leads, leg ${d(e).leg}${(d(e).lost || []).length ? `, lost ${d(e).lost.join(", ")}` : ""}`,
   formation_formed: () => "Formation formed: every wingman at its slot",
   formation_broken: () => "Formation broken",
+  loiter_began: (e) => `Loitering round waypoint ${d(e).waypoint + 1} (radius ${d(e).radius_m} m)`,
   waypoint_reached: (e) => `Waypoint ${d(e).waypoint + 1} reached (${d(e).distance_m} m off): leg ${d(e).waypoint + 2} of ${d(e).legs}`,
   avoidance_entered: (e) => `${v(e)} avoiding (inside an influence sphere)`,
   avoidance_left: (e) => `${v(e)} clear again`,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -17,7 +18,7 @@ from gcs_ppf.offline.plan import plan_mission
 from gcs_ppf.planning.metrics import local_target_points
 from gcs_ppf.planning.planner import Trajectory
 from gcs_ppf.planning.ppf.primitives import KernelLimits, inside_turn
-from gcs_ppf.planning.route import leg_flown, legs
+from gcs_ppf.planning.route import Leg, Loitering, leg_flown, legs, loiter_point, on_circle
 from gcs_ppf.planning.scene import FloatArray, scene_from_mission
 from gcs_ppf.planning.turns import slot_turn_rates, turn_envelope
 
@@ -217,3 +218,106 @@ def test_a_point_inside_the_turn_circle_is_one_no_turn_at_that_rate_reaches() ->
     assert not inside_turn(0.0, 0.0, 1.0, 0.0, 20.0, 0.05, 2000.0, 300.0)
     assert not inside_turn(0.0, 0.0, 1.0, 0.0, 20.0, 0.05, -900.0, 0.0)  # behind, outside both
     assert not inside_turn(0.0, 0.0, 1.0, 0.0, 20.0, math.inf, 100.0, 300.0)
+
+
+def loiter_leg(clockwise: bool = True, turns: float | None = 1.0) -> Leg:
+    time_s = None if turns is not None else 30.0
+    doc = route_doc(
+        [
+            {
+                "position": [0.0, 2000.0, 150.0],
+                "loiter": {"radius_m": 700.0, "turns": turns, "time_s": time_s,
+                           "clockwise": clockwise},
+            }
+        ],
+        [0.0, 4000.0, 150.0],
+    )  # fmt: skip
+    return legs(load_mission(json.dumps(doc)))[0]
+
+
+def test_the_point_a_loiter_steers_to_lies_ahead_on_its_circle() -> None:
+    """Clockwise seen from above: from due east of the centre the point lies 30° round
+    towards the south; anticlockwise, towards the north; at the centre's altitude."""
+    for clockwise, sign in ((True, -1.0), (False, 1.0)):
+        leg = loiter_leg(clockwise)
+        c = leg.end_m
+        p = loiter_point(leg, c + np.array([650.0, 0.0, -40.0]))
+        a = math.radians(30.0) * sign
+        assert np.allclose(p, c + 700.0 * np.array([math.cos(a), math.sin(a), 0.0]))
+
+
+def test_a_loiter_counts_the_turns_swept_on_its_circle_only() -> None:
+    """Round the circle clockwise: a full turn counts 2π and ends a one-turn loiter;
+    flown the other way it counts back; nothing counts off the circle."""
+    leg = loiter_leg(clockwise=True)
+    c = leg.end_m
+    ring = [c + 700.0 * np.array([math.cos(-a), math.sin(-a), 0.0])
+            for a in np.linspace(0.0, 2.0 * math.pi, 73)]  # fmt: skip
+    going = Loitering(ring[0]).on(leg, np.array(ring[1:]), 50.0)
+    assert going.swept == pytest.approx(2.0 * math.pi)
+    assert going.began_s == 50.0
+    assert leg.loiter is not None
+    assert going.flown(leg.loiter, 50.0)
+    back = Loitering(ring[-1]).on(leg, np.array(ring[::-1][1:]), 50.0)
+    assert back.swept == pytest.approx(-2.0 * math.pi)
+    assert not back.flown(leg.loiter, 50.0)
+    inside = Loitering(c).on(leg, np.array([0.3 * (r - c) + c for r in ring]), 50.0)
+    assert inside.swept == 0.0
+    assert inside.began_s is None
+
+
+def test_a_timed_loiter_counts_from_when_the_leader_came_onto_its_circle() -> None:
+    leg = loiter_leg(turns=None)
+    assert leg.loiter is not None
+    c = leg.end_m
+    far = Loitering(c + np.array([0.0, -2000.0, 0.0])).on(
+        leg, (c + np.array([0.0, -1500.0, 0.0]))[None], 10.0
+    )
+    assert far.began_s is None
+    assert not far.flown(leg.loiter, 100.0)
+    on = far.on(leg, (c + np.array([0.0, -700.0, 0.0]))[None], 20.0)
+    assert on.began_s == 20.0
+    assert not on.flown(leg.loiter, 49.0)
+    assert on.flown(leg.loiter, 50.0)
+
+
+def test_a_loiter_is_flown_no_tighter_than_the_formation_turns() -> None:
+    """The ArduPlane formation holds its turns at 632 m at its cruise speed: a 400 m loiter
+    is flown on that circle, a 700 m one on its own."""
+    doc = json.loads((EXAMPLES / "arduplane_route_loiter_3.json").read_text())
+    m = load_mission(json.dumps(doc))
+    held = turn_envelope(
+        np.array([w.slot for w in m.wingmen], dtype=float), scene_from_mission(m).limits
+    ).turn_radius_m
+    doc["route"][0]["loiter"]["radius_m"] = 400.0
+    assert legs(load_mission(json.dumps(doc)))[0].loiter_radius_m == pytest.approx(held)
+    doc["route"][0]["loiter"]["radius_m"] = 700.0
+    assert legs(load_mission(json.dumps(doc)))[0].loiter_radius_m == 700.0
+
+
+def test_a_loiter_needs_turns_or_time_and_a_radius_the_leader_can_turn() -> None:
+    base = {"position": [0.0, 2000.0, 150.0]}
+    for loiter, field in (
+        ({"radius_m": 700.0}, "turns"),
+        ({"radius_m": 700.0, "turns": 1, "time_s": 20}, "turns"),
+        ({"radius_m": 20.0, "turns": 1}, "route[0].loiter.radius_m"),
+    ):
+        with pytest.raises(MissionError, match=re.escape(field)):
+            load_mission(json.dumps(route_doc([{**base, "loiter": loiter}], [0.0, 4000.0, 150.0])))
+
+
+def test_the_loiter_example_circles_its_waypoint_in_formation() -> None:
+    """Offline: the leader sweeps its one turn round the waypoint on the circle (within
+    ``ON_CIRCLE`` of its radius), in formation the whole loiter, then flies on."""
+    m = load_mission_file(EXAMPLES / "arduplane_route_loiter_3.json")
+    run = plan_mission(m)
+    assert run.arrived
+    tr = run.trajectory
+    leg = legs(m)[0]
+    end = int(np.searchsorted(tr.t, run.metrics["waypoint_times_s"][0]))
+    flown = Loitering(tr.pos[0, 0]).on(leg, tr.pos[1 : end + 1, 0], 0.0)
+    assert 2.0 * math.pi <= flown.swept <= 2.0 * math.pi + 0.2
+    began = int(np.argmax([on_circle(leg, p) for p in tr.pos[:, 0]]))
+    error = np.linalg.norm(tr.pos - local_target_points(tr, run.scene.fleet.slot), axis=-1)
+    in_formation = error[began:end, 1:].max(axis=1) <= m.limits.target_accuracy
+    assert in_formation.mean() >= 0.9
