@@ -35,6 +35,8 @@ class PlanRun:
     metrics: dict[str, Any]
     waypoints: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     """[W,3] the route's waypoints before the target (ICS)."""
+    loiter_radii_m: FloatArray = field(default_factory=lambda: np.zeros(0))
+    """[W] the circle each waypoint's loiter is flown on (0: none; ``Leg.loiter_radius_m``)."""
 
 
 PROGRESS_CHUNKS = 10  # chunks planned between two progress reports
@@ -119,4 +121,5 @@ def plan_mission(
     if mission.route:
         metrics["waypoint_times_s"] = leg_times
     waypoints = np.array([w.position for w in mission.route], dtype=float).reshape(-1, 3)
-    return PlanRun(method, dt, scene, trajectory, arrived, wall, metrics, waypoints)
+    radii = np.array([leg.loiter_radius_m for leg in route[:-1]], dtype=float)
+    return PlanRun(method, dt, scene, trajectory, arrived, wall, metrics, waypoints, radii)

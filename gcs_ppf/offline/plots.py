@@ -214,6 +214,11 @@ def paths_3d(run: PlanRun, path: Path) -> None:
         ax.plot(route[:, 0], route[:, 1], route[:, 2], color="red", ls=":", lw=1.0)
         w = run.waypoints
         ax.scatter(w[:, 0], w[:, 1], w[:, 2], color="red", marker="s", s=30, label="waypoints")
+        a = np.linspace(0.0, 2.0 * np.pi, 121)
+        for c, r in zip(w, run.loiter_radii_m, strict=False):
+            if r > 0.0:  # the circle a loiter is flown on
+                ax.plot(c[0] + r * np.cos(a), c[1] + r * np.sin(a), np.full_like(a, c[2]),
+                        color="red", ls=":", lw=0.8)  # fmt: skip
     ax.set_xlabel("x east (m)")
     ax.set_ylabel("y north (m)")
     ax.set_zlabel("z up (m)")
