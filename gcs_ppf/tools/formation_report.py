@@ -222,11 +222,17 @@ COURSE_SPAN_S = 1.0
 
 
 def run_turns(rec: dict[str, Any], after_s: float = AFTER_S) -> tuple[float, float] | None:
-    """The worst wingman's RMS slot error (m) on the straight legs and in the turns of one
-    campaign record, from the first moment in formation (None if it never formed, or it
-    never turned): the leader turns while its course over the ground changes faster than
-    ``TURNING_RAD_S``."""
-    mission, tracks, start, end = _observed(rec, after_s)
+    """``straight_and_turns`` of one campaign record."""
+    return straight_and_turns(*_observed(rec, after_s))
+
+
+def straight_and_turns(
+    mission: Mission, tracks: dict[int, FloatArray], start: float, end: float
+) -> tuple[float, float] | None:
+    """The worst wingman's RMS slot error (m) on the straight legs and in the turns of
+    ``tracks`` ([K,4] rows of vehicle s, x, y, z) from ``start`` to ``end``, from the first
+    moment in formation (None if it never formed, or it never turned): the leader turns
+    while its course over the ground changes faster than ``TURNING_RAD_S``."""
     worst_of = _worst(mission, tracks, start, end)
     if worst_of is None:
         return None

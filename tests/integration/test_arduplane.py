@@ -26,7 +26,7 @@ from gcs_ppf.mission import Mission
 from gcs_ppf.service.store import Store
 from gcs_ppf.tools.arduplane_sitl import find_plane_parm
 from gcs_ppf.tools.campaign import process
-from gcs_ppf.tools.formation_report import STEP_S, formation_flown
+from gcs_ppf.tools.formation_report import STEP_S, formation_flown, straight_and_turns
 from gcs_ppf.tools.observer import (
     Observer,
     closest_pass,
@@ -171,6 +171,9 @@ def fly_arduplane(
         else (f"in formation {flown.in_formation_share:.0%} of the flight after forming")
     )
     reformed = reformed_after_passage_s(mission, tracks, window[0], window[0] + window[1])
+    split = straight_and_turns(mission, tracks, window[0], window[0] + window[1])
+    if split is not None:
+        share += f" (RMS slot error {split[0]:.1f} m straight, {split[1]:.1f} m in the turns)"
     print(
         f"{mission.name} on ArduPlane SITL (×{SPEEDUP:g}): run {final['state']} "
         f"({final.get('outcome')}), flight time {final['mission_time_s']:.1f} s ({end_s:.1f} s "
@@ -206,6 +209,15 @@ def test_formation_flown_on_arduplane_sitl(mission: str, tmp_path: Path) -> None
     no vehicle hits the ground once airborne, and every wingman is within the target
     accuracy of its local target point (Eq. 6, from the observer's tracks) at one moment
     and all of them stay within it for HELD_S together."""
+    fly_arduplane(tmp_path, EXAMPLES / f"{mission}.json")
+
+
+@pytest.mark.arduplane
+@pytest.mark.parametrize("mission", ["arduplane_route_uturn_3", "arduplane_route_loiter_3"])
+def test_a_route_is_flown_in_formation_on_arduplane_sitl(mission: str, tmp_path: Path) -> None:
+    """A route of three legs, a 90° and a 180° turn (or one loiter turn round a waypoint),
+    taken off together: judged as above, the worst wingman's RMS slot error on the straight
+    legs and in the turns printed."""
     fly_arduplane(tmp_path, EXAMPLES / f"{mission}.json")
 
 
