@@ -221,18 +221,35 @@ TURNING_RAD_S = math.radians(0.5)
 COURSE_SPAN_S = 1.0
 
 
-def run_turns(rec: dict[str, Any], after_s: float = AFTER_S) -> tuple[float, float] | None:
+LEVEL_RAD = math.radians(1.0)
+"""The leader flies level while its flight-path angle (over ``COURSE_SPAN_S``) is within
+this: a slot d behind swings d·γ vertically in its climbing frame (36 m at 100 m behind in
+ArduPlane's 20° takeoff climb)."""
+
+
+@dataclass(frozen=True)
+class StraightAndTurns:
+    """The worst wingman's RMS slot error (m) on the straight legs, on those flown level,
+    and in the turns (None where there were none)."""
+
+    straight_m: float
+    level_m: float | None
+    turns_m: float
+
+
+def run_turns(rec: dict[str, Any], after_s: float = AFTER_S) -> StraightAndTurns | None:
     """``straight_and_turns`` of one campaign record."""
     return straight_and_turns(*_observed(rec, after_s))
 
 
 def straight_and_turns(
     mission: Mission, tracks: dict[int, FloatArray], start: float, end: float
-) -> tuple[float, float] | None:
-    """The worst wingman's RMS slot error (m) on the straight legs and in the turns of
-    ``tracks`` ([K,4] rows of vehicle s, x, y, z) from ``start`` to ``end``, from the first
-    moment in formation (None if it never formed, or it never turned): the leader turns
-    while its course over the ground changes faster than ``TURNING_RAD_S``."""
+) -> StraightAndTurns | None:
+    """The worst wingman's RMS slot error on the straight legs (all, and level only) and in
+    the turns of ``tracks`` ([K,4] rows of vehicle s, x, y, z) from ``start`` to ``end``,
+    from the first moment in formation (None if it never formed, or it never turned): the
+    leader turns while its course over the ground changes faster than ``TURNING_RAD_S``,
+    flies level while its flight-path angle is within ``LEVEL_RAD``."""
     worst_of = _worst(mission, tracks, start, end)
     if worst_of is None:
         return None
@@ -241,31 +258,46 @@ def straight_and_turns(
     if not formed.any():
         return None
     leader = flown_tracks[mission.leader.id]
-    x, y = np.interp(t, leader[:, 0], leader[:, 1]), np.interp(t, leader[:, 0], leader[:, 2])
+    x, y, z = (np.interp(t, leader[:, 0], leader[:, k]) for k in (1, 2, 3))
     span = max(1, round(COURSE_SPAN_S / STEP_S))
+
+    def over_span(rate: FloatArray) -> FloatArray:
+        return np.concatenate([rate, np.full(span, rate[-1] if rate.size else 0.0)])
+
     course = np.unwrap(np.arctan2(np.gradient(y), np.gradient(x)))
-    rate = np.abs(course[span:] - course[:-span]) / (span * STEP_S)
-    turning = np.concatenate([rate, np.full(span, rate[-1] if rate.size else 0.0)]) > TURNING_RAD_S
+    turning = over_span(np.abs(course[span:] - course[:-span]) / (span * STEP_S)) > TURNING_RAD_S
+    run = np.hypot(x[span:] - x[:-span], y[span:] - y[:-span])
+    level = np.abs(over_span(np.arctan2(z[span:] - z[:-span], run))) <= LEVEL_RAD
     after = np.arange(t.size) >= int(np.argmax(formed))
     if not (turning & after).any():
         return None
-    return (
-        float(np.sqrt(np.mean(worst[after & ~turning] ** 2))),
-        float(np.sqrt(np.mean(worst[after & turning] ** 2))),
+
+    def rms(where: NDArray[np.bool_]) -> float:
+        return float(np.sqrt(np.mean(worst[where] ** 2)))
+
+    flat = after & ~turning & level
+    return StraightAndTurns(
+        rms(after & ~turning), rms(flat) if flat.any() else None, rms(after & turning)
     )
 
 
 def turns_report(records: list[dict[str, Any]]) -> str:
     """One line per (mission, condition): the median over its runs of the worst wingman's
-    RMS slot error on the straight legs and in the turns (``run_turns``)."""
+    RMS slot error on the straight legs, on those flown level, and in the turns
+    (``run_turns``)."""
     groups = _by_row(records, run_turns)
-    lines = [f"{'mission':<14}{'cond':>5}{'runs':>5}  rms m straight / turns (min–max)"]
+    lines = [f"{'mission':<14}{'cond':>5}{'runs':>5}  rms m straight / level / turns (min–max)"]
     for (name, cond), runs in sorted(groups.items()):
-        straight, turns = (np.array([r[k] for r in runs]) for k in (0, 1))
+        straight = np.array([r.straight_m for r in runs])
+        turns = np.array([r.turns_m for r in runs])
+        level = np.array([r.level_m for r in runs if r.level_m is not None])
+        flat = (
+            f"{np.median(level):.1f} ({level.min():.1f}–{level.max():.1f})" if level.size else "-"
+        )
         lines.append(
-            f"{name:<14}{cond:>5}{len(runs):>5}  {np.median(straight):.1f} / "
-            f"{np.median(turns):.1f} ({straight.min():.1f}–{straight.max():.1f} / "
-            f"{turns.min():.1f}–{turns.max():.1f})"
+            f"{name:<14}{cond:>5}{len(runs):>5}  {np.median(straight):.1f} "
+            f"({straight.min():.1f}–{straight.max():.1f}) / {flat} / "
+            f"{np.median(turns):.1f} ({turns.min():.1f}–{turns.max():.1f})"
         )
     return "\n".join(lines) + "\n"
 

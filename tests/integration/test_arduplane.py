@@ -173,7 +173,11 @@ def fly_arduplane(
     reformed = reformed_after_passage_s(mission, tracks, window[0], window[0] + window[1])
     split = straight_and_turns(mission, tracks, window[0], window[0] + window[1])
     if split is not None:
-        share += f" (RMS slot error {split[0]:.1f} m straight, {split[1]:.1f} m in the turns)"
+        level = "-" if split.level_m is None else f"{split.level_m:.1f}"
+        share += (
+            f" (RMS slot error {split.straight_m:.1f} m straight, {level} m straight and "
+            f"level, {split.turns_m:.1f} m in the turns)"
+        )
     print(
         f"{mission.name} on ArduPlane SITL (×{SPEEDUP:g}): run {final['state']} "
         f"({final.get('outcome')}), flight time {final['mission_time_s']:.1f} s ({end_s:.1f} s "

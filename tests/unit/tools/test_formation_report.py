@@ -113,29 +113,35 @@ def test_the_axes_say_which_way_a_wingman_misses_its_slot(tmp_path: Path) -> Non
 
 
 def test_the_slot_error_is_split_into_the_straight_legs_and_the_turns(tmp_path: Path) -> None:
-    """The leader flies east, turns left 90° at 4.5°/s, and flies north; the first wingman
-    is 3 m off its slot on the straight legs and 12 m off in the turn: RMS 3 / 12 m."""
+    """The leader climbs east at 3° for 20 s, flies level, turns left 90° at 4.5°/s, and
+    flies north; the first wingman is 6 m off its slot in the climb, 3 m on the level
+    straight legs and 12 m in the turn: RMS 4.2 m straight, 3 m level, 12 m in the turn."""
     path = ROOT / "examples" / "paper_table3.json"
     mission = load_mission_file(path)
     t = np.arange(0.0, 80.0, 0.1)
     rate = np.where((t >= 30.0) & (t < 50.0), np.radians(4.5), 0.0)
+    gamma = np.where(t < 20.0, np.radians(3.0), 0.0)
     course = np.cumsum(rate) * 0.1
     x, y = np.cumsum(100.0 * np.cos(course)) * 0.1, np.cumsum(100.0 * np.sin(course)) * 0.1
-    tracks = {mission.leader.id: np.column_stack([t, x, y, np.full_like(t, 300.0), t * 0 + 300])}
-    off = np.where(rate > 0.0, 12.0, 3.0)
+    z = 300.0 + np.cumsum(100.0 * np.tan(gamma)) * 0.1
+    tracks = {mission.leader.id: np.column_stack([t, x, y, z, t * 0 + 300])}
+    off = np.where(rate > 0.0, 12.0, np.where(t < 20.0, 6.0, 3.0))
     for k, w in enumerate(mission.wingmen):
         assert w.slot is not None
         sx, sy, _ = w.slot
-        wx = x + sx * np.cos(course) - sy * np.sin(course)
-        wy = y + sx * np.sin(course) + sy * np.cos(course)
+        wx = x + sx * np.cos(gamma) * np.cos(course) - sy * np.sin(course)
+        wy = y + sx * np.cos(gamma) * np.sin(course) + sy * np.cos(course)
+        wz = z + sx * np.sin(gamma)  # the slot behind is lower in the climbing frame
         if k == 0:
             wx, wy = wx - off * np.sin(course), wy + off * np.cos(course)  # to its left
-        tracks[w.id] = np.column_stack([t, wx, wy, np.full_like(t, 300.0), t * 0 + 300])
+        tracks[w.id] = np.column_stack([t, wx, wy, wz, t * 0 + 300])
     _write_observer(tmp_path, mission, t, tracks)
     rec = {"mission": mission.name, "mission_file": str(path), "condition": "a",
            "dir": str(tmp_path), "window_s": [0.0, 70.0 + 30.0]}  # fmt: skip
     split = run_turns(rec)
     assert split is not None
-    assert split == pytest.approx((3.0, 12.0), abs=1.0)
+    assert split.straight_m == pytest.approx(np.sqrt((20 * 36 + 40 * 9) / 60), abs=0.5)
+    assert split.level_m == pytest.approx(3.0, abs=0.5)
+    assert split.turns_m == pytest.approx(12.0, abs=1.0)
     row = turns_report([rec]).splitlines()[1].split()
     assert row[:3] == [mission.name, "a", "1"]
