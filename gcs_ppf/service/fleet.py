@@ -473,16 +473,23 @@ class Fleet:
     async def _fit_streams(self, link_id: int) -> None:
         """Every vehicle on the link asked for its streams at ``stream_rate_hz`` where that
         is not what it was asked for (a new one; the others on a radio when one more shares
-        it), and a new one for its airframe parameters."""
+        it), and a new one for its airframe parameters.  The link's load is measured anew
+        from then (``LinkEntry.traffic``): what it carried at the rates before (the vehicles'
+        own until the first fit) is not what it carries now."""
+        refit = False
         for vehicle in [v for v in self.by_id.values() if v.link_id == link_id]:
             rate = self.stream_rate_hz(vehicle.system_id)
             if vehicle.stream_rate_hz == rate:
                 continue
+            refit = True
             new = vehicle.stream_rate_hz is None
             vehicle.stream_rate_hz = rate
             await self._request_streams(vehicle, rate)
             if new:
                 await self.request_airframe_params(vehicle.system_id)
+        entry = self._links.get(link_id)
+        if refit and entry is not None:
+            entry.traffic.clear()
 
     async def _request_streams(self, vehicle: Vehicle, rate_hz: float) -> None:
         """Ask a vehicle for the telemetry the planner needs, positions at ``rate_hz``, by
