@@ -260,10 +260,11 @@ def zone_clearances_m(
 
 
 class Loiter(_Strict):
-    """Circles the leader flies round a waypoint once it has reached it, before the next
-    leg, as ArduPlane's ``MAV_CMD_NAV_LOITER_TURNS`` and ``_TIME``: ``turns`` whole circles
-    or ``time_s`` seconds (one of the two), on a circle of ``radius_m`` about the
-    waypoint at its altitude, clockwise seen from above unless ``clockwise`` is false."""
+    """Circles the leader flies round a waypoint, its leg's end, before the next leg, as
+    ArduPlane's ``MAV_CMD_NAV_LOITER_TURNS`` and ``_TIME``: ``turns`` whole circles or
+    ``time_s`` seconds from coming onto the circle (one of the two), on a circle of
+    ``radius_m`` about the waypoint at its altitude, clockwise seen from above unless
+    ``clockwise`` is false (``gcs_ppf.planning.route``)."""
 
     radius_m: PositiveFloat
     turns: PositiveFloat | None = None

@@ -9,9 +9,9 @@ loiter: param1 turns or seconds, param3 the radius (negative: anticlockwise; 0:
 ArduPlane's default WP_LOITER_RAD, 60 m).  The last is the target (a loiter there is
 refused: the formation's end is ``at_end``), the others the route.  Items that are not
 places to fly through — takeoff, land, RTL, unlimited loiters, ``DO_`` commands — are
-left out and named; a
-``ComplexItem`` (a survey, a corridor) and terrain-relative altitudes are refused.  Every
-error names the item (``mission.items[k]``); nothing is half read.
+left out and named; a ``ComplexItem`` (a survey, a corridor) and terrain-relative
+altitudes are refused.  Every error names the item (``mission.items[k]``); nothing is
+half read.
 """
 
 from __future__ import annotations

@@ -83,7 +83,7 @@ def plan_mission(
     state, t, steps, wall, arrived = scene, 0.0, 0, 0.0, False
     leg, leg_times = route[0], []
     state = replace(state, target=leg.end_m)
-    loiter = Loitering(state.fleet.pos[0].copy()) if leg.loiter else None
+    loiter = Loitering(state.fleet.pos[0].copy()) if leg.loiter is not None else None
     while steps < total_steps and not arrived:
         n = min((1 if loiter else PROGRESS_CHUNKS) * chunk, total_steps - steps)
         if loiter is not None:  # steered a little ahead on the circle, one chunk at a time
@@ -111,7 +111,7 @@ def plan_mission(
             leg_times.append(round(t, 3))
             leg, arrived = route[leg.index + 1], False
             state = replace(state, target=leg.end_m)
-            loiter = Loitering(state.fleet.pos[0].copy()) if leg.loiter else None
+            loiter = Loitering(state.fleet.pos[0].copy()) if leg.loiter is not None else None
         if progress is not None:
             progress(t)
     trajectory = Trajectory.concatenate(parts)

@@ -36,8 +36,8 @@ class Leg:
     """One leg of the route: from ``start_m`` to ``end_m`` (ICS), reached within
     ``radius_m`` or across the plane through ``end_m`` square to ``finish_normal``
     (horizontal unit vector along the leg; zeros for the target's leg); ``loiter``, the
-    circles flown round ``end_m`` once it is reached, on a circle of ``loiter_radius_m``
-    (its radius, or the tightest turn the formation holds if that is wider)."""
+    circles flown round ``end_m`` instead (the module docstring), on a circle of
+    ``loiter_radius_m`` (its radius, or the tightest turn the formation holds if wider)."""
 
     index: int
     start_m: FloatArray
