@@ -28,12 +28,15 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import math
 import time
 from collections.abc import Awaitable, Callable
 
+from gcs_ppf.geodesy import enu_to_geodetic
 from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry, recent_reasons
+from gcs_ppf.mission import Origin
 from gcs_ppf.service.confirmation import (
     DEFAULT_RETRY,
     CommandFailed,
@@ -58,6 +61,9 @@ ARM_RETRY_S = 2.0
 """Our seconds between arms refused for a reason that may clear."""
 RETRYABLE_ARM = frozenset({"FAILED", "TEMPORARILY_REJECTED"})
 """Refusals of an arm that pre-arm checks still settling give (ArduPilot: FAILED)."""
+STRAIGHT_ON_M = 5000.0
+"""How far ahead on its course a vehicle that took off is sent once in GUIDED (a guided
+point, ``straight_on``)."""
 REASONS_RECENT_S = 35.0
 """ArduPilot repeats its PreArm reasons every 30 s: the ones this recent still hold."""
 GPS_3D_FIX = 3
@@ -173,6 +179,38 @@ async def set_mode(
         commands.MAV_CMD_DO_SET_MODE,
         lambda t: t.custom_mode == int(mode),
         f"mode {mode.name}",
+        event,
+        retry,
+    )
+
+
+async def straight_on(
+    fleet: Vehicles, vehicle_id: int, event: EventSink, retry: Retry = DEFAULT_RETRY
+) -> None:
+    """A vehicle just switched to GUIDED sent ``STRAIGHT_ON_M`` ahead on its course at its
+    altitude (DO_REPOSITION, ACCEPTED), so that it flies on as it climbed out until the run
+    commands it.  In GUIDED, ArduPlane circles the point where it entered the mode
+    (WP_LOITER_RAD), and the switch of each vehicle is confirmed on its own: at 300 ms
+    latency and 20 % loss a leader in GUIDED before its wingmen circled across the
+    climb-out of the one beside it, 36.8 m and 3.0 m apart (ArduPlane's U-turn route, 2
+    runs of 10).  Nothing is sent without a position and a course."""
+    t = fleet.telemetry(vehicle_id)
+    if t is None:
+        return
+    lat0, lon0, alt0, vn, ve = t.lat_deg, t.lon_deg, t.alt_amsl_m, t.vn_m_s, t.ve_m_s
+    if lat0 is None or lon0 is None or alt0 is None or vn is None or ve is None:
+        return
+    course = math.atan2(ve, vn)  # from north, clockwise
+    here = Origin(lat=lat0, lon=lon0, alt=alt0)
+    east, north = STRAIGHT_ON_M * math.sin(course), STRAIGHT_ON_M * math.cos(course)
+    lat, lon, alt = enu_to_geodetic(east, north, 0.0, here)
+    await confirmed_command(
+        fleet,
+        vehicle_id,
+        lambda: commands.reposition(vehicle_id, lat, lon, alt),
+        commands.MAV_CMD_DO_REPOSITION,
+        None,
+        "straight on",
         event,
         retry,
     )
@@ -303,17 +341,22 @@ async def launch(
         left_out.add(vid)
         on_lost(vid)
 
+    took_off: set[int] = set()
+
     async def airborne(vid: int) -> None:
         t = fleet.telemetry(vid)
         if t is None:
             raise CommandFailed(vid, "launch", reason="no telemetry")
         if on_ground(t):
             await take_off(fleet, vid, takeoff_alt_m, event, retry, takeoff_dist_m, ready_timeout_s)
+            took_off.add(vid)
         elif not t.armed:
             await arm_when_ready(fleet, vid, event, retry, ready_timeout_s)
 
     async def guided(vid: int) -> None:
         await set_mode(fleet, vid, PlaneMode.GUIDED, event, retry)
+        if vid in took_off:  # not circling where it entered GUIDED (those flying hold)
+            await straight_on(fleet, vid, event, retry)
 
     for step in (airborne, guided):
         try:

@@ -10,9 +10,11 @@ from typing import Any
 
 import pytest
 
+from gcs_ppf.geodesy import geodetic_to_enu
 from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.telemetry import ArmingReason, CommandAck, ParamValue, VehicleTelemetry
+from gcs_ppf.mission import Origin
 from gcs_ppf.service import launch
 from gcs_ppf.service.launch import CommandFailed, Retry
 
@@ -380,3 +382,25 @@ def test_an_arm_refused_for_good_fails_with_the_result_and_no_retry_past_the_bou
     else:
         assert 2 <= tries <= 8  # every 0.05 s (+ the reasons' moment) for 0.3 s
     assert not plane.t.armed
+
+
+def test_a_vehicle_that_took_off_is_sent_straight_on_once_in_guided() -> None:
+    """Climbing out north-east, it is sent 5 km on along its course at its altitude
+    (DO_REPOSITION) right after its GUIDED switch, rather than left to circle where it
+    entered GUIDED; a vehicle already flying (holding) is not."""
+    ground = FakePlane(2, 0.0, mode=PlaneMode.MANUAL)
+    place = {"lat_deg": -35.0, "lon_deg": 149.0, "alt_amsl_m": 650.0, "vn_m_s": 15.0,
+             "ve_m_s": 15.0}  # fmt: skip
+    ground.t = dataclasses.replace(ground.t, **place)
+    flying = FakePlane(1, 150.0, armed=True, mode=PlaneMode.LOITER)
+    flying.t = dataclasses.replace(flying.t, **place)
+    _events, event = recorder()
+    run(launch.launch(FakeFleet(flying, ground), [1, 2], 80.0, event, FAST))
+    sent = [m for m in ground.sent if getattr(m, "command", None) is not None]
+    kinds = [m.command for m in sent]
+    assert kinds[-2:] == [commands.MAV_CMD_DO_SET_MODE, commands.MAV_CMD_DO_REPOSITION]
+    point = sent[-1]
+    east, north, up = geodetic_to_enu(point.x / 1e7, point.y / 1e7, point.z, Origin(
+        lat=place["lat_deg"], lon=place["lon_deg"], alt=place["alt_amsl_m"]))  # fmt: skip
+    assert (east, north, up) == pytest.approx((3535.5, 3535.5, 0.0), abs=2.0)
+    assert commands_sent(flying, commands.MAV_CMD_DO_REPOSITION) == 0
