@@ -40,6 +40,7 @@ class FakePlane:
         self.tkoff_alt_m = 50.0
         self.tkoff_dist_m: float | None = None
         self.heights_at_guided: list[float | None] = []
+        self.param_sets_lost = 0  # PARAM_SETs lost, the value before read back instead
 
     def _later(self, **changes: Any) -> None:
         def apply() -> None:
@@ -53,7 +54,9 @@ class FakePlane:
         if kind in ("PARAM_SET", "PARAM_REQUEST_READ"):
             name = msg.param_id if isinstance(msg.param_id, str) else msg.param_id.decode()
             name = name.rstrip("\x00")
-            if kind == "PARAM_SET" and name == "TKOFF_ALT":
+            if kind == "PARAM_SET" and self.param_sets_lost:
+                self.param_sets_lost -= 1
+            elif kind == "PARAM_SET" and name == "TKOFF_ALT":
                 self.tkoff_alt_m = float(msg.param_value)
             elif kind == "PARAM_SET" and name == "TKOFF_DIST":
                 self.tkoff_dist_m = float(msg.param_value)
@@ -404,3 +407,19 @@ def test_a_vehicle_that_took_off_is_sent_straight_on_once_in_guided() -> None:
         lat=place["lat_deg"], lon=place["lon_deg"], alt=place["alt_amsl_m"]))  # fmt: skip
     assert (east, north, up) == pytest.approx((3535.5, 3535.5, 0.0), abs=2.0)
     assert commands_sent(flying, commands.MAV_CMD_DO_REPOSITION) == 0
+
+
+def test_a_parameter_set_lost_and_the_value_before_read_back_is_sent_again() -> None:
+    """The first PARAM_SET of TKOFF_ALT lost while a PARAM_VALUE of the value before comes:
+    sent again, and read back as set; lost every time, it is said not set."""
+    plane = FakePlane(3, 0.0)
+    plane.param_sets_lost = 1
+    events, event = recorder()
+    assert run(launch.set_param(FakeFleet(plane), 3, "TKOFF_ALT", 80.0, event, FAST)) == 80.0
+    assert sum(1 for m in plane.sent if m.get_type() == "PARAM_SET") == 2
+    assert not events
+    plane = FakePlane(3, 0.0)
+    plane.param_sets_lost = 10
+    events, event = recorder()
+    assert run(launch.set_param(FakeFleet(plane), 3, "TKOFF_ALT", 80.0, event, FAST)) == 50.0
+    assert events == [("parameter_not_set", 3, {"name": "TKOFF_ALT", "sent": 80.0, "read": 50.0})]
