@@ -187,19 +187,18 @@ async def set_mode(
 async def straight_on(
     fleet: Vehicles, vehicle_id: int, event: EventSink, retry: Retry = DEFAULT_RETRY
 ) -> None:
-    """A vehicle just switched to GUIDED sent ``STRAIGHT_ON_M`` ahead on its course at its
-    altitude (DO_REPOSITION, ACCEPTED), so that it flies on as it climbed out until the run
-    commands it.  In GUIDED, ArduPlane circles the point where it entered the mode
-    (WP_LOITER_RAD), and the switch of each vehicle is confirmed on its own: at 300 ms
-    latency and 20 % loss a leader in GUIDED before its wingmen circled across the
-    climb-out of the one beside it, 36.8 m and 3.0 m apart (ArduPlane's U-turn route, 2
-    runs of 10).  Nothing is sent without a position and a course."""
+    """A vehicle switched to GUIDED by the point ``STRAIGHT_ON_M`` ahead on its course at
+    its altitude (DO_REPOSITION with its change-mode flag; confirmed by the HEARTBEAT's
+    mode), so that it flies on as it climbed out until the run commands it.  Switched by
+    DO_SET_MODE, ArduPlane circles the point where it entered GUIDED (WP_LOITER_RAD) until
+    a target comes, and at 300 ms latency and 20 % loss that target came seconds late.
+    Without a position and a course, DO_SET_MODE."""
     t = fleet.telemetry(vehicle_id)
-    if t is None:
+    place = None if t is None else (t.lat_deg, t.lon_deg, t.alt_amsl_m, t.vn_m_s, t.ve_m_s)
+    if place is None or any(x is None for x in place):
+        await set_mode(fleet, vehicle_id, PlaneMode.GUIDED, event, retry)
         return
-    lat0, lon0, alt0, vn, ve = t.lat_deg, t.lon_deg, t.alt_amsl_m, t.vn_m_s, t.ve_m_s
-    if lat0 is None or lon0 is None or alt0 is None or vn is None or ve is None:
-        return
+    lat0, lon0, alt0, vn, ve = (float(x) for x in place)  # type: ignore[arg-type]
     course = math.atan2(ve, vn)  # from north, clockwise
     here = Origin(lat=lat0, lon=lon0, alt=alt0)
     east, north = STRAIGHT_ON_M * math.sin(course), STRAIGHT_ON_M * math.cos(course)
@@ -207,10 +206,10 @@ async def straight_on(
     await confirmed_command(
         fleet,
         vehicle_id,
-        lambda: commands.reposition(vehicle_id, lat, lon, alt),
+        lambda: commands.reposition(vehicle_id, lat, lon, alt, change_mode=True),
         commands.MAV_CMD_DO_REPOSITION,
-        None,
-        "straight on",
+        lambda t: t.custom_mode == int(PlaneMode.GUIDED),
+        "straight on in GUIDED",
         event,
         retry,
     )
@@ -367,7 +366,6 @@ async def launch(
     async def climbed_out(vid: int) -> None:
         await airborne(vid)
         if vid in took_off:  # GUIDED at once, flying straight on (``straight_on``)
-            await set_mode(fleet, vid, PlaneMode.GUIDED, event, retry)
             await straight_on(fleet, vid, event, retry)
 
     async def guided(vid: int) -> None:

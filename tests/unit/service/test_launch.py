@@ -91,6 +91,9 @@ class FakePlane:
             state["custom_mode"] = int(msg.param2)
             if int(msg.param2) == PlaneMode.GUIDED:
                 self.heights_at_guided.append(self.t.relative_alt_m)
+        elif msg.command == commands.MAV_CMD_DO_REPOSITION and int(msg.param2) & 1:
+            state["custom_mode"] = int(PlaneMode.GUIDED)  # its change-mode flag
+            self.heights_at_guided.append(self.t.relative_alt_m)
         elif msg.command == commands.MAV_CMD_COMPONENT_ARM_DISARM:
             state["armed"] = msg.param1 == 1.0
             if self.t.custom_mode == PlaneMode.TAKEOFF and self.climbs:
@@ -388,9 +391,10 @@ def test_an_arm_refused_for_good_fails_with_the_result_and_no_retry_past_the_bou
 
 
 def test_a_vehicle_that_took_off_is_sent_straight_on_once_in_guided() -> None:
-    """Climbing out north-east, it is sent 5 km on along its course at its altitude
-    (DO_REPOSITION) right after its GUIDED switch, rather than left to circle where it
-    entered GUIDED; a vehicle already flying (holding) is not."""
+    """Climbing out north-east, it is switched to GUIDED by a point 5 km on along its course
+    at its altitude (DO_REPOSITION, its change-mode flag), rather than by DO_SET_MODE and
+    left to circle where it entered GUIDED; a vehicle already flying is switched by
+    DO_SET_MODE."""
     ground = FakePlane(2, 0.0, mode=PlaneMode.MANUAL)
     place = {"lat_deg": -35.0, "lon_deg": 149.0, "alt_amsl_m": 650.0, "vn_m_s": 15.0,
              "ve_m_s": 15.0}  # fmt: skip
@@ -400,12 +404,14 @@ def test_a_vehicle_that_took_off_is_sent_straight_on_once_in_guided() -> None:
     _events, event = recorder()
     run(launch.launch(FakeFleet(flying, ground), [1, 2], 80.0, event, FAST))
     sent = [m for m in ground.sent if getattr(m, "command", None) is not None]
-    kinds = [m.command for m in sent]
-    assert kinds[-2:] == [commands.MAV_CMD_DO_SET_MODE, commands.MAV_CMD_DO_REPOSITION]
+    modes = [int(m.param2) for m in sent if m.command == commands.MAV_CMD_DO_SET_MODE]
+    assert modes == [PlaneMode.TAKEOFF]
     point = sent[-1]
+    assert point.command == commands.MAV_CMD_DO_REPOSITION
     east, north, up = geodetic_to_enu(point.x / 1e7, point.y / 1e7, point.z, Origin(
         lat=place["lat_deg"], lon=place["lon_deg"], alt=place["alt_amsl_m"]))  # fmt: skip
     assert (east, north, up) == pytest.approx((3535.5, 3535.5, 0.0), abs=2.0)
+    assert ground.t.custom_mode == flying.t.custom_mode == PlaneMode.GUIDED
     assert commands_sent(flying, commands.MAV_CMD_DO_REPOSITION) == 0
 
 
