@@ -396,11 +396,14 @@ def test_a_vehicle_that_took_off_is_sent_straight_on_once_in_guided() -> None:
     left to circle where it entered GUIDED; a vehicle already flying is switched by
     DO_SET_MODE."""
     ground = FakePlane(2, 0.0, mode=PlaneMode.MANUAL)
-    place = {"lat_deg": -35.0, "lon_deg": 149.0, "alt_amsl_m": 650.0, "vn_m_s": 15.0,
-             "ve_m_s": 15.0}  # fmt: skip
-    ground.t = dataclasses.replace(ground.t, **place)
+
+    def placed(t: VehicleTelemetry) -> VehicleTelemetry:
+        return dataclasses.replace(t, lat_deg=-35.0, lon_deg=149.0, alt_amsl_m=650.0,
+                                   vn_m_s=15.0, ve_m_s=15.0)  # fmt: skip
+
+    ground.t = placed(ground.t)
     flying = FakePlane(1, 150.0, armed=True, mode=PlaneMode.LOITER)
-    flying.t = dataclasses.replace(flying.t, **place)
+    flying.t = placed(flying.t)
     _events, event = recorder()
     run(launch.launch(FakeFleet(flying, ground), [1, 2], 80.0, event, FAST))
     sent = [m for m in ground.sent if getattr(m, "command", None) is not None]
@@ -408,8 +411,8 @@ def test_a_vehicle_that_took_off_is_sent_straight_on_once_in_guided() -> None:
     assert modes == [PlaneMode.TAKEOFF]
     point = sent[-1]
     assert point.command == commands.MAV_CMD_DO_REPOSITION
-    east, north, up = geodetic_to_enu(point.x / 1e7, point.y / 1e7, point.z, Origin(
-        lat=place["lat_deg"], lon=place["lon_deg"], alt=place["alt_amsl_m"]))  # fmt: skip
+    here = Origin(lat=-35.0, lon=149.0, alt=650.0)
+    east, north, up = geodetic_to_enu(point.x / 1e7, point.y / 1e7, point.z, here)
     assert (east, north, up) == pytest.approx((3535.5, 3535.5, 0.0), abs=2.0)
     assert ground.t.custom_mode == flying.t.custom_mode == PlaneMode.GUIDED
     assert commands_sent(flying, commands.MAV_CMD_DO_REPOSITION) == 0
