@@ -62,8 +62,8 @@ ARM_RETRY_S = 2.0
 RETRYABLE_ARM = frozenset({"FAILED", "TEMPORARILY_REJECTED"})
 """Refusals of an arm that pre-arm checks still settling give (ArduPilot: FAILED)."""
 STRAIGHT_ON_M = 5000.0
-"""How far ahead on its course a vehicle that took off is sent once in GUIDED (a guided
-point, ``straight_on``)."""
+"""How far ahead on its course the point lies that switches a vehicle that took off to
+GUIDED (``straight_on``)."""
 REASONS_RECENT_S = 35.0
 """ArduPilot repeats its PreArm reasons every 30 s: the ones this recent still hold."""
 GPS_3D_FIX = 3
@@ -194,13 +194,18 @@ async def straight_on(
     a target comes, and at 300 ms latency and 20 % loss that target came seconds late.
     Without a position and a course, DO_SET_MODE."""
     t = fleet.telemetry(vehicle_id)
-    place = None if t is None else (t.lat_deg, t.lon_deg, t.alt_amsl_m, t.vn_m_s, t.ve_m_s)
-    if place is None or any(x is None for x in place):
+    if (
+        t is None
+        or t.lat_deg is None
+        or t.lon_deg is None
+        or t.alt_amsl_m is None
+        or t.vn_m_s is None
+        or t.ve_m_s is None
+    ):
         await set_mode(fleet, vehicle_id, PlaneMode.GUIDED, event, retry)
         return
-    lat0, lon0, alt0, vn, ve = (float(x) for x in place)  # type: ignore[arg-type]
-    course = math.atan2(ve, vn)  # from north, clockwise
-    here = Origin(lat=lat0, lon=lon0, alt=alt0)
+    course = math.atan2(t.ve_m_s, t.vn_m_s)  # from north, clockwise
+    here = Origin(lat=t.lat_deg, lon=t.lon_deg, alt=t.alt_amsl_m)
     east, north = STRAIGHT_ON_M * math.sin(course), STRAIGHT_ON_M * math.cos(course)
     lat, lon, alt = enu_to_geodetic(east, north, 0.0, here)
     await confirmed_command(
