@@ -458,6 +458,7 @@ def fleet_step(
             dt,
             s,
             slot_speed,
+            repelled and not mate and not moving_obstacle,
         )
         next_motion[i, 0], next_motion[i, 1], next_motion[i, 2] = kinematics(
             speed[i], pitch[i], yaw[i], f_speed, f_pitch, f_yaw, own_lim, dt

@@ -496,8 +496,9 @@ def _speed_trend(
     """Eq. 19's f_l with Eq. 21–24: the leader slows to its wait speed (s3); wingmen brake
     to arrive at the leader's speed, Eq. 21–23 relative to the moving local target point
     (s3 once d_i ≤ Δd'_i), or give ground back (the kernel's ``catching_up_speed`` and
-    ``falling_back_speed``); in a held turn (the leader turning at ``leader_turn`` rad/s)
-    at the speed of their slots (the kernel's ``slot_point_speed``).  Sets ``state``."""
+    ``falling_back_speed``), also going round an obstacle with the slot behind; in a held
+    turn (the leader turning at ``leader_turn`` rad/s) at the speed of their slots (the
+    kernel's ``slot_point_speed``).  Sets ``state``."""
     repelled = (r.rep != 0).any(1)
     f_speed = np.sign(along_field)
     if f.wait_speed > 0.0:
@@ -508,8 +509,10 @@ def _speed_trend(
         cruise = max(lim.leader_cruise_speed, lim.v_min)
         a_cruise = lim.accel if cruise >= speed[0] else lim.decel
         f_speed[0] = np.clip((cruise - speed[0]) / (a_cruise * dt), -1.0, 1.0)
-    follow = f.wingman & ~repelled & (along_field > 0)
     along = (aim - pos) @ a.u[0]  # to the point made for, along the leader's track
+    round_obstacle = repelled & ~r.moving  # gives the ground back (``speed_trend``)
+    gives_back = round_obstacle & (along < 0) & (f_speed > 0)
+    follow = f.wingman & ((~repelled & (along_field > 0)) | gives_back)
     gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
     rel = f.g - pos[0]
     slot_vel = speed[0] * a.u[0] + leader_turn * np.stack(

@@ -161,3 +161,12 @@ def test_one_step_agrees_in_held_turns_where_the_wingmen_lead_the_slots_swing() 
     turning = np.flatnonzero(rate > math.radians(1.0))[:: max(1, len(tr) // 4000)]
     assert turning.size > 20
     _agree_at(run.scene, tr, run.dt, turning[np.linspace(0, turning.size - 1, 60).astype(int)])
+
+
+def test_one_step_agrees_while_a_wingman_round_an_obstacle_gives_ground_back() -> None:
+    """The five-vehicle line abreast: the leader and the wingmen on its right go round the
+    sphere (56–80 s), a wingman with its slot behind it giving the ground back."""
+    run = plan_mission(load_mission_file(EXAMPLES / "arduplane_5.json"))
+    tr = run.trajectory
+    passage = np.flatnonzero((tr.t >= 56.0) & (tr.t <= 80.0))
+    _agree_at(run.scene, tr, run.dt, passage[np.linspace(0, passage.size - 2, 80).astype(int)])
