@@ -308,6 +308,12 @@ class Mission(_Strict):
     """How the leader turns in formation: ``"hold"`` keeps its speed and turn rate to what
     every slot can follow (``gcs_ppf.planning.turns``); ``"free"`` is the paper's leader.
     None (default): ``"hold"`` on a route, ``"free"`` without one."""
+    formation_frame: Literal["leader", "course"] = "leader"
+    """Where the wingmen make for while obstacles or zones repel the leader: ``"leader"``
+    (default), their slots in its VCS (Eq. 6) as always; ``"course"``, the slots placed
+    level along its way to its target, so that a short dodge of the leader's does not
+    swing them round with it (``gcs_ppf.planning.ppf.kernel.formation_frame``).  The
+    formation is judged in the leader's VCS either way."""
     at_end: Literal["loiter", "rtl"] = "loiter"
     """What the formation does once the leader is at the target: ``"loiter"``, every vehicle
     holds on a circle clear of every keep-out, stacked above the target; ``"rtl"``, the same

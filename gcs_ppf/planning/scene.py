@@ -153,7 +153,9 @@ def scene_from_mission(mission: Mission) -> Scene:
         rank=np.array([rank_of[v.id] for v in ordered], dtype=np.int64),
         active=np.ones(len(ordered), dtype=bool),
     )
-    limits = kernel_limits(lim, mission.ground)
+    limits = kernel_limits(lim, mission.ground)._replace(
+        course_frame=mission.formation_frame == "course"
+    )
     if mission.holds_turns:
         limits = formation_turn_limits(limits, fleet.slot[1:])
     return Scene(

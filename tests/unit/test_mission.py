@@ -77,6 +77,7 @@ BAD: dict[str, tuple[Callable[[Doc], None], str]] = {
     "vehicle under the ground": (_set(["ground"], 10.0), "vehicles[1].position"),
     "leader too near the ground": (_set(["ground"], 290.0), "vehicles[0].position"),
     "infinite ground": (_set(["ground"], -math.inf), "ground"),
+    "unknown formation frame": (_set(["formation_frame"], "wind"), "formation_frame"),
 }
 
 

@@ -39,11 +39,13 @@ def formation_targets(
     lim: KernelLimits,
     local_target: np.ndarray,
     formed: np.ndarray,
+    frame: tuple[float, float, float, float],
 ) -> float:
     """The wingmen's local target points G_i = P_0 + A_vf(ψ₀) B_vf(θ₀) s_i (Eq. 6–8) into
     ``local_target[N,3]``, whether each wingman is formed (within the target accuracy of
     G_i) into ``formed[N]``, and the speed the leader waits at (s3, Eq. 24; 0: it does not
-    wait).
+    wait).  ``frame``: cos θ₀, sin θ₀, cos ψ₀, sin ψ₀ of the frame the slots are in
+    (``formation_frame``).
 
     The leader waits while a wingman is out of formation and has to catch up: its local
     target point is not behind it, or it does not yet fly the leader's way.  A wingman
@@ -54,7 +56,7 @@ def formation_targets(
     a wingman at most 45° off straight ahead of its slot: one further to the side loses
     the ground by turning in, and the leader waits at v_min for it as the paper's does.
     """
-    lcp, lsp, lcy, lsy = trig[0, 0], trig[0, 1], trig[0, 2], trig[0, 3]
+    lcp, lsp, lcy, lsy = frame
     gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
     leader_waits = False
     give_back = 0.0

@@ -138,6 +138,7 @@ __all__ = [
     "flight_path_limited",
     "fly",
     "follow_direction",
+    "formation_frame",
     "formation_targets",
     "from_vcs",
     "influence_radius",
@@ -263,6 +264,68 @@ def move(
     move_obstacles(obs_center, obs_velocity, dt)
 
 
+FRAME_TARGET_TURNS = 4.0
+"""``formation_frame`` keeps the leader's VCS within this many of its turn radii of its
+target, where the way to the target swings round as the leader passes it."""
+
+
+@njit(cache=True, inline="always")
+def formation_frame(
+    pos: np.ndarray,
+    speed: np.ndarray,
+    active: np.ndarray,
+    trig: np.ndarray,
+    direction: np.ndarray,
+    target: np.ndarray,
+    obs_center: np.ndarray,
+    obs_radius: np.ndarray,
+    obs_velocity: np.ndarray,
+    near_start: np.ndarray,
+    near_obstacles: np.ndarray,
+    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    zone_start: np.ndarray,
+    near_zones: np.ndarray,
+    lim: KernelLimits,
+    dt: float,
+) -> tuple[float, float, float, float]:
+    """cos θ₀, sin θ₀, cos ψ₀, sin ψ₀ of the frame the wingmen's slots are placed in
+    (Eq. 6–8): the leader's velocity frame (its VCS); with ``lim.course_frame``, while
+    obstacles or zones repel the leader and its target is further than
+    ``FRAME_TARGET_TURNS`` turn radii, level and along its way to its target (the paper is
+    silent).  Round the sphere on the line-abreast missions' way the leader swung 30–45°
+    aside and back, its slots 141 m off swung with it, and the wingmen chasing them were
+    flung to the far side of the formation (a wingman 245 m from its slot for 40 s);
+    planned offline with the closed loop's 50 m obstacle margin and the ground, in
+    formation 48 % of the flight after forming, 71 % on the course.  The formation is
+    still judged in the leader's VCS (``metrics``): where the leader turns round large
+    obstacles for long (Table 3) the course frame is not its formation, hence an option.
+    """
+    frame = (trig[0, 0], trig[0, 1], trig[0, 2], trig[0, 3])
+    if not lim.course_frame or not active[0]:
+        return frame
+    ox, oy, oz, _, _ = obstacle_repulsion(
+        0,
+        pos,
+        speed,
+        direction,
+        obs_center,
+        obs_radius,
+        obs_velocity,
+        near_start,
+        near_obstacles,
+        lim,
+        dt,
+    )
+    zx, zy, zz = zone_repulsion(0, pos, speed, direction, zones, zone_start, near_zones, lim, dt)
+    if ox == 0.0 and oy == 0.0 and oz == 0.0 and zx == 0.0 and zy == 0.0 and zz == 0.0:
+        return frame
+    hx, hy = target[0] - pos[0, 0], target[1] - pos[0, 1]
+    h = math.sqrt(hx * hx + hy * hy)
+    if h < FRAME_TARGET_TURNS * speed[0] / min(lim.max_pitch_rate, lim.max_yaw_rate):
+        return frame
+    return 1.0, 0.0, hx / h, hy / h
+
+
 @njit_without_refcounts
 def fleet_step(
     pos: np.ndarray,
@@ -311,7 +374,27 @@ def fleet_step(
     vehicle looking at ``near_zones[zone_start[i]:zone_start[i+1]]`` (``nearby_zones``).
     """
     unit_velocities(speed, trig, direction)  # Eq. 5
-    wait_speed = formation_targets(pos, slot, active, trig, direction, lim, local_target, formed)
+    frame = formation_frame(
+        pos,
+        speed,
+        active,
+        trig,
+        direction,
+        target,
+        obs_center,
+        obs_radius,
+        obs_velocity,
+        near_start,
+        near_obstacles,
+        zones,
+        zone_start,
+        near_zones,
+        lim,
+        dt,
+    )
+    wait_speed = formation_targets(
+        pos, slot, active, trig, direction, lim, local_target, formed, frame
+    )
     yielding_back(pos, speed, trig, active, mate_start, mates, formed, lim, dt)  # Eq. 12–13
     ux, uy, uz = direction[0, 0], direction[0, 1], direction[0, 2]  # the leader's direction
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)

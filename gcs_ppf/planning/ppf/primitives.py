@@ -85,6 +85,10 @@ class KernelLimits(NamedTuple):
     speeds up to v_max once formed); ``gcs_ppf.planning.turns`` for a formation that turns."""
     leader_turn_rate: float = math.inf
     """The fastest the leader turns while it follows its target (∞: ``max_yaw_rate``)."""
+    course_frame: bool = False
+    """While obstacles or zones repel the leader, the slots are placed level along its way
+    to its target instead of in its VCS (``kernel.formation_frame``; the mission's
+    ``formation_frame: "course"``)."""
 
 
 @njit(cache=True)
@@ -158,6 +162,7 @@ def leader_limits(lim: KernelLimits, target_inside_turn: bool = False) -> Kernel
         dive,
         lim.leader_cruise_speed,
         lim.leader_turn_rate,
+        lim.course_frame,
     )
 
 

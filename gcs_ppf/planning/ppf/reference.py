@@ -18,6 +18,7 @@ from gcs_ppf.planning.ppf.kernel import (
     AVOIDANCE_TURN_ANGLE,
     CONFLICT_HORIZON_TURNS,
     EPSILON_1,
+    FRAME_TARGET_TURNS,
     HAND_BACK_TURNS,
     INFLUENCE_STEPS,
     LOCAL_MINIMUM_ANGLE,
@@ -87,15 +88,42 @@ def _attitude(pitch: FloatArray, yaw: FloatArray, speed: FloatArray) -> Attitude
     return Attitude(cp, sp, cy, sy, u, speed[:, None] * u)
 
 
+def _frame(
+    pos: FloatArray,
+    target: FloatArray,
+    a: Attitude,
+    leader_repelled: bool,
+    leader_speed: float,
+    lim: KernelLimits,
+) -> tuple[float, float, float, float]:
+    """cos θ₀, sin θ₀, cos ψ₀, sin ψ₀ the slots are placed in: the leader's VCS, or with
+    ``lim.course_frame`` while obstacles repel it far from its target, level along its way
+    to its target (the kernel's ``formation_frame``)."""
+    frame = (float(a.cp[0]), float(a.sp[0]), float(a.cy[0]), float(a.sy[0]))
+    hx, hy = float(target[0] - pos[0, 0]), float(target[1] - pos[0, 1])
+    h = math.sqrt(hx * hx + hy * hy)
+    near = FRAME_TARGET_TURNS * leader_speed / min(lim.max_pitch_rate, lim.max_yaw_rate)
+    if not (lim.course_frame and leader_repelled) or h < near:
+        return frame
+    return 1.0, 0.0, hx / h, hy / h
+
+
 def _formation(
-    pos: FloatArray, slot: FloatArray, active: BoolArray, a: Attitude, lim: KernelLimits
+    pos: FloatArray,
+    slot: FloatArray,
+    active: BoolArray,
+    a: Attitude,
+    lim: KernelLimits,
+    frame: tuple[float, float, float, float],
 ) -> Formation:
-    """Eq. 6–8 (corrected): local target points, formed, and whether the leader waits."""
+    """Eq. 6–8 (corrected) in ``frame`` (``_frame``): local target points, formed, and
+    whether the leader waits."""
     n = pos.shape[0]
-    cp, sp, cy, sy, u = a.cp, a.sp, a.cy, a.sy, a.u
+    u = a.u
+    cp, sp, cy, sy = frame
     sx, sy_, sz = slot.T
-    px_ = cp[0] * sx - sp[0] * sz
-    g = np.stack([cy[0] * px_ - sy[0] * sy_, sy[0] * px_ + cy[0] * sy_, sp[0] * sx + cp[0] * sz], 1)
+    px_ = cp * sx - sp * sz
+    g = np.stack([cy * px_ - sy * sy_, sy * px_ + cy * sy_, sp * sx + cp * sz], 1)
     g = g + pos[0]
     to_g = g - pos
     wingman = active & (np.arange(n) > 0)
@@ -588,8 +616,11 @@ def reference_step(
 ) -> Step:
     """One step Δt of the whole fleet (Eq. 3–24), in numpy."""
     a = _attitude(pitch, yaw, speed)
-    f = _formation(pos, slot, active, a, lim)
     obstacles = _obstacle_repulsion(pos, speed, a.u, obs_center, obs_radius, obs_velocity, lim, dt)
+    leader_repelled = bool(active[0]) and bool((obstacles[0][0] != 0).any())
+    f = _formation(
+        pos, slot, active, a, lim, _frame(pos, target, a, leader_repelled, float(speed[0]), lim)
+    )
     aim = _aims(pos, target, speed, a, f, rank, active, lim, dt)
 
     def steered(

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -11,7 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from gcs_ppf.mission import Mission
-from gcs_ppf.planning.metrics import local_target_points
+from gcs_ppf.planning.metrics import formation_share, local_target_points
 from gcs_ppf.planning.planner import advance
 from gcs_ppf.planning.ppf.kernel import (
     catching_up_speed,
@@ -20,7 +22,7 @@ from gcs_ppf.planning.ppf.kernel import (
 )
 from gcs_ppf.planning.ppf.primitives import LEADER_PATH_ANGLE_SHARE, leader_limits
 from gcs_ppf.planning.ppf.reference import _crossing
-from gcs_ppf.planning.scene import Scene, scene_from_mission
+from gcs_ppf.planning.scene import Scene, scene_from_mission, with_margins
 from tests.conftest import EXAMPLES
 
 EAST = (1.0, 0.0, 0.0)
@@ -188,3 +190,36 @@ def test_a_wingman_round_an_obstacle_does_not_overrun_its_slot() -> None:
     u = np.stack([np.cos(pitch) * np.cos(yaw), np.cos(pitch) * np.sin(yaw), np.sin(pitch)], axis=1)
     ahead = np.einsum("knj,kj->kn", tr.pos - slots, u)[passed:, 1:]
     assert ahead.max() <= 30.0, ahead.max(axis=0)
+
+
+def _planned_share(doc: dict[str, Any], frame: str) -> tuple[float, float]:
+    """In formation after forming and the closest two vehicles (m), ``doc`` planned as the
+    closed loop plans it at ArduPlane's scale: from 50 m up (after the takeoff), over
+    ground, with a 50 m margin on the obstacles' safe distance."""
+    doc = {**doc, "formation_frame": frame, "ground": 0.0}
+    doc["vehicles"] = [{**v, "position": [*v["position"][:2], 50.0]} for v in doc["vehicles"]]
+    mission = Mission.model_validate(doc)
+    scene = with_margins(scene_from_mission(mission), 50.0, 0.0)
+    steps = int(mission.planner.max_time / mission.planner.dt)
+    run = advance(scene, mission.planner.dt, steps, record_every=5)
+    tr = run.trajectory
+    assert run.arrived
+    off = np.linalg.norm(local_target_points(tr, scene.fleet.slot) - tr.pos, axis=-1)
+    share = formation_share(tr.t, off <= mission.limits.target_accuracy)
+    gaps = np.linalg.norm(tr.pos[:, :, None] - tr.pos[:, None], axis=-1)
+    gaps[:, np.arange(len(scene.fleet.ids)), np.arange(len(scene.fleet.ids))] = np.inf
+    assert share is not None
+    return share, float(gaps.min())
+
+
+def test_on_the_course_frame_a_dodge_of_the_leader_does_not_break_the_formation() -> None:
+    """The three-vehicle line abreast: round the sphere the leader swings 30–45° aside and
+    back.  With its slots in its VCS they swing with it and the wingman on its right is
+    flung 245 m across the formation; placed along its way to the target while it avoids
+    (``formation_frame: "course"``) the formation is in formation at least 15 points more
+    of the flight after forming (measured 0.48 → 0.71), and no two vehicles come nearer."""
+    doc = json.loads((EXAMPLES / "arduplane_3.json").read_text())
+    leader_frame, leader_gap = _planned_share(doc, "leader")
+    course, course_gap = _planned_share(doc, "course")
+    assert course >= leader_frame + 0.15, (leader_frame, course)
+    assert course_gap >= leader_gap

@@ -165,7 +165,9 @@ def test_one_step_agrees_in_held_turns_where_the_wingmen_lead_the_slots_swing() 
 
 def test_one_step_agrees_while_a_wingman_round_an_obstacle_gives_ground_back() -> None:
     """The five-vehicle line abreast: the leader and the wingmen on its right go round the
-    sphere (56–80 s), a wingman with its slot behind it giving the ground back."""
+    sphere (56–80 s), the slots placed along the leader's way to its target while it
+    avoids (``formation_frame: "course"``), a wingman with its slot behind it giving the
+    ground back."""
     run = plan_mission(load_mission_file(EXAMPLES / "arduplane_5.json"))
     tr = run.trajectory
     passage = np.flatnonzero((tr.t >= 56.0) & (tr.t <= 80.0))
