@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import replace
 from pathlib import Path
@@ -9,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gcs_ppf.mission import load_mission_file
+from gcs_ppf.mission import Mission, load_mission_file
 from gcs_ppf.offline.plan import PlanRun, plan_mission
 from gcs_ppf.offline.sweep.families import FEASIBLE
 from gcs_ppf.offline.sweep.scenes import draw_scene
@@ -168,7 +169,8 @@ def test_one_step_agrees_while_a_wingman_round_an_obstacle_gives_ground_back() -
     sphere (56–80 s), the slots placed along the leader's way to its target while it
     avoids (``formation_frame: "course"``), a wingman with its slot behind it giving the
     ground back."""
-    run = plan_mission(load_mission_file(EXAMPLES / "arduplane_5.json"))
+    doc = json.loads((EXAMPLES / "arduplane_5.json").read_text())
+    run = plan_mission(Mission.model_validate({**doc, "formation_frame": "course"}))
     tr = run.trajectory
     passage = np.flatnonzero((tr.t >= 56.0) & (tr.t <= 80.0))
     _agree_at(run.scene, tr, run.dt, passage[np.linspace(0, passage.size - 2, 80).astype(int)])
