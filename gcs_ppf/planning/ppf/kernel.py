@@ -299,6 +299,7 @@ def formation_frame(
     formation 48 % of the flight after forming, 71 % on the course.  The formation is
     still judged in the leader's VCS (``metrics``): where the leader turns round large
     obstacles for long (Table 3) the course frame is not its formation, hence an option.
+    Flown on real ArduPlane it did not raise the line abreast's share (docs/planner.md).
     """
     frame = (trig[0, 0], trig[0, 1], trig[0, 2], trig[0, 3])
     if not lim.course_frame or not active[0]:
