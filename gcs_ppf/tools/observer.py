@@ -43,6 +43,28 @@ PORT_OFFSETS = (0, 1, 2, 3)
 SERIAL1 and SERIAL2 at +0, +2 and +3 (and +1 is kept free as its own layout does)."""
 LOWEST_PORT = 20000
 """Blocks are taken from here up to the kernel's ephemeral range."""
+_HANDED_OUT: set[int] = set()
+"""Every port ``free_port`` and ``free_port_block`` have returned in this process: free when
+looked at is not free once a block is handed out and not yet bound.  A test took a block
+of 20 for the SITL, then one port for the service's API, which was free because the
+SITL had not bound it yet: the API got the SITL's second vehicle port, and the SITL
+exited with "address already in use" (``test_signing``, once in a ``make test``)."""
+
+
+def _take(ports: list[int]) -> bool:
+    """Whether every one of ``ports`` is free on 127.0.0.1 (TCP and UDP) and has not been
+    handed out before; if so they are handed out now."""
+    if _HANDED_OUT.intersection(ports):
+        return False
+    try:
+        for port in ports:
+            for kind in (socket.SOCK_STREAM, socket.SOCK_DGRAM):
+                with socket.socket(socket.AF_INET, kind) as t:
+                    t.bind(("127.0.0.1", port))
+    except OSError:
+        return False
+    _HANDED_OUT.update(ports)
+    return True
 
 
 def ephemeral_ports() -> tuple[int, int]:
@@ -56,7 +78,8 @@ def ephemeral_ports() -> tuple[int, int]:
 
 def free_port_block(span: int, offsets: Sequence[int] = PORT_OFFSETS) -> int:
     """A base port P with every P + 10·k + o free on 127.0.0.1 (k = 0 … span / 10, o in
-    ``offsets``), below the ephemeral range (best effort: free when looked at).  Taken
+    ``offsets``) and not handed out before (``_HANDED_OUT``), below the ephemeral range
+    (best effort: free when looked at).  Taken
     from the ephemeral range and checked at P + 10·k only, a block collided with an
     outgoing connection's port: "bind failed on port … Address already in use", and one
     of five ArduPlane instances exited before its ports were up (session 5)."""
@@ -65,14 +88,8 @@ def free_port_block(span: int, offsets: Sequence[int] = PORT_OFFSETS) -> int:
     rng = random.Random()
     for _ in range(200):
         base = rng.randrange(low, max(high, low + 1))
-        try:
-            for k in range(0, span + 1, 10):
-                for o in offsets:
-                    with socket.socket() as t:
-                        t.bind(("127.0.0.1", base + k + o))
+        if _take([base + k + o for k in range(0, span + 1, 10) for o in offsets]):
             return base
-        except OSError:
-            continue
     raise RuntimeError("no free port block")
 
 
@@ -86,13 +103,8 @@ def free_port() -> int:
     rng = random.Random()
     for _ in range(200):
         port = rng.randrange(low, high)
-        try:
-            for kind in (socket.SOCK_STREAM, socket.SOCK_DGRAM):
-                with socket.socket(socket.AF_INET, kind) as t:
-                    t.bind(("127.0.0.1", port))
+        if _take([port]):
             return port
-        except OSError:
-            continue
     raise RuntimeError("no free port")
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import random
 import socket
 
 import numpy as np
@@ -14,6 +15,7 @@ from gcs_ppf.tools.observer import (
     PORT_OFFSETS,
     closest_pass,
     ephemeral_ports,
+    free_port,
     free_port_block,
     judge,
     longest_formed_s,
@@ -186,3 +188,22 @@ def test_the_vehicle_clock_at_a_wall_time_is_read_from_the_soonest_sample() -> N
     true_v = (wall - 0.03) * 10.0 + 0.3  # the last stamp, 30 ms of ours ago, carried on
     assert abs(vehicle_time_at(clock, wall) - true_v) < 0.05
     assert float(np.interp(wall, clock[:, 0], clock[:, 1])) < true_v - 0.25
+
+
+def test_a_port_handed_out_is_never_handed_out_again_before_it_is_bound(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A block for the SITL, then one port for the API: the API's port was free because the
+    SITL had not bound its block yet, and it was the SITL's second vehicle port."""
+    base = free_port_block(20)
+    draws = iter([base + 10, base + 11, base + 10])
+    draw = random.Random.randrange
+
+    def next_draw(self: random.Random, low: int, high: int) -> int:
+        return next(draws, None) or draw(self, low, high)
+
+    monkeypatch.setattr(random.Random, "randrange", next_draw)
+    api = free_port()
+    assert api not in {base + k + o for k in range(0, 21, 10) for o in PORT_OFFSETS}
+    draws = iter([base, api - 10])
+    assert free_port_block(20) not in {base, api - 10}
