@@ -292,16 +292,17 @@ def speed_trend(
             a_cmd = lim.accel if cruise >= speed[0] else lim.decel
             return trend(cruise - speed[0], a_cmd, dt), state
         return f_speed, state
-    vi, v0 = speed[i], slot_speed
-    gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
+    if not along_field > 0.0:
+        return f_speed, state
     ux, uy, uz = direction[0, 0], direction[0, 1], direction[0, 2]
     along = (ax - pos[i, 0]) * ux + (ay - pos[i, 1]) * uy + (az - pos[i, 2]) * uz
+    if repelled and not (round_obstacle and along < 0.0):
+        return f_speed, state
+    vi, v0 = speed[i], slot_speed
+    gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
     # The speed that makes good the leader's speed (plus or minus) along its track, at the
     # angle the wingman flies to it (sideways corrections need more speed).
     slant = max(direction[i, 0] * ux + direction[i, 1] * uy + direction[i, 2] * uz, 0.5)
-    gives_back = round_obstacle and along < 0.0 and f_speed > 0.0
-    if not gives_back and (repelled or not along_field > 0.0):
-        return f_speed, state
     if along >= 0.0:
         v_cmd = catching_up_speed(v0, along, lim.decel, gain) / slant
         if not formed[i] and vi >= v_cmd:

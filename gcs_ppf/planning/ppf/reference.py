@@ -539,8 +539,7 @@ def _speed_trend(
         f_speed[0] = np.clip((cruise - speed[0]) / (a_cruise * dt), -1.0, 1.0)
     along = (aim - pos) @ a.u[0]  # to the point made for, along the leader's track
     round_obstacle = repelled & ~r.moving  # gives the ground back (``speed_trend``)
-    gives_back = round_obstacle & (along < 0) & (f_speed > 0)
-    follow = f.wingman & ((~repelled & (along_field > 0)) | gives_back)
+    follow = f.wingman & (along_field > 0) & (~repelled | (round_obstacle & (along < 0)))
     gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
     rel = f.g - pos[0]
     slot_vel = speed[0] * a.u[0] + leader_turn * np.stack(
