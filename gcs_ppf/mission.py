@@ -314,6 +314,13 @@ class Mission(_Strict):
     level along its way to its target, so that a short dodge of the leader's does not
     swing them round with it (``gcs_ppf.planning.ppf.kernel.formation_frame``).  The
     formation is judged in the leader's VCS either way."""
+    obstacle_passage: Literal["each", "formation"] = "each"
+    """How the formation passes obstacles: ``"each"`` (default), the paper's, every vehicle
+    avoids on its own and the wingmen leave their slots where these pass too close;
+    ``"formation"``, the leader keeps its farthest slot's distance more from every obstacle
+    (unless its target lies within that), so that every slot keeps clear and the formation
+    passes whole (``KernelLimits.leader_keep_out_pad``), turning round them as the
+    formation follows (``turns`` defaults to ``"hold"``).  Zones keep the paper's way."""
     at_end: Literal["loiter", "rtl"] = "loiter"
     """What the formation does once the leader is at the target: ``"loiter"``, every vehicle
     holds on a circle clear of every keep-out, stacked above the target; ``"rtl"``, the same
@@ -347,7 +354,9 @@ class Mission(_Strict):
     @property
     def holds_turns(self) -> bool:
         """Whether the leader turns as the formation can follow (``turns``)."""
-        return self.turns == "hold" if self.turns is not None else bool(self.route)
+        if self.turns is not None:
+            return self.turns == "hold"
+        return bool(self.route) or self.obstacle_passage == "formation"
 
 
 def mission_problems(mission: Mission) -> list[str]:

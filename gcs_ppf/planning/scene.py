@@ -153,8 +153,10 @@ def scene_from_mission(mission: Mission) -> Scene:
         rank=np.array([rank_of[v.id] for v in ordered], dtype=np.int64),
         active=np.ones(len(ordered), dtype=bool),
     )
+    whole = mission.obstacle_passage == "formation"
     limits = kernel_limits(lim, mission.ground)._replace(
-        course_frame=mission.formation_frame == "course"
+        course_frame=mission.formation_frame == "course",
+        leader_keep_out_pad=float(np.linalg.norm(fleet.slot, axis=1).max()) if whole else 0.0,
     )
     if mission.holds_turns:
         limits = formation_turn_limits(limits, fleet.slot[1:])

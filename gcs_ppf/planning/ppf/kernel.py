@@ -316,6 +316,7 @@ def formation_frame(
         near_obstacles,
         lim,
         dt,
+        target,
     )
     zx, zy, zz = zone_repulsion(0, pos, speed, direction, zones, zone_start, near_zones, lim, dt)
     if ox == 0.0 and oy == 0.0 and oz == 0.0 and zx == 0.0 and zy == 0.0 and zz == 0.0:
@@ -458,6 +459,7 @@ def fleet_step(
             near_obstacles,
             lim,
             dt,
+            target,
         )
         zx, zy, zz = zone_repulsion(
             i, pos, speed, direction, zones, zone_start, near_zones, lim, dt
@@ -485,6 +487,16 @@ def fleet_step(
         rx, ry, rz, ox, oy, oz = teammates_first(px, py, pz, mate, ox, oy, oz, room)
         repelled = rx != 0.0 or ry != 0.0 or rz != 0.0
         avoiding[i] = repelled
+        # A leader passing static obstacles with its whole formation (``leader_keep_out_pad``)
+        # turns and cruises as its formation follows.
+        whole = (
+            i == 0
+            and lim.leader_keep_out_pad > 0.0
+            and not (mate or moving_obstacle)
+            and zx == 0.0
+            and zy == 0.0
+            and zz == 0.0
+        )
         # The field (Eq. 15): the repulsion alone while repelled (Eq. 14: |F_g| = 0).
         if repelled:
             fx, fy, fz = rx, ry, rz
@@ -492,7 +504,7 @@ def fleet_step(
             fx, fy, fz = direction[i, 0], direction[i, 1], direction[i, 2]
         # Trend matrix f (Eq. 16–20): pitch and yaw; speed (Eq. 21–24); kinematics (Eq. 3–5),
         # the leader following its target within ``leader_limits``.
-        own_lim = leader_lim if i == 0 and not repelled else lim
+        own_lim = leader_lim if i == 0 and (not repelled or whole) else lim
         f_pitch, f_yaw, along_field, s = steer(
             fx,
             fy,
@@ -529,7 +541,7 @@ def fleet_step(
         f_speed, state[i] = speed_trend(
             i,
             along_field,
-            repelled,
+            repelled and not whole,
             wait_speed,
             pos,
             speed,

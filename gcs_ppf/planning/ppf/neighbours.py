@@ -52,16 +52,21 @@ def obstacle_reach2(
     under its influence within ``horizon_steps`` steps, ``[M]``.
 
     A vehicle is influenced from at most keep_out + v_max/ω + v_max·Δt + u·T (the cheap
-    bound in ``obstacle_repulsion``; one v_max/ω more for an ``airframe_limited`` one); over
+    bound in ``obstacle_repulsion``; one v_max/ω more for an ``airframe_limited`` one; the
+    padded leader's keep-out and turn taken for every vehicle); over
     the horizon the two close by at most (v_max + u)·steps·Δt.
     """
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     turns = 2.0 if airframe_limited(lim) else 1.0  # the half turn of obstacle_repulsion
+    turn_rate = omega  # the leader passing with its formation turns as that follows
+    if lim.leader_keep_out_pad > 0.0:
+        turn_rate = min(omega, lim.leader_turn_rate)
     m = obs_radius.shape[0]
     reach2 = np.empty(m)
     for j in range(m):
         u = math.sqrt(obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2)
-        reach = obs_radius[j] + lim.safe_distance_obstacle + turns * lim.v_max / omega
+        reach = obs_radius[j] + lim.safe_distance_obstacle + lim.leader_keep_out_pad
+        reach += lim.v_max / turn_rate + (turns - 1.0) * lim.v_max / omega
         reach += INFLUENCE_STEPS * lim.v_max * dt + u * AVOIDANCE_TURN_ANGLE / omega
         reach += (lim.v_max + u) * horizon_steps * dt
         reach2[j] = reach * reach

@@ -89,6 +89,10 @@ class KernelLimits(NamedTuple):
     """While obstacles or zones repel the leader, the slots are placed level along its way
     to its target instead of in its VCS (``kernel.formation_frame``; the mission's
     ``formation_frame: "course"``)."""
+    leader_keep_out_pad: float = 0.0
+    """Metres the leader keeps beyond every obstacle's keep-out, its farthest slot's
+    distance, so that every slot keeps out too and the formation passes whole (the mission's
+    ``obstacle_passage: "formation"``; ``repulsion.obstacle_repulsion``); 0: the paper."""
 
 
 @njit(cache=True)
@@ -163,6 +167,7 @@ def leader_limits(lim: KernelLimits, target_inside_turn: bool = False) -> Kernel
         lim.leader_cruise_speed,
         lim.leader_turn_rate,
         lim.course_frame,
+        lim.leader_keep_out_pad,
     )
 
 

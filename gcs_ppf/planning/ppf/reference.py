@@ -149,9 +149,12 @@ def _obstacle_repulsion(
     obs_velocity: FloatArray,
     lim: KernelLimits,
     dt: float,
+    target: FloatArray,
 ) -> tuple[FloatArray, BoolArray, BoolArray]:
-    """Eq. 10–13: obstacles inside the influence radius repel with ε₁.  Also [N] whether
-    every repelling obstacle is static and leaves room for a full-rate turn away from it
+    """Eq. 10–13: obstacles inside the influence radius repel with ε₁ (the leader's
+    keep-outs padded by ``lim.leader_keep_out_pad`` where that leaves its target out, its
+    turn round static ones its formation's: the kernel's ``obstacle_repulsion``).  Also [N]
+    whether every repelling obstacle is static and leaves room for a full-rate turn away from it
     begun ``HAND_BACK_TURNS`` quarter turns and a few steps later (the kernel's
     ``room_to_turn_away``; ``u`` [N,3] the flight directions; never for an
     ``airframe_limited`` airframe, nor where the ground limits dives: the kernel's
@@ -162,8 +165,13 @@ def _obstacle_repulsion(
     u_obs = np.linalg.norm(obs_velocity, axis=-1)
     closing = np.maximum((d_obs * obs_velocity[None]).sum(-1) / np.where(dist > 0, dist, 1), 0)
     rho = (speed / omega)[:, None]
-    keep = (obs_radius + lim.safe_distance_obstacle)[None]
-    radius = np.sqrt((keep + rho) ** 2 - rho**2) + INFLUENCE_STEPS * (speed * dt)[:, None]
+    keep = np.repeat((obs_radius + lim.safe_distance_obstacle)[None], pos.shape[0], 0)
+    turn = np.repeat(rho, len(obs_radius), 1)
+    pad = lim.leader_keep_out_pad
+    if pad > 0.0:  # the leader's whole formation keeps out, the leader turning as it follows
+        keep[0] += np.where(np.linalg.norm(target - obs_center, axis=-1) <= keep[0] + pad, 0, pad)
+        turn[0] = np.where(u_obs == 0, speed[0] / min(omega, lim.leader_turn_rate), turn[0])
+    radius = np.sqrt((keep + turn) ** 2 - turn**2) + INFLUENCE_STEPS * (speed * dt)[:, None]
     radius = radius + closing * AVOIDANCE_TURN_ANGLE / omega
     if airframe_limited(lim):
         radius = radius + rho  # room for a half turn (the kernel's half_turn)
@@ -274,6 +282,12 @@ def _repulsion(
     first = (mate & room & (mates != 0).any(1))[:, None]
     total, rep = np.where(first, mates, total), np.where(first, 0.0, rep)
     return Repulsion(total, rep, moving | mate, hold)
+
+
+def _whole(r: Repulsion, lim: KernelLimits) -> bool:
+    """Whether the leader passes static obstacles with its whole formation (the kernel's
+    ``whole``): it turns and cruises as its formation follows."""
+    return lim.leader_keep_out_pad > 0.0 and not r.moving[0]
 
 
 def _crossing(
@@ -533,7 +547,7 @@ def _speed_trend(
         a_wait = lim.accel if f.wait_speed >= speed[0] else lim.decel
         f_speed[0] = np.clip((f.wait_speed - speed[0]) / (a_wait * dt), -1.0, 1.0)
         state[0] = S3_FORMATION
-    elif not repelled[0] and lim.leader_cruise_speed < lim.v_max:  # turning in formation
+    elif (not repelled[0] or _whole(r, lim)) and lim.leader_cruise_speed < lim.v_max:
         cruise = max(lim.leader_cruise_speed, lim.v_min)
         a_cruise = lim.accel if cruise >= speed[0] else lim.decel
         f_speed[0] = np.clip((cruise - speed[0]) / (a_cruise * dt), -1.0, 1.0)
@@ -615,7 +629,9 @@ def reference_step(
 ) -> Step:
     """One step Δt of the whole fleet (Eq. 3–24), in numpy."""
     a = _attitude(pitch, yaw, speed)
-    obstacles = _obstacle_repulsion(pos, speed, a.u, obs_center, obs_radius, obs_velocity, lim, dt)
+    obstacles = _obstacle_repulsion(
+        pos, speed, a.u, obs_center, obs_radius, obs_velocity, lim, dt, target
+    )
     leader_repelled = bool(active[0]) and bool((obstacles[0][0] != 0).any())
     f = _formation(
         pos, slot, active, a, lim, _frame(pos, target, a, leader_repelled, float(speed[0]), lim)
@@ -632,7 +648,7 @@ def reference_step(
         fv, d, lowest, s2, along_field = _wanted_direction(field, pos, speed, a, r, lim, dt)
         state = np.where(s2, S2_LOCAL_MINIMUM, S1_FOLLOW).astype(np.int64)
         yaw_rate = np.full(pos.shape[0], lim.max_yaw_rate)
-        if not (r.rep[0] != 0).any():  # the leader following its target (``leader_limits``)
+        if not (r.rep[0] != 0).any() or _whole(r, lim):  # the leader (``leader_limits``)
             inside = inside_turn(
                 float(pos[0, 0]),
                 float(pos[0, 1]),

@@ -37,6 +37,19 @@ CONFLICT = 2  # a teammate that repels (a moving obstacle)
 
 
 @njit(cache=True, inline="always")
+def padding(
+    target: np.ndarray, obs_center: np.ndarray, j: int, keep_out: float, pad: float
+) -> float:
+    """``pad``, or 0 where the target lies within ``keep_out + pad`` of obstacle j's centre:
+    a leader kept that far out could never reach it."""
+    dx = target[0] - obs_center[j, 0]
+    dy = target[1] - obs_center[j, 1]
+    dz = target[2] - obs_center[j, 2]
+    reach = keep_out + pad
+    return 0.0 if dx * dx + dy * dy + dz * dz <= reach * reach else pad
+
+
+@njit(cache=True, inline="always")
 def obstacle_repulsion(
     i: int,
     pos: np.ndarray,
@@ -49,6 +62,7 @@ def obstacle_repulsion(
     near_obstacles: np.ndarray,
     lim: KernelLimits,
     dt: float,
+    target: np.ndarray,
 ) -> tuple[float, float, float, bool, bool]:
     """Repulsion on vehicle i from the obstacles (Eq. 10–13): ε₁ along the outward normal
     from every obstacle whose influence radius R_j (Eq. 10–11, erratum 4: see
@@ -63,12 +77,19 @@ def obstacle_repulsion(
     steps of travel later, ``room_to_turn_away``; never for an
     ``airframe_limited`` vehicle, which needs its half turn, nor one whose dives the
     ground limits, ``lowest_climb``: either may not be able to turn away).
+
+    The leader (i = 0) keeps ``lim.leader_keep_out_pad`` more from every obstacle whose
+    padded keep-out leaves its ``target`` out, so that its slots keep out of it too, and
+    with a pad it goes round static obstacles at the turn rate its formation follows
+    (``leader_turn_rate``), its influence radius grown to that turn's (the half turn
+    kept at full rate: the pad is more room than it).
     """
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     vi = speed[i]
     px, py, pz = pos[i, 0], pos[i, 1], pos[i, 2]
     rx, ry, rz = 0.0, 0.0, 0.0
     moving_threat = False
+    pad = lim.leader_keep_out_pad if i == 0 else 0.0
     rho = vi / omega
     half_turn = rho if airframe_limited(lim) else 0.0
     height = pz - lim.ground - lim.safe_distance_obstacle - INFLUENCE_STEPS * vi * dt
@@ -83,12 +104,17 @@ def obstacle_repulsion(
         dz = pz - obs_center[j, 2]
         d2 = dx * dx + dy * dy + dz * dz
         keep_out = obs_radius[j] + lim.safe_distance_obstacle
+        if pad > 0.0:
+            keep_out += padding(target, obs_center, j, keep_out, pad)
         u_max = math.sqrt(
             obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2
         )
+        turn = rho
+        if pad > 0.0 and u_max == 0.0:  # the leader turns as its formation can follow
+            turn = vi / min(omega, lim.leader_turn_rate)
         reach = (
             keep_out
-            + rho
+            + turn
             + INFLUENCE_STEPS * vi * dt
             + u_max * AVOIDANCE_TURN_ANGLE / omega
             + half_turn
@@ -99,7 +125,7 @@ def obstacle_repulsion(
         closing = closing_speed(
             dx, dy, dz, d, obs_velocity[j, 0], obs_velocity[j, 1], obs_velocity[j, 2]
         )
-        radius = influence_radius(vi, omega, keep_out) + INFLUENCE_STEPS * vi * dt
+        radius = influence_radius(vi, vi / turn, keep_out) + INFLUENCE_STEPS * vi * dt
         radius += closing * AVOIDANCE_TURN_ANGLE / omega + half_turn
         if d <= radius and d > 0.0:
             rx += EPSILON_1 * dx / d

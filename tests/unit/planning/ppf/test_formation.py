@@ -22,6 +22,7 @@ from gcs_ppf.planning.ppf.kernel import (
 )
 from gcs_ppf.planning.ppf.primitives import LEADER_PATH_ANGLE_SHARE, leader_limits
 from gcs_ppf.planning.ppf.reference import _crossing
+from gcs_ppf.planning.ppf.repulsion import padding
 from gcs_ppf.planning.scene import Scene, scene_from_mission, with_margins
 from tests.conftest import EXAMPLES
 
@@ -173,13 +174,14 @@ def test_the_leader_leaves_a_wingman_below_its_slot_room_to_climb_into_it() -> N
 
 
 def test_a_wingman_round_an_obstacle_does_not_overrun_its_slot() -> None:
-    """The five-vehicle line abreast at ArduPlane's scale: the slot of the wingman on the
-    leader's right lies inside the sphere's keep-out while the leader passes it.  Going
-    round, it gives the ground back with its slot behind it (``speed_trend``): once the
-    leader is past the sphere's centre, no wingman gets more than 30 m ahead of its slot
-    along the leader's track (Eq. 19 alone flew it 55 m ahead, at v_max while the leader
-    waited)."""
-    mission = Mission.model_validate_json((EXAMPLES / "arduplane_5.json").read_text())
+    """The five-vehicle line abreast at ArduPlane's scale, each vehicle avoiding on its own
+    (``obstacle_passage: "each"``): the slot of the wingman on the leader's right lies
+    inside the sphere's keep-out while the leader passes it.  Going round, it gives the
+    ground back with its slot behind it (``speed_trend``): once the leader is past the
+    sphere's centre, no wingman gets more than 30 m ahead of its slot along the leader's
+    track (Eq. 19 alone flew it 55 m ahead, at v_max while the leader waited)."""
+    doc = json.loads((EXAMPLES / "arduplane_5.json").read_text())
+    mission = Mission.model_validate({**doc, "obstacle_passage": "each"})
     scene = scene_from_mission(mission)
     steps = int(mission.planner.max_time / mission.planner.dt)
     tr = advance(scene, mission.planner.dt, steps, record_every=5).trajectory
@@ -213,13 +215,53 @@ def _planned_share(doc: dict[str, Any], frame: str) -> tuple[float, float]:
 
 
 def test_on_the_course_frame_a_dodge_of_the_leader_does_not_break_the_formation() -> None:
-    """The three-vehicle line abreast: round the sphere the leader swings 30–45° aside and
-    back.  With its slots in its VCS they swing with it and the wingman on its right is
-    flung 245 m across the formation; placed along its way to the target while it avoids
-    (``formation_frame: "course"``) the formation is in formation at least 15 points more
-    of the flight after forming (measured 0.48 → 0.71), and no two vehicles come nearer."""
-    doc = json.loads((EXAMPLES / "arduplane_3.json").read_text())
+    """The three-vehicle line abreast, each vehicle avoiding on its own: round the sphere the
+    leader swings 30–45° aside and back.  With its slots in its VCS they swing with it
+    and the wingman on its right is flung 245 m across the formation; placed along its
+    way to the target while it avoids (``formation_frame: "course"``) the formation is
+    in formation at least 15 points more of the flight after forming (measured 0.48 →
+    0.71), and no two vehicles come nearer."""
+    doc = {**json.loads((EXAMPLES / "arduplane_3.json").read_text()), "obstacle_passage": "each"}
     leader_frame, leader_gap = _planned_share(doc, "leader")
     course, course_gap = _planned_share(doc, "course")
     assert course >= leader_frame + 0.15, (leader_frame, course)
     assert course_gap >= leader_gap
+
+
+def test_passed_as_a_formation_the_line_abreast_holds_round_the_obstacle() -> None:
+    """``obstacle_passage: "formation"``: the leader keeps its farthest slot's distance more
+    from the sphere and turns round it as its formation follows, so the line abreast
+    passes it whole: in formation at least 30 points more of the flight after forming
+    than each vehicle avoiding on its own (measured 0.48 → 0.96), no two nearer."""
+    doc = json.loads((EXAMPLES / "arduplane_3.json").read_text())
+    each, each_gap = _planned_share({**doc, "obstacle_passage": "each"}, "leader")
+    whole, whole_gap = _planned_share({**doc, "obstacle_passage": "formation"}, "leader")
+    assert whole >= each + 0.30, (each, whole)
+    assert whole_gap >= each_gap
+
+
+def test_passed_as_a_formation_every_slot_keeps_out_of_the_obstacle() -> None:
+    """The pad is the farthest slot's distance, so the slots (not only the wingmen) keep
+    the safe distance from the sphere all the way, and the leader keeps the pad more."""
+    doc = json.loads((EXAMPLES / "arduplane_5.json").read_text())
+    mission = Mission.model_validate({**doc, "obstacle_passage": "formation"})
+    scene = scene_from_mission(mission)
+    pad = scene.limits.leader_keep_out_pad
+    assert pad == pytest.approx(float(np.hypot(200.0, 200.0)))
+    assert scene.limits.leader_turn_rate < math.inf  # turns held by default
+    run = advance(scene, mission.planner.dt, int(mission.planner.max_time / mission.planner.dt))
+    tr = run.trajectory
+    assert run.arrived
+    centre, radius = scene.obstacles.center[0], scene.obstacles.radius[0]
+    keep_out = radius + mission.limits.safe_distance_obstacle
+    slots = local_target_points(tr, scene.fleet.slot)[:, 1:]
+    assert np.linalg.norm(slots - centre, axis=-1).min() >= keep_out
+    assert np.linalg.norm(tr.pos[:, 0] - centre, axis=-1).min() >= keep_out + pad
+
+
+def test_a_target_inside_the_padded_keep_out_drops_the_pad_for_that_obstacle() -> None:
+    """A leader kept the pad out could never reach a target beside an obstacle."""
+    target = np.array([0.0, 0.0, 0.0])
+    centre = np.array([[300.0, 0.0, 0.0]])
+    assert padding(target, centre, 0, 200.0, 141.0) == 0.0
+    assert padding(target, centre, 0, 100.0, 141.0) == 141.0

@@ -165,12 +165,26 @@ def test_one_step_agrees_in_held_turns_where_the_wingmen_lead_the_slots_swing() 
 
 
 def test_one_step_agrees_while_a_wingman_round_an_obstacle_gives_ground_back() -> None:
-    """The five-vehicle line abreast: the leader and the wingmen on its right go round the
-    sphere (56–80 s), the slots placed along the leader's way to its target while it
-    avoids (``formation_frame: "course"``), a wingman with its slot behind it giving the
-    ground back."""
+    """The five-vehicle line abreast, each vehicle avoiding on its own: the leader and the
+    wingmen on its right go round the sphere (56–80 s), the slots placed along the
+    leader's way to its target while it avoids (``formation_frame: "course"``), a
+    wingman with its slot behind it giving the ground back."""
     doc = json.loads((EXAMPLES / "arduplane_5.json").read_text())
-    run = plan_mission(Mission.model_validate({**doc, "formation_frame": "course"}))
+    doc = {**doc, "formation_frame": "course", "obstacle_passage": "each"}
+    run = plan_mission(Mission.model_validate(doc))
     tr = run.trajectory
     passage = np.flatnonzero((tr.t >= 56.0) & (tr.t <= 80.0))
+    _agree_at(run.scene, tr, run.dt, passage[np.linspace(0, passage.size - 2, 80).astype(int)])
+
+
+def test_one_step_agrees_while_the_leader_passes_with_its_whole_formation() -> None:
+    """The five-vehicle line abreast with ``obstacle_passage: "formation"``: the leader's
+    keep-out padded by its farthest slot, turning round the sphere as its formation follows
+    (held turns), from its first turn away to its last."""
+    doc = json.loads((EXAMPLES / "arduplane_5.json").read_text())
+    run = plan_mission(Mission.model_validate({**doc, "obstacle_passage": "formation"}))
+    tr = run.trajectory
+    assert run.scene.limits.leader_keep_out_pad > 0.0
+    passage = np.flatnonzero(tr.avoiding[:, 0])
+    assert passage.size > 100
     _agree_at(run.scene, tr, run.dt, passage[np.linspace(0, passage.size - 2, 80).astype(int)])
