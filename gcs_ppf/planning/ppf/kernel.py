@@ -89,6 +89,7 @@ from gcs_ppf.planning.ppf.primitives import (
     limit_climb,
     lowest_climb,
     obstacles_first,
+    passing_limits,
     slot_to_ics,
     to_vcs,
     trend,
@@ -151,6 +152,7 @@ __all__ = [
     "move_obstacles",
     "obstacle_repulsion",
     "obstacles_first",
+    "passing_limits",
     "slide_along_obstacles",
     "slot_to_ics",
     "speed_trend",
@@ -413,6 +415,7 @@ def fleet_step(
             target[1],
         ),
     )
+    passing_lim = passing_limits(leader_lim)
     for i in range(pos.shape[0]):
         if not active[i]:
             continue
@@ -504,7 +507,9 @@ def fleet_step(
             fx, fy, fz = direction[i, 0], direction[i, 1], direction[i, 2]
         # Trend matrix f (Eq. 16–20): pitch and yaw; speed (Eq. 21–24); kinematics (Eq. 3–5),
         # the leader following its target within ``leader_limits``.
-        own_lim = leader_lim if i == 0 and (not repelled or whole) else lim
+        own_lim = leader_lim if i == 0 and not repelled else lim
+        if repelled and whole:
+            own_lim = passing_lim
         f_pitch, f_yaw, along_field, s = steer(
             fx,
             fy,

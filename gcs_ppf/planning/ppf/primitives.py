@@ -172,6 +172,34 @@ def leader_limits(lim: KernelLimits, target_inside_turn: bool = False) -> Kernel
 
 
 @njit(cache=True)
+def passing_limits(leader_lim: KernelLimits) -> KernelLimits:
+    """The limits a leader passes obstacles with its whole formation in
+    (``leader_keep_out_pad``): its ``leader_limits`` with the pitch rate held to its
+    formation's turn rate as the yaw rate is.  A slot |x| behind rises or sinks at ω_θ·|x|
+    as the leader pitches; planned in free space, the line abreast's leader dived under the
+    sphere at the full pitch rate while it turned at the held one, and its formation broke."""
+    lim = leader_lim
+    return KernelLimits(
+        lim.v_min,
+        lim.v_max,
+        lim.accel,
+        lim.decel,
+        min(lim.max_pitch_rate, lim.leader_turn_rate),
+        lim.max_yaw_rate,
+        lim.target_accuracy,
+        lim.safe_distance_uav,
+        lim.safe_distance_obstacle,
+        lim.ground,
+        lim.max_climb_angle,
+        lim.max_dive_angle,
+        lim.leader_cruise_speed,
+        lim.leader_turn_rate,
+        lim.course_frame,
+        lim.leader_keep_out_pad,
+    )
+
+
+@njit(cache=True)
 def influence_radius(speed: float, turn_rate: float, keep_out: float) -> float:
     """Distance from an obstacle's centre at which avoidance must begin (Eq. 10–11, erratum 4).
 

@@ -33,6 +33,7 @@ from gcs_ppf.planning.ppf.kernel import (
     inside_turn,
     leader_limits,
     limit_climb,
+    passing_limits,
 )
 from gcs_ppf.planning.scene import BoolArray, FloatArray, IntArray
 
@@ -409,10 +410,12 @@ def _wanted_direction(
     r: Repulsion,
     lim: KernelLimits,
     dt: float,
+    pitch_rate: FloatArray,
 ) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray, FloatArray]:
     """Eq. 16–18 into the VCS, Eq. 20 (s2), the slide along static obstacles and the
-    flight-path and ground limits.  Returns (F_v [N,3], the wanted ICS direction d [N,3],
-    the sine of the lowest flight-path angle allowed, s2, F_v^x before any change)."""
+    flight-path and ground limits (``pitch_rate`` [N] each vehicle's ω_θ).  Returns (F_v
+    [N,3], the wanted ICS direction d [N,3], the sine of the lowest flight-path angle
+    allowed, s2, F_v^x before any change)."""
     cp, sp, cy, sy = a.cp, a.sp, a.cy, a.sy
     n = pos.shape[0]
     repelled = (r.rep != 0).any(1)
@@ -442,8 +445,8 @@ def _wanted_direction(
     # No descent that could not level out above the ground's keep-out: pulling up at
     # ω_θ on an arc of radius v/ω_θ loses ρ(1 − cos γ) (the kernel's lowest_climb).
     height = pos[:, 2] - lim.ground - lim.safe_distance_obstacle - INFLUENCE_STEPS * speed * dt
-    quarter_turn = AVOIDANCE_TURN_ANGLE / lim.max_pitch_rate
-    rho_up = np.minimum(speed + lim.accel * quarter_turn, lim.v_max) / lim.max_pitch_rate
+    quarter_turn = AVOIDANCE_TURN_ANGLE / pitch_rate
+    rho_up = np.minimum(speed + lim.accel * quarter_turn, lim.v_max) / pitch_rate
     ratio = np.minimum(height / rho_up, 1.0)
     lowest = np.where(
         ratio >= 0.0,
@@ -467,7 +470,7 @@ def _wanted_direction(
             cy[i],
             sy[i],
             float(lowest[i]),
-            leader_limits(lim) if i == 0 and not repelled[i] else lim,
+            leader_limits(lim) if i == 0 and (not repelled[i] or _whole(r, lim)) else lim,
         )
     bx = cy * d[:, 0] + sy * d[:, 1]  # ICS → VCS
     fv = np.stack(
@@ -487,11 +490,13 @@ def _turn_trends(
     lim: KernelLimits,
     dt: float,
     yaw_rate: FloatArray,
+    pitch_rate: FloatArray,
 ) -> tuple[FloatArray, FloatArray]:
     """Eq. 19 (erratum 2), saturated: the pitch and yaw entries of the trend matrix, the
     yaw never turning further towards a repelling obstacle when the other sense does not
     (the kernel's ``away_from_obstacles``), the pitch for the wanted elevation in the ICS
-    where the kernel's ``trend_matrix`` takes it; ``yaw_rate`` [N] each vehicle's ω_ψ."""
+    where the kernel's ``trend_matrix`` takes it; ``yaw_rate`` and ``pitch_rate`` [N] each
+    vehicle's ω_ψ and ω_θ."""
     fvx, fvy, fvz = fv.T
     elevation = np.arctan2(fvz, np.hypot(fvx, fvy))
     behind = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1])) - pitch
@@ -499,17 +504,17 @@ def _turn_trends(
     ics |= airframe_limited(lim)
     # Repelled, F_v^z steepening it away from the wanted elevation (the kernel's
     # ``trend_matrix``): the wanted elevation in the ICS instead.
-    vcs = np.clip(elevation / (lim.max_pitch_rate * dt), -1, 1)
+    vcs = np.clip(elevation / (pitch_rate * dt), -1, 1)
     ics |= (r.rep != 0).any(1) & (vcs * pitch > 0) & (vcs * behind < 0)
     elevation = np.where(ics, behind, elevation)
     wanted = np.sqrt(fvx**2 + fvy**2 + fvz**2)
     azimuth = np.where(np.abs(fvy) > SIDEWAYS_EPS * wanted, np.arctan2(fvy, fvx), 0.0)
     azimuth = np.where((fvx < 0) & (azimuth == 0.0), math.pi, azimuth)
-    f_pitch = np.clip(elevation / (lim.max_pitch_rate * dt), -1, 1)
+    f_pitch = np.clip(elevation / (pitch_rate * dt), -1, 1)
     f_yaw = np.clip(azimuth / (yaw_rate * dt), -1, 1)
     o = r.obstacles
     now = (a.u * o).sum(1)
-    th = pitch + f_pitch * lim.max_pitch_rate * dt
+    th = pitch + f_pitch * pitch_rate * dt
     turn = f_yaw * yaw_rate * dt
 
     def towards(psi: FloatArray) -> FloatArray:
@@ -585,12 +590,14 @@ def _kinematics(
     lim: KernelLimits,
     dt: float,
     yaw_rate: FloatArray,
+    pitch_rate: FloatArray,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Eq. 3–5: the new speed, pitch and yaw within their limits (``yaw_rate`` [N] each
-    vehicle's ω_ψ), and one step of flight; inactive vehicles keep theirs."""
+    """Eq. 3–5: the new speed, pitch and yaw within their limits (``yaw_rate`` and
+    ``pitch_rate`` [N] each vehicle's ω_ψ and ω_θ), and one step of flight; inactive
+    vehicles keep theirs."""
     a_l = np.where(f_speed > 0, lim.accel, lim.decel)
     new_speed = np.clip(speed + f_speed * a_l * dt, lim.v_min, lim.v_max)
-    new_pitch = np.clip(pitch + f_pitch * lim.max_pitch_rate * dt, -math.pi / 2, math.pi / 2)
+    new_pitch = np.clip(pitch + f_pitch * pitch_rate * dt, -math.pi / 2, math.pi / 2)
     new_yaw = yaw + f_yaw * yaw_rate * dt
     new_yaw = np.where(new_yaw > math.pi, new_yaw - 2 * math.pi, new_yaw)
     new_yaw = np.where(new_yaw <= -math.pi, new_yaw + 2 * math.pi, new_yaw)
@@ -640,12 +647,17 @@ def reference_step(
 
     def steered(
         leader_turn: float,
-    ) -> tuple[Repulsion, FloatArray, FloatArray, FloatArray, FloatArray, IntArray]:
+    ) -> tuple[Repulsion, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, IntArray]:
         """The field and the turn trends with the wingmen led by ``leader_turn``."""
         follow = _follow(pos, aim, speed, a, lim, f.g, leader_turn)
         r = _repulsion(pos, speed, a, follow, rank, active, f.formed, obstacles, lim, dt)
         field = _field(follow, a, r)
-        fv, d, lowest, s2, along_field = _wanted_direction(field, pos, speed, a, r, lim, dt)
+        pitch_rate = np.full(pos.shape[0], lim.max_pitch_rate)
+        if (r.rep[0] != 0).any() and _whole(r, lim):  # the kernel's ``passing_limits``
+            pitch_rate[0] = passing_limits(lim).max_pitch_rate
+        fv, d, lowest, s2, along_field = _wanted_direction(
+            field, pos, speed, a, r, lim, dt, pitch_rate
+        )
         state = np.where(s2, S2_LOCAL_MINIMUM, S1_FOLLOW).astype(np.int64)
         yaw_rate = np.full(pos.shape[0], lim.max_yaw_rate)
         if not (r.rep[0] != 0).any() or _whole(r, lim):  # the leader (``leader_limits``)
@@ -660,14 +672,18 @@ def reference_step(
                 float(target[1]),
             )
             yaw_rate[0] = leader_limits(lim, inside).max_yaw_rate
-        f_pitch, f_yaw = _turn_trends(fv, d, lowest, pitch, yaw, a, r, lim, dt, yaw_rate)
-        return r, along_field, f_pitch, f_yaw, yaw_rate, state
+        f_pitch, f_yaw = _turn_trends(
+            fv, d, lowest, pitch, yaw, a, r, lim, dt, yaw_rate, pitch_rate
+        )
+        return r, along_field, f_pitch, f_yaw, yaw_rate, pitch_rate, state
 
-    r, along_field, f_pitch, f_yaw, yaw_rate, state = steered(0.0)
+    r, along_field, f_pitch, f_yaw, yaw_rate, pitch_rate, state = steered(0.0)
     held_turn = bool(active[0]) and lim.leader_turn_rate < math.inf
     leader_turn = float(f_yaw[0] * yaw_rate[0]) if held_turn else 0.0
     if leader_turn != 0.0:  # the leader decides first; its wingmen lead its turn
-        r, along_field, f_pitch, f_yaw, yaw_rate, state = steered(leader_turn)
+        r, along_field, f_pitch, f_yaw, yaw_rate, pitch_rate, state = steered(leader_turn)
     f_speed = _speed_trend(along_field, pos, aim, speed, a, f, r, state, lim, dt, leader_turn)
-    new = _kinematics(pos, pitch, yaw, speed, active, f_speed, f_pitch, f_yaw, lim, dt, yaw_rate)
+    new = _kinematics(
+        pos, pitch, yaw, speed, active, f_speed, f_pitch, f_yaw, lim, dt, yaw_rate, pitch_rate
+    )
     return (*new, state)
