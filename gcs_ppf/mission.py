@@ -307,7 +307,8 @@ class Mission(_Strict):
     turns: Literal["hold", "free"] | None = None
     """How the leader turns in formation: ``"hold"`` keeps its speed and turn rate to what
     every slot can follow (``gcs_ppf.planning.turns``); ``"free"`` is the paper's leader.
-    None (default): ``"hold"`` on a route, ``"free"`` without one."""
+    None (default): ``"hold"`` on a route or passing obstacles as a formation
+    (``obstacle_passage``), ``"free"`` otherwise."""
     formation_frame: Literal["leader", "course"] = "leader"
     """Where the wingmen make for while obstacles or zones repel the leader: ``"leader"``
     (default), their slots in its VCS (Eq. 6) as always; ``"course"``, the slots placed

@@ -248,6 +248,7 @@ def mission_document(spec: SceneSpec, draws: Draws) -> dict[str, Any]:
         "planner": spec.planner.model_dump(),
         "target": target,
         "vehicles": vehicles,
+        "obstacle_passage": spec.obstacle_passage,
     }
     if spec.ground is not None:
         lowest = min(p[2] for p in points)

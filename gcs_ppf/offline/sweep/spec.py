@@ -134,6 +134,9 @@ class SceneSpec(_Strict):
     """None: the obstacles stay spheres."""
     limits: Limits = Limits()
     planner: PlannerSettings = PlannerSettings(max_time=90.0)
+    obstacle_passage: Literal["each", "formation"] = "each"
+    """The missions' ``obstacle_passage``: each vehicle round the obstacles, or the whole
+    formation (``gcs_ppf.mission.Mission.obstacle_passage``)."""
 
     @model_validator(mode="after")
     def _consistent(self) -> SceneSpec:

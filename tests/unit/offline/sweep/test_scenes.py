@@ -155,3 +155,12 @@ def test_a_family_that_cannot_make_a_scene_says_so() -> None:
     )
     with pytest.raises(SceneError, match="cramped: no valid scene in 1000 draws"):
         draw_scene(cramped, 0, 0)
+
+
+def test_a_family_passing_obstacles_as_a_formation_draws_the_same_scenes_with_that_option() -> None:
+    whole = FEASIBLE.model_copy(update={"obstacle_passage": "formation"})
+    for k in range(4):
+        each, passing = draw_scene(FEASIBLE, 3, k), draw_scene(whole, 3, k)
+        assert each.obstacle_passage == "each"
+        assert passing.obstacle_passage == "formation"
+        assert passing.model_copy(update={"obstacle_passage": "each"}) == each
