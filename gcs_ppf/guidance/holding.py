@@ -83,6 +83,65 @@ def path_clearance(a: FloatArray, b: FloatArray, obstacles: Obstacles) -> float:
     return float((np.linalg.norm(obstacles.center - closest, axis=1) - obstacles.radius).min())
 
 
+def clear_run_m(
+    start: FloatArray,
+    direction: FloatArray,
+    obstacles: Obstacles,
+    zones: Zones | None,
+    keep_m: float,
+    max_m: float,
+    step_m: float = 10.0,
+) -> float:
+    """How far from ``start`` along the unit ``direction`` a straight path stays ``keep_m``
+    or more from every obstacle's and zone's surface, at most ``max_m``: spheres exactly
+    (the first crossing of the sphere grown by ``keep_m``; within it, 0 unless the path
+    leads away), zones at every ``step_m`` (0 where it starts within ``keep_m``)."""
+    run = max_m
+    for c, r in zip(obstacles.center, obstacles.radius, strict=True):
+        rel = start - c
+        grown = r + keep_m
+        far = float(rel @ rel) - grown * grown
+        along = float(rel @ direction)
+        if far <= 0.0:
+            if along < 0.0:  # within it and closing
+                return 0.0
+            continue
+        disc = along * along - far
+        if along < 0.0 and disc >= 0.0:  # closing, and the line cuts the grown sphere
+            run = min(run, -along - math.sqrt(disc))
+    if zones is not None and len(zones):
+        s = np.arange(0.0, run + step_m, step_m)
+        points = start + np.minimum(s, run)[:, None] * direction
+        inside = np.flatnonzero(zone_clearances(points, zones) < keep_m)
+        if inside.size:
+            run = float(max(s[inside[0]] - step_m, 0.0))
+    return run
+
+
+def clear_course(
+    start: FloatArray,
+    course_rad: float,
+    obstacles: Obstacles,
+    zones: Zones | None,
+    keep_m: float,
+    max_m: float,
+    enough_m: float,
+) -> tuple[float, float]:
+    """A level course (ICS yaw, rad) nearest ``course_rad`` (``BEARINGS`` off it, in order)
+    along which ``clear_run_m`` runs ``enough_m`` or more, and that run; where none does,
+    the one that runs furthest."""
+    best = (course_rad, -1.0)
+    for bearing in BEARINGS:
+        yaw = course_rad + bearing
+        way = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+        run = clear_run_m(start, way, obstacles, zones, keep_m, max_m)
+        if run >= enough_m:
+            return yaw, run
+        if run > best[1]:
+            best = (yaw, run)
+    return best
+
+
 def flown_radius_m(radius_m: float) -> float:
     """The radius a loiter of ``radius_m`` is flown at: ArduPlane's turns give η of a
     coordinated one's rate (``TURN_EFFICIENCY``), so its circle is radius / η."""

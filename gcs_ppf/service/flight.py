@@ -18,8 +18,16 @@ from dataclasses import replace
 
 import numpy as np
 
-from gcs_ppf.geodesy import velocity_ned_to_enu
-from gcs_ppf.guidance import assurance, failsafe, lag, obedience, speed_reference, tick_plan
+from gcs_ppf.geodesy import geodetic_to_enu, velocity_ned_to_enu
+from gcs_ppf.guidance import (
+    assurance,
+    failsafe,
+    holding,
+    lag,
+    obedience,
+    speed_reference,
+    tick_plan,
+)
 from gcs_ppf.guidance.airframe import Airframe
 from gcs_ppf.guidance.formation_watch import slot_errors_m
 from gcs_ppf.guidance.online import (
@@ -31,9 +39,12 @@ from gcs_ppf.guidance.online import (
 from gcs_ppf.guidance.tick_plan import traffic_radius_m
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_HEADING
+from gcs_ppf.mavlink.telemetry import VehicleTelemetry
+from gcs_ppf.mission import Mission
 from gcs_ppf.planning import succession
 from gcs_ppf.planning.route import Loitering, leg_flown
 from gcs_ppf.planning.scene import FloatArray, Obstacles, obstacles_from_mission
+from gcs_ppf.planning.zones import zones_from_mission
 from gcs_ppf.service import commanding, launch, vehicle_fences
 from gcs_ppf.service.ending import end, hold_during_launch
 from gcs_ppf.service.fleet import planning_states
@@ -120,6 +131,7 @@ async def launch_fleet(station: Station, run: Run) -> None:
             is_lost=is_lost,
             on_lost=on_lost,
             ready_timeout_s=station.settings.prearm_timeout_s,
+            clear_ahead=lambda vid, t: clear_ahead(run.mission, t),
         )
     finally:
         if holding is not None:  # the holds flown until now, sent once, before the run
@@ -151,6 +163,39 @@ async def set_failsafe_altitudes(station: Station, run: Run, ids: list[int]) -> 
         )
 
     await asyncio.gather(*(set_one(vid, alt) for vid, alt in altitudes.items()))
+
+
+CLIMB_OUT_TURN_RADII = 2.0
+"""A vehicle sent on after its takeoff keeps this many turn radii (at the mission's v_max
+and ω) more than twice the safe distance from every keep-out on its way, room for
+ArduPlane's turn onto it and its circle round the point it is sent to (``clear_ahead``)."""
+
+
+def clear_ahead(mission: Mission, t: VehicleTelemetry) -> tuple[float, float] | None:
+    """Where a vehicle that has climbed out is sent until the run begins (east, north metres
+    from it): straight on along its course, level, as far as the way keeps twice the safe
+    distance (as the holds do) and ``CLIMB_OUT_TURN_RADII`` turn radii more from every
+    obstacle and zone, up to ``launch.STRAIGHT_ON_M``; where that is under four turn radii,
+    along the course nearest its own that runs that far (``holding.clear_course``).  None
+    (straight on) without a position or a course."""
+    if t.lat_deg is None or t.lon_deg is None or t.alt_amsl_m is None:
+        return None
+    if t.vn_m_s is None or t.ve_m_s is None or math.hypot(t.vn_m_s, t.ve_m_s) == 0.0:
+        return None
+    here = np.array(geodetic_to_enu(t.lat_deg, t.lon_deg, t.alt_amsl_m, mission.origin))
+    lim = mission.limits
+    turn_m = lim.v_max / min(lim.max_yaw_rate, lim.max_pitch_rate)
+    keep = 2.0 * lim.safe_distance_obstacle + CLIMB_OUT_TURN_RADII * turn_m
+    yaw, run = holding.clear_course(
+        here,
+        math.atan2(t.vn_m_s, t.ve_m_s),
+        obstacles_from_mission(mission).at(0.0),
+        zones_from_mission(mission),
+        keep,
+        launch.STRAIGHT_ON_M,
+        2.0 * CLIMB_OUT_TURN_RADII * turn_m,
+    )
+    return run * math.cos(yaw), run * math.sin(yaw)
 
 
 def hold_while_others_take_off(

@@ -69,6 +69,15 @@ REASONS_RECENT_S = 35.0
 GPS_3D_FIX = 3
 
 
+ClearAhead = Callable[[int, VehicleTelemetry], tuple[float, float] | None]
+"""Where a vehicle that climbed out (its id, its telemetry) is sent instead of
+``STRAIGHT_ON_M`` on along its course: (east, north) metres from it; None: straight on."""
+
+
+def straight_ahead(vehicle_id: int, t: VehicleTelemetry) -> tuple[float, float] | None:
+    return None
+
+
 def never_lost(vehicle_id: int) -> bool:
     return False
 
@@ -185,14 +194,23 @@ async def set_mode(
 
 
 async def straight_on(
-    fleet: Vehicles, vehicle_id: int, event: EventSink, retry: Retry = DEFAULT_RETRY
+    fleet: Vehicles,
+    vehicle_id: int,
+    event: EventSink,
+    retry: Retry = DEFAULT_RETRY,
+    clear_ahead: ClearAhead = straight_ahead,
 ) -> None:
     """A vehicle switched to GUIDED by the point ``STRAIGHT_ON_M`` ahead on its course at
     its altitude (DO_REPOSITION with its change-mode flag; confirmed by the HEARTBEAT's
-    mode), so that it flies on as it climbed out until the run commands it.  Switched by
-    DO_SET_MODE, ArduPlane circles the point where it entered GUIDED (WP_LOITER_RAD) until
-    a target comes, and at 300 ms latency and 20 % loss that target came seconds late.
-    Without a position and a course, DO_SET_MODE."""
+    mode), so that it flies on as it climbed out until the run commands it; ``clear_ahead``
+    may give another point (east, north metres from it) where that way is not clear, which
+    ArduPlane circles once there.
+    Switched by DO_SET_MODE, ArduPlane circles the point where it entered GUIDED
+    (WP_LOITER_RAD) until a target comes, and at 300 ms latency and 20 % loss that target
+    came seconds late; sent 5 km on regardless, at ×10 on that link a wingman of the
+    three-vehicle line abreast flew 1.5 km straight on while the last took off and the run
+    began with it 9.6 m from the sphere on its way.  Without a position and a course,
+    DO_SET_MODE."""
     t = fleet.telemetry(vehicle_id)
     if (
         t is None
@@ -206,7 +224,10 @@ async def straight_on(
         return
     course = math.atan2(t.ve_m_s, t.vn_m_s)  # from north, clockwise
     here = Origin(lat=t.lat_deg, lon=t.lon_deg, alt=t.alt_amsl_m)
+    point = clear_ahead(vehicle_id, t)
     east, north = STRAIGHT_ON_M * math.sin(course), STRAIGHT_ON_M * math.cos(course)
+    if point is not None:
+        east, north = point
     lat, lon, alt = enu_to_geodetic(east, north, 0.0, here)
     await confirmed_command(
         fleet,
@@ -320,9 +341,11 @@ async def launch(
     is_lost: Callable[[int], bool] = never_lost,
     on_lost: Callable[[int], None] = ignore_lost,
     ready_timeout_s: float = 0.0,
+    clear_ahead: ClearAhead = straight_ahead,
 ) -> None:
     """Every vehicle flying in GUIDED: those on the ground taken off (``take_off``), each
-    switched to GUIDED as soon as it is up and sent straight on (``straight_on``); the others
+    switched to GUIDED as soon as it is up and sent straight on (``straight_on``, as far as
+    ``clear_ahead`` allows); the others
     armed if they are not, and switched once every vehicle is up.  Up at its TKOFF_ALT,
     ArduPlane in TAKEOFF turns back to loiter TKOFF_DIST from where it started: waiting
     there for the last to take off, the first up flew back into the climb-out of the one
@@ -371,7 +394,7 @@ async def launch(
     async def climbed_out(vid: int) -> None:
         await airborne(vid)
         if vid in took_off:  # GUIDED at once, flying straight on (``straight_on``)
-            await straight_on(fleet, vid, event, retry)
+            await straight_on(fleet, vid, event, retry, clear_ahead)
 
     async def guided(vid: int) -> None:
         if vid not in took_off:  # those flying hold meanwhile (``hold_during_launch``)

@@ -13,6 +13,7 @@ from gcs_ppf.guidance.holding import (
     Hold,
     HoldRequest,
     approach_path,
+    clear_run_m,
     formation_holds,
     holding_circle,
     path_clearance,
@@ -222,3 +223,37 @@ def test_on_ring_is_the_ring_at_its_height_level_and_clockwise() -> None:
     assert not on_ring(east, -math.pi / 2, 6.0, hold, 100.0, 0.5)  # still climbing
     assert not on_ring((east[0], 0.0, 330.0), -math.pi / 2, 0.0, hold, 100.0, 0.5)  # 30 m high
     assert not on_ring((east[0] + 150.0, 0.0, 300.0), -math.pi / 2, 0.0, hold, 100.0, 0.5)
+
+
+def test_a_straight_run_stops_where_it_first_comes_within_the_keep_of_a_sphere() -> None:
+    """Heading +y from the origin, a sphere of 150 m centred 158 m aside, 1500 m on: the
+    run ends where the path first comes within 100 m of its surface, 1500 - √(250² - 158²)."""
+    ball = spheres((150.0, 1500.0, 100.0 + 102.3, 150.0))
+    aside = math.hypot(150.0, 102.3)
+    start, north = np.array([0.0, 0.0, 100.0]), np.array([0.0, 1.0, 0.0])
+    run = clear_run_m(start, north, ball, None, 100.0, 5000.0)
+    assert run == pytest.approx(1500.0 - math.sqrt(250.0**2 - aside**2), abs=1e-6)
+    assert path_clearance(start, start + run * north, ball) == pytest.approx(100.0, abs=1e-6)
+    assert clear_run_m(start, -north, ball, None, 100.0, 5000.0) == 5000.0  # behind
+    assert clear_run_m(start, north, ball, None, 10.0, 5000.0) == 5000.0  # passes clear
+    inside = np.array([150.0, 1200.0, 202.3])  # within the grown sphere
+    assert clear_run_m(inside, north, ball, None, 200.0, 5000.0) == 0.0  # closing
+    assert clear_run_m(inside, -north, ball, None, 200.0, 5000.0) == 5000.0  # leaving
+
+
+def test_a_straight_run_stops_short_of_a_zone_ahead() -> None:
+    zones = zones_from_mission(
+        Mission.model_validate(
+            {
+                "target": [5000.0, 0.0, 100.0],
+                "vehicles": [{"id": 1, "role": "leader", "position": [0.0, 0.0, 100.0]}],
+                "zones": [{"kind": "polygon", "vertices": [[-300, 1000], [300, 1000],
+                                                           [300, 1400], [-300, 1400]]}],
+            }
+        )
+    )  # fmt: skip
+    start, north = np.array([0.0, 0.0, 100.0]), np.array([0.0, 1.0, 0.0])
+    run = clear_run_m(start, north, spheres(), zones, 50.0, 5000.0)
+    assert 930.0 <= run <= 950.0
+    stop = start + run * north
+    assert zone_clearances(stop[None], zones)[0].min() >= 50.0

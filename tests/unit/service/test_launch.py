@@ -8,15 +8,20 @@ import time
 from collections.abc import Coroutine
 from typing import Any
 
+import numpy as np
 import pytest
 
-from gcs_ppf.geodesy import geodetic_to_enu
+from gcs_ppf.geodesy import enu_to_geodetic, geodetic_to_enu
+from gcs_ppf.guidance.holding import path_clearance
 from gcs_ppf.mavlink import commands
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.telemetry import ArmingReason, CommandAck, ParamValue, VehicleTelemetry
-from gcs_ppf.mission import Origin
+from gcs_ppf.mission import Mission, Origin, load_mission_file
+from gcs_ppf.planning.scene import Obstacles, obstacles_from_mission
 from gcs_ppf.service import launch
+from gcs_ppf.service.flight import clear_ahead
 from gcs_ppf.service.launch import CommandFailed, Retry
+from tests.conftest import EXAMPLES
 
 FAST = Retry(attempts=3, ack_timeout_s=0.1, state_timeout_s=0.1, climb_timeout_s=1.0,
              poll_s=0.002)  # fmt: skip
@@ -432,3 +437,63 @@ def test_a_parameter_set_lost_and_the_value_before_read_back_is_sent_again() -> 
     events, event = recorder()
     assert run(launch.set_param(FakeFleet(plane), 3, "TKOFF_ALT", 80.0, event, FAST)) == 50.0
     assert events == [("parameter_not_set", 3, {"name": "TKOFF_ALT", "sent": 80.0, "read": 50.0})]
+
+
+def test_a_vehicle_that_took_off_is_sent_on_only_as_far_as_the_way_is_clear() -> None:
+    """The point that switches it to GUIDED is the one ``clear_ahead`` gives (short of a
+    keep-out 1.2 km ahead, say), where ArduPlane circles until the run begins."""
+    ground = FakePlane(2, 0.0, mode=PlaneMode.MANUAL)
+    ground.t = dataclasses.replace(
+        ground.t, lat_deg=-35.0, lon_deg=149.0, alt_amsl_m=650.0, vn_m_s=20.0, ve_m_s=0.0
+    )
+    asked: list[int] = []
+
+    def clear(vid: int, t: VehicleTelemetry) -> tuple[float, float]:
+        asked.append(vid)
+        return 0.0, 1200.0
+
+    _events, event = recorder()
+    run(launch.launch(FakeFleet(ground), [2], 80.0, event, FAST, clear_ahead=clear))
+    point = [m for m in ground.sent if getattr(m, "command", None) is not None][-1]
+    assert point.command == commands.MAV_CMD_DO_REPOSITION
+    here = Origin(lat=-35.0, lon=149.0, alt=650.0)
+    east, north, _ = geodetic_to_enu(point.x / 1e7, point.y / 1e7, point.z, here)
+    assert (east, north) == pytest.approx((0.0, 1200.0), abs=2.0)
+    assert asked == [2]
+
+
+def test_on_the_line_abreast_the_vehicles_beside_the_sphere_stop_short_of_it() -> None:
+    """``examples/arduplane_3.json``: climbed out at 50 m on their northward courses, the
+    leader (x = 0) and the wingman at x = 272 would pass 30 m and 8 m from the 150 m sphere
+    1.5 km on; each is sent on only to where it stays twice the safe distance and two turn
+    radii from it, the wingman at x = -272 (284 m from it) the whole 5 km.  One already
+    beside the sphere is sent along a course that leads away from it."""
+    mission = load_mission_file(EXAMPLES / "arduplane_3.json")
+    lim = mission.limits
+    keep = 2.0 * lim.safe_distance_obstacle + 2.0 * lim.v_max / lim.max_yaw_rate
+    centre = np.array(mission.obstacles[0].center)
+    radius = mission.obstacles[0].radius
+
+    def sent(x: float, y: float) -> np.ndarray:
+        lat, lon, alt = enu_to_geodetic(x, y, 50.0, mission.origin)
+        t = VehicleTelemetry(
+            1, 1, lat_deg=lat, lon_deg=lon, alt_amsl_m=alt, vn_m_s=22.0, ve_m_s=0.0
+        )
+        point = clear_ahead(mission, t)
+        assert point is not None
+        return np.array([x + point[0], y + point[1], 50.0])
+
+    assert sent(-272.0, 20.0)[:2] == pytest.approx((-272.0, 20.0 + launch.STRAIGHT_ON_M))
+    for x in (0.0, 272.0):
+        stop = sent(x, 20.0)
+        assert stop[0] == pytest.approx(x)
+        assert 700.0 < stop[1] < 1400.0
+        assert np.linalg.norm(stop - centre) - radius == pytest.approx(keep, abs=0.5)
+    beside = sent(272.0, 1300.0)  # 105 m from its surface: turned off its course
+    start = np.array([272.0, 1300.0, 50.0])
+    assert path_clearance(start + 1e-6, beside, spheres_of(mission)) > 25.0
+    assert beside[0] > 272.0 + 100.0  # away from the sphere, not into it
+
+
+def spheres_of(mission: Mission) -> Obstacles:
+    return obstacles_from_mission(mission)
