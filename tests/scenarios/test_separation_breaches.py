@@ -59,3 +59,16 @@ def test_the_kept_breach_scenes_keep_the_safe_distance(path: Path) -> None:
 @pytest.mark.parametrize(("seed", "index"), SWEPT)
 def test_the_swept_breach_scenes_keep_the_safe_distance(seed: int, index: int) -> None:
     _assert_kept(draw_scene(FEASIBLE, seed, index))
+
+
+# Of the 100,000 of seed 2 with ``obstacle_passage: "formation"``: 79277 (400 m into a
+# sphere: a leader started inside the radius of its formation's turn, turning at it),
+# 66308 (310 m: the repulsion of a sphere further off, summed in, held its course), 96592
+# (235 m), 4750, 9877, 85712 and 773 (24.9 m).
+PASSING_WHOLE = [79277, 66308, 96592, 98867, 4750, 9877, 85712, 773]
+
+
+@pytest.mark.parametrize("index", PASSING_WHOLE)
+def test_the_breach_scenes_passing_as_a_formation_keep_the_safe_distance(index: int) -> None:
+    spec = FEASIBLE.model_copy(update={"obstacle_passage": "formation"})
+    _assert_kept(draw_scene(spec, 2, index))

@@ -306,7 +306,7 @@ def formation_frame(
     frame = (trig[0, 0], trig[0, 1], trig[0, 2], trig[0, 3])
     if not lim.course_frame or not active[0]:
         return frame
-    ox, oy, oz, _, _ = obstacle_repulsion(
+    ox, oy, oz, _, _, _ = obstacle_repulsion(
         0,
         pos,
         speed,
@@ -450,7 +450,7 @@ def fleet_step(
         # Repulsion (Eq. 12–13): the obstacles', then the teammates' of higher priority,
         # never pushing the vehicle into an obstacle (``obstacles_first``) unless it has
         # room to give way to the teammates first (``teammates_first``).
-        ox, oy, oz, moving_obstacle, room = obstacle_repulsion(
+        ox, oy, oz, moving_obstacle, room, formation_turn = obstacle_repulsion(
             i,
             pos,
             speed,
@@ -495,6 +495,7 @@ def fleet_step(
         whole = (
             i == 0
             and lim.leader_keep_out_pad > 0.0
+            and formation_turn
             and not (mate or moving_obstacle)
             and zx == 0.0
             and zy == 0.0

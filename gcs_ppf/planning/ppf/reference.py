@@ -68,13 +68,15 @@ class Formation(NamedTuple):
 class Repulsion(NamedTuple):
     """Eq. 12–13: the total repulsion, the obstacles' part steering keeps away from (none
     while a vehicle gives way to a teammate first), whether a moving threat (a moving
-    obstacle or a teammate) repels, and whether to hold course (just clear of a teammate
-    conflict that following would turn into one)."""
+    obstacle or a teammate) repels, whether to hold course (just clear of a teammate
+    conflict that following would turn into one), and whether the leader may go round the
+    obstacles repelling it at its formation's turn rate (``_obstacle_repulsion``)."""
 
     rep: FloatArray
     obstacles: FloatArray
     moving: BoolArray
     hold: BoolArray
+    formation_turn: bool = True
 
 
 def _unit(v: FloatArray) -> FloatArray:
@@ -151,10 +153,11 @@ def _obstacle_repulsion(
     lim: KernelLimits,
     dt: float,
     target: FloatArray,
-) -> tuple[FloatArray, BoolArray, BoolArray]:
+) -> tuple[FloatArray, BoolArray, BoolArray, bool]:
     """Eq. 10–13: obstacles inside the influence radius repel with ε₁ (the leader's
     keep-outs padded by ``lim.leader_keep_out_pad`` where that leaves its target out, its
-    turn round static ones its formation's: the kernel's ``obstacle_repulsion``).  Also [N]
+    turn round static ones its formation's where a turn away at that rate still clears
+    them: the kernel's ``obstacle_repulsion``, whose last value is returned last).  Also [N]
     whether every repelling obstacle is static and leaves room for a full-rate turn away from it
     begun ``HAND_BACK_TURNS`` quarter turns and a few steps later (the kernel's
     ``room_to_turn_away``; ``u`` [N,3] the flight directions; never for an
@@ -166,12 +169,21 @@ def _obstacle_repulsion(
     u_obs = np.linalg.norm(obs_velocity, axis=-1)
     closing = np.maximum((d_obs * obs_velocity[None]).sum(-1) / np.where(dist > 0, dist, 1), 0)
     rho = (speed / omega)[:, None]
-    keep = np.repeat((obs_radius + lim.safe_distance_obstacle)[None], pos.shape[0], 0)
+    own_keep = obs_radius + lim.safe_distance_obstacle
+    keep = np.repeat(own_keep[None], pos.shape[0], 0)
     turn = np.repeat(rho, len(obs_radius), 1)
+    s = (d_obs * u[:, None, :]).sum(-1)  # < 0: closing
+    lateral = np.sqrt(np.maximum(dist**2 - s**2, 0.0))
     pad = lim.leader_keep_out_pad
+    slow_refused = np.zeros(len(obs_radius), dtype=bool)  # static, a slow turn not clearing
     if pad > 0.0:  # the leader's whole formation keeps out, the leader turning as it follows
         keep[0] += np.where(np.linalg.norm(target - obs_center, axis=-1) <= keep[0] + pad, 0, pad)
-        turn[0] = np.where(u_obs == 0, speed[0] / min(omega, lim.leader_turn_rate), turn[0])
+        slow = speed[0] / min(omega, lim.leader_turn_rate)
+        steps = INFLUENCE_STEPS * speed[0] * dt
+        after = dist[0] ** 2 + 2.0 * steps * s[0] + steps**2
+        clears = (s[0] >= 0) | (after + 2.0 * slow * lateral[0] >= own_keep * (own_keep + 2 * slow))
+        turn[0] = np.where((u_obs == 0) & clears, slow, turn[0])
+        slow_refused = (u_obs == 0) & ~clears & (lim.leader_turn_rate < omega)
     radius = np.sqrt((keep + turn) ** 2 - turn**2) + INFLUENCE_STEPS * (speed * dt)[:, None]
     radius = radius + closing * AVOIDANCE_TURN_ANGLE / omega
     if airframe_limited(lim):
@@ -179,8 +191,6 @@ def _obstacle_repulsion(
     inside = (dist <= radius) & (dist > 0)
     rep = EPSILON_1 * (_unit(d_obs) * inside[..., None]).sum(1)
     moving = (inside & (u_obs[None] > 0)).any(1)
-    s = (d_obs * u[:, None, :]).sum(-1)  # < 0: closing
-    lateral = np.sqrt(np.maximum(dist**2 - s**2, 0.0))
     hand_back = HAND_BACK_TURNS * AVOIDANCE_TURN_ANGLE * rho  # (the kernel's ``hand_back``)
     travel = (INFLUENCE_STEPS * speed * dt)[:, None] + hand_back
     after2 = dist**2 + 2.0 * travel * s + travel**2
@@ -191,7 +201,21 @@ def _obstacle_repulsion(
     rho_up = np.minimum(speed + lim.accel * quarter_turn, lim.v_max) / lim.max_pitch_rate
     free = (height >= rho_up) & (not airframe_limited(lim))  # the ground does not limit dives
     room = ~(inside & ~leaves_room).any(1) & free
-    return rep, moving, room
+    if (inside[0] & slow_refused).any():  # the paper's leader (the kernel's)
+        paper = _obstacle_repulsion(
+            pos,
+            speed,
+            u,
+            obs_center,
+            obs_radius,
+            obs_velocity,
+            lim._replace(leader_keep_out_pad=0.0),
+            dt,
+            target,
+        )
+        rep[0], moving[0], room[0] = paper[0][0], paper[1][0], paper[2][0]
+        return rep, moving, room, False
+    return rep, moving, room, True
 
 
 def _conflicts(
@@ -251,7 +275,7 @@ def _repulsion(
     rank: IntArray,
     active: BoolArray,
     formed: BoolArray,
-    obstacles: tuple[FloatArray, BoolArray, BoolArray],
+    obstacles: tuple[FloatArray, BoolArray, BoolArray, bool],
     lim: KernelLimits,
     dt: float,
 ) -> Repulsion:
@@ -263,7 +287,7 @@ def _repulsion(
     (the kernel's ``yielding_back``).  A vehicle in a teammate conflict with room among
     the obstacles gives way to its teammates alone (the kernel's ``teammates_first``)."""
     n = pos.shape[0]
-    rep, moving, room = obstacles
+    rep, moving, room, formation_turn = obstacles
     near, threat, push = _conflicts(pos, a.vel, a.vel, speed, rank, active, formed, lim, dt)
     _, threat_after, _ = _conflicts(
         pos, speed[:, None] * follow, a.vel, speed, rank, active, formed, lim, dt
@@ -282,13 +306,13 @@ def _repulsion(
     mate = threat.any(1) | late.any(0)
     first = (mate & room & (mates != 0).any(1))[:, None]
     total, rep = np.where(first, mates, total), np.where(first, 0.0, rep)
-    return Repulsion(total, rep, moving | mate, hold)
+    return Repulsion(total, rep, moving | mate, hold, formation_turn)
 
 
 def _whole(r: Repulsion, lim: KernelLimits) -> bool:
     """Whether the leader passes static obstacles with its whole formation (the kernel's
     ``whole``): it turns and cruises as its formation follows."""
-    return lim.leader_keep_out_pad > 0.0 and not r.moving[0]
+    return lim.leader_keep_out_pad > 0.0 and not r.moving[0] and r.formation_turn
 
 
 def _crossing(
