@@ -415,7 +415,6 @@ def fleet_step(
             target[1],
         ),
     )
-    passing_lim = passing_limits(leader_lim)
     for i in range(pos.shape[0]):
         if not active[i]:
             continue
@@ -510,7 +509,7 @@ def fleet_step(
         # the leader following its target within ``leader_limits``.
         own_lim = leader_lim if i == 0 and not repelled else lim
         if repelled and whole:
-            own_lim = passing_lim
+            own_lim = passing_limits(leader_lim)
         f_pitch, f_yaw, along_field, s = steer(
             fx,
             fy,

@@ -132,6 +132,36 @@ def inside_turn(
 
 
 @njit(cache=True)
+def with_turn_limits(
+    lim: KernelLimits,
+    max_pitch_rate: float,
+    max_yaw_rate: float,
+    max_climb_angle: float,
+    max_dive_angle: float,
+) -> KernelLimits:
+    """``lim`` with these rates and flight-path limits (NamedTuple's ``_replace`` does not
+    compile)."""
+    return KernelLimits(
+        lim.v_min,
+        lim.v_max,
+        lim.accel,
+        lim.decel,
+        max_pitch_rate,
+        max_yaw_rate,
+        lim.target_accuracy,
+        lim.safe_distance_uav,
+        lim.safe_distance_obstacle,
+        lim.ground,
+        max_climb_angle,
+        max_dive_angle,
+        lim.leader_cruise_speed,
+        lim.leader_turn_rate,
+        lim.course_frame,
+        lim.leader_keep_out_pad,
+    )
+
+
+@njit(cache=True)
 def leader_limits(lim: KernelLimits, target_inside_turn: bool = False) -> KernelLimits:
     """The limits the leader follows its target with: its climb and dive angles kept to
     ``LEADER_PATH_ANGLE_SHARE`` of the airframe's where those bind (``airframe_limited``).
@@ -151,24 +181,10 @@ def leader_limits(lim: KernelLimits, target_inside_turn: bool = False) -> Kernel
     if airframe_limited(lim):
         climb = min(lim.max_climb_angle, MAX_AVOID_PITCH) * LEADER_PATH_ANGLE_SHARE
         dive = min(lim.max_dive_angle, MAX_AVOID_PITCH) * LEADER_PATH_ANGLE_SHARE
-    return KernelLimits(
-        lim.v_min,
-        lim.v_max,
-        lim.accel,
-        lim.decel,
-        lim.max_pitch_rate,
-        lim.max_yaw_rate if target_inside_turn else min(lim.max_yaw_rate, lim.leader_turn_rate),
-        lim.target_accuracy,
-        lim.safe_distance_uav,
-        lim.safe_distance_obstacle,
-        lim.ground,
-        climb,
-        dive,
-        lim.leader_cruise_speed,
-        lim.leader_turn_rate,
-        lim.course_frame,
-        lim.leader_keep_out_pad,
-    )
+    yaw_rate = lim.max_yaw_rate
+    if not target_inside_turn:
+        yaw_rate = min(lim.max_yaw_rate, lim.leader_turn_rate)
+    return with_turn_limits(lim, lim.max_pitch_rate, yaw_rate, climb, dive)
 
 
 @njit(cache=True)
@@ -179,23 +195,9 @@ def passing_limits(leader_lim: KernelLimits) -> KernelLimits:
     as the leader pitches; planned in free space, the line abreast's leader dived under the
     sphere at the full pitch rate while it turned at the held one, and its formation broke."""
     lim = leader_lim
-    return KernelLimits(
-        lim.v_min,
-        lim.v_max,
-        lim.accel,
-        lim.decel,
-        min(lim.max_pitch_rate, lim.leader_turn_rate),
-        lim.max_yaw_rate,
-        lim.target_accuracy,
-        lim.safe_distance_uav,
-        lim.safe_distance_obstacle,
-        lim.ground,
-        lim.max_climb_angle,
-        lim.max_dive_angle,
-        lim.leader_cruise_speed,
-        lim.leader_turn_rate,
-        lim.course_frame,
-        lim.leader_keep_out_pad,
+    pitch_rate = min(lim.max_pitch_rate, lim.leader_turn_rate)
+    return with_turn_limits(
+        lim, pitch_rate, lim.max_yaw_rate, lim.max_climb_angle, lim.max_dive_angle
     )
 
 
