@@ -86,6 +86,17 @@ class SecuredMachine(secured_schema.as_state_machine()):  # type: ignore[misc]
 
     client: TestClient
 
+    def setup(self) -> None:
+        """Each scenario against a service of its own: Hypothesis replays a scenario to
+        shrink it, and one that met the missions and runs an earlier scenario left behind
+        would get other answers, follow other links, and draw differently
+        (``FlakyStrategyDefinition``)."""
+        self._client = TestClient(create_app(_secured_settings))
+        self.client = self._client.__enter__()
+
+    def teardown(self) -> None:
+        self._client.__exit__(None, None, None)
+
     def get_call_kwargs(self, case: schemathesis.Case[Any]) -> dict[str, Any]:
         return {"session": self.client, "headers": {"Authorization": f"Bearer {TOKEN}"}}
 
@@ -105,8 +116,7 @@ class SecuredMachine(secured_schema.as_state_machine()):  # type: ignore[misc]
         )
 
 
-def test_stateful_with_a_token_all_checks(secured_client: TestClient) -> None:
-    SecuredMachine.client = secured_client
+def test_stateful_with_a_token_all_checks() -> None:
     SecuredMachine.run(
         settings=settings(
             max_examples=30,
