@@ -85,7 +85,7 @@ class KeepOut:
     """Cylinders and polygons (exclusion and inclusion): kept out of by their surface plus
     ``safe_distance_obstacle`` on their free side, as spheres are."""
     compiled: tuple[Any, ...] = field(init=False, repr=False, compare=False)
-    """All of it as ``prediction.score`` takes it (contiguous float64 and int64: one
+    """All of it as ``prediction.judge`` takes it (contiguous float64 and int64: one
     compiled signature), made once: a tick scores thousands of commands against it."""
 
     def __post_init__(self) -> None:
@@ -141,47 +141,75 @@ REASONS = {
 
 @dataclass(frozen=True, slots=True)
 class _Near:
-    """The teammates one vehicle yields to, as ``prediction.score`` takes them: the rows
-    ``which`` [n] of ``pool`` [P,L,3] (flights, ``Track.path``; a tick's are all as long)."""
+    """The teammates one vehicle yields to, as ``prediction.judge`` takes them: the rows
+    ``which`` [n] of ``pool`` [P,L,3] (flights, ``Track.path``; a tick's are all as long),
+    and ``steps`` [P], each row's ``prediction.longest_step`` (``_put``)."""
 
     pool: FloatArray
     which: IntArray
+    steps: FloatArray
 
     @staticmethod
     def of(tracks: Sequence[Track]) -> _Near:
         if not tracks:
-            return _Near(np.zeros((0, 1, 3)), np.zeros(0, dtype=np.int64))
+            return _Near(np.zeros((0, 1, 3)), np.zeros(0, dtype=np.int64), np.zeros(0))
         pool = np.ascontiguousarray(np.stack([t.path for t in tracks]), dtype=np.float64)
-        return _Near(pool, np.arange(len(tracks), dtype=np.int64))
+        steps = np.array([prediction.longest_step(row) for row in pool])
+        return _Near(pool, np.arange(len(tracks), dtype=np.int64), steps)
 
 
-def _score(
-    vector: FloatArray, c: Command, hold_s: float, keep: KeepOut, near: _Near
-) -> tuple[float, str | None]:
-    """A command's margin and the keep-out it is to."""
+def _put(pool: FloatArray, steps: FloatArray, row: int, flight: Track) -> None:
+    """A flight into row ``row`` of ``pool``, and its longest step into ``steps``."""
+    pool[row] = flight.path
+    steps[row] = prediction.longest_step(pool[row])
+
+
+Flights = tuple[FloatArray, FloatArray, FloatArray]
+"""A command's hold and its escapes to the left and right (``prediction.flights``)."""
+
+
+@dataclass(frozen=True, slots=True)
+class _Own:
+    """A vehicle as commands are scored for it: its motion, packed for the prediction, and
+    the flights of each command tried for it (``flights``), predicted once: a tick scores
+    the same command against other teammates, in both passes of ``assure`` and for each
+    candidate of a teammate in ``_make_way``."""
+
+    motion: Motion
+    vector: FloatArray
+    hold_s: float
+    tried: dict[tuple[float, float], Flights] = field(default_factory=dict)
+
+    @staticmethod
+    def of(m: Motion, hold_s: float) -> _Own:
+        return _Own(m, motion_vector(m), float(hold_s))
+
+    def flights(self, c: Command) -> Flights:
+        key = (float(c.course_rad), float(c.z_m))
+        found = self.tried.get(key)
+        if found is None:
+            found = prediction.flights(self.vector, key[0], key[1], self.hold_s)
+            self.tried[key] = found
+        return found
+
+
+def _judged(own: _Own, c: Command, keep: KeepOut, near: _Near) -> tuple[Any, ...]:
+    """``prediction.judge``'s arguments (and ``judge_each``'s): the command's flights, the
+    keep-outs and the teammates.  One signature: no compiling in flight."""
     centers, radii, safe_obstacle, ground, safe_uav, zk, zg, zs, zv = keep.compiled
-    s, reason = prediction.score(  # one signature: no compiling in flight
-        vector,
-        float(c.course_rad),
-        float(c.z_m),
-        float(hold_s),
-        centers,
-        radii,
-        safe_obstacle,
-        ground,
-        near.pool,
-        near.which,
-        safe_uav,
-        zk,
-        zg,
-        zs,
-        zv,
-    )
+    path, left, right = own.flights(c)
+    teammates = (near.pool, near.steps, near.which, safe_uav)
+    return (path, left, right, centers, radii, safe_obstacle, ground, *teammates, zk, zg, zs, zv)
+
+
+def _score(own: _Own, c: Command, keep: KeepOut, near: _Near) -> tuple[float, str | None]:
+    """A command's margin and the keep-out it is to."""
+    s, reason = prediction.judge(*_judged(own, c, keep, near))
     return float(s), REASONS.get(reason)
 
 
 def _zone_arrays(zones: Zones) -> tuple[IntArray, FloatArray, IntArray, FloatArray]:
-    """The zones' arrays as ``prediction.score`` compiles them (contiguous int64 and
+    """The zones' arrays as ``prediction.judge`` compiles them (contiguous int64 and
     float64: one signature, no compiling in flight)."""
     kind, geom, vstart, verts = zones.arrays
     return (
@@ -203,7 +231,7 @@ def score(
 ) -> tuple[float, str | None]:
     """A command's margin: along its hold, then along the better of its two escapes (the
     teammates flying on meanwhile, ``Track``); with the keep-out it is to."""
-    return _score(motion_vector(m), c, hold_s, keep, _Near.of(others))
+    return _score(_Own.of(m, hold_s), c, keep, _Near.of(others))
 
 
 def overtaking(a: Motion, b: Motion) -> bool:
@@ -266,18 +294,19 @@ def assure(
     smaller.  Measured (Table 3, ×10, a CPU burner per core): two wingmen escaping at once,
     the one of lower priority yielding alone, its escapes 7–9 m clear where the slack was
     50 m, came to 37.1 m of each other (the safe distance 50 m)."""
-    vectors = [motion_vector(m) for m in motions]
+    owns = [_Own.of(m, hold_s) for m in motions]
+    vectors = [o.vector for o in owns]
     after = max((int(prediction.escape_steps(v)) for v in vectors), default=1)
     yields = _yields(motions, vectors, hold_s, keep)
-    first = _in_order(motions, commands, hold_s, keep, escaping, vectors, after, yields, {})
+    first = _in_order(owns, commands, keep, escaping, after, yields, {})
     forced: dict[int, tuple[int, Command]] = {}
     for i in cornered(motions, first.verdicts):
-        way = _make_way(motions, commands, hold_s, keep, vectors, after, first, i)
+        way = _make_way(owns, commands, keep, after, first, i)
         if way is not None and way[0] not in forced:
             forced[way[0]] = (i, way[1])
     if not forced:
         return first.verdicts
-    second = _in_order(motions, commands, hold_s, keep, escaping, vectors, after, yields, forced)
+    second = _in_order(owns, commands, keep, escaping, after, yields, forced, first)
     if shortfall(motions, second.verdicts) < shortfall(motions, first.verdicts):
         return second.verdicts
     return first.verdicts
@@ -313,6 +342,8 @@ class _Pass:
     """[2N+1,L,3]: row j vehicle j's flight as assured, row N + j the one the vehicles
     before it took it to fly (its command held straight, or what ``_make_way`` found for
     it), row 2N free (``_make_way``'s candidates)."""
+    steps: FloatArray
+    """[2N+1]: each row's longest step (``_put``; inf: not written)."""
 
 
 def _yields(
@@ -349,46 +380,64 @@ def _yields(
 
 
 def _in_order(
-    motions: list[Motion],
+    owns: list[_Own],
     commands: list[Command],
-    hold_s: float,
     keep: KeepOut,
     escaping: Sequence[Escape | None] | None,
-    vectors: list[FloatArray],
     after: int,
     yields: list[list[int]],
     forced: dict[int, tuple[int, Command]],
+    earlier: _Pass | None = None,
 ) -> _Pass:
     """``assure``'s pass in priority order; ``yields``: whom each vehicle yields to
     (``_yields``); ``forced``: the vehicles sent what ``_make_way`` found for them (for
     whom, and what), whatever their own search would choose.  Each teammate's flight is
-    predicted once (``_Pass.pool``), not once for every vehicle that yields to it."""
-    n = len(motions)
+    predicted once (``_Pass.pool``), not once for every vehicle that yields to it.
+    ``earlier``: the pass before, with nothing forced; a vehicle not forced, whose
+    teammates fly as they flew in it, is judged as it was there (the same inputs)."""
+    n = len(owns)
+    hold_s = owns[0].hold_s if owns else 0.0
     verdicts: list[Verdict] = []
     paths: list[Track] = []
     yielded: list[dict[int, int]] = []
     length = int(prediction.hold_steps(float(hold_s))) + 1 + after
     pool = np.empty((2 * n + 1, length, 3))
+    steps = np.full(2 * n + 1, np.inf)
     for j in sorted({j for i, js in enumerate(yields) for j in js if j > i}):
+        if earlier is not None and j not in forced:
+            pool[n + j], steps[n + j] = earlier.pool[n + j], earlier.steps[n + j]
+            continue
         taken = (
-            track(vectors[j], forced[j][1], hold_s, after)
+            track(owns[j].vector, forced[j][1], hold_s, after)
             if j in forced
-            else straight_track(motions[j], hold_s, after)
+            else straight_track(owns[j].motion, hold_s, after)
         )
-        pool[n + j] = taken.path
-    for i, (m, c) in enumerate(zip(motions, commands, strict=True)):
+        _put(pool, steps, n + j, taken)
+    changed: set[int] = set()  # flying otherwise than in ``earlier``
+    for i, (own, c) in enumerate(zip(owns, commands, strict=True)):
+        m = own.motion
         to = {j: j if j < i else n + j for j in yields[i]}
-        vector, prepared = vectors[i], _Near(pool, np.array(list(to.values()), dtype=np.int64))
-        planned, reason = _score(vector, c, hold_s, keep, prepared)
+        if (
+            earlier is not None
+            and i not in forced
+            and not any(j in changed if j < i else j in forced for j in yields[i])
+        ):
+            verdicts.append(earlier.verdicts[i])
+            paths.append(earlier.paths[i])
+            pool[i], steps[i] = earlier.pool[i], earlier.steps[i]
+            yielded.append(to)
+            continue
+        prepared = _Near(pool, np.array(list(to.values()), dtype=np.int64), steps)
+        planned, reason = _score(own, c, keep, prepared)
         chosen, chosen_margin = c, planned
         slack = SLACK_S * m.speed_m_s
         previous = None if escaping is None else escaping[i]
         if i in forced:
             chosen = forced[i][1]
-            chosen_margin, _ = _score(vector, chosen, hold_s, keep, prepared)
+            chosen_margin, _ = _score(own, chosen, keep, prepared)
             reason = "teammate"
         elif planned < slack:
-            best = _escape(m, vector, c, reason, hold_s, keep, prepared, previous)
+            best = _escape(own, c, reason, keep, prepared, previous)
             if best[0] >= slack or best[0] > planned + BETTER_BY_M:
                 chosen_margin, chosen = best
         replaced = chosen != c
@@ -408,22 +457,17 @@ def _in_order(
                 forced[i][0] if i in forced else None,
             )
         )
-        flown = track(vector, chosen, hold_s, after)
+        flown = track(own.vector, chosen, hold_s, after)
+        if earlier is not None and chosen != earlier.verdicts[i].command:
+            changed.add(i)
         paths.append(flown)
-        pool[i] = flown.path
+        _put(pool, steps, i, flown)
         yielded.append(to)
-    return _Pass(verdicts, paths, yielded, pool)
+    return _Pass(verdicts, paths, yielded, pool, steps)
 
 
 def _make_way(
-    motions: list[Motion],
-    commands: list[Command],
-    hold_s: float,
-    keep: KeepOut,
-    vectors: list[FloatArray],
-    after: int,
-    first: _Pass,
-    i: int,
+    owns: list[_Own], commands: list[Command], keep: KeepOut, after: int, first: _Pass, i: int
 ) -> tuple[int, Command] | None:
     """What the teammate that corners vehicle ``i`` (of those it yields to, the one whose
     flight leaves it the least margin) is sent instead, so that both keep the slack: the
@@ -432,22 +476,24 @@ def _make_way(
     slack itself (from those it yields to, and from ``i`` on the flight ``i`` was given);
     else the one whose worse shortfall of the two is the smallest, if smaller than now.
     None: no one teammate corners it, or no candidate does better."""
-    m, v = motions[i], first.verdicts[i]
-    pool = first.pool
-    alone = {
-        j: _score(vectors[i], v.command, hold_s, keep, _Near(pool, np.array([row])))[0]
-        for j, row in first.yielded[i].items()
-    }
-    if not alone:
+    m, v, hold_s = owns[i].motion, first.verdicts[i], owns[i].hold_s
+    pool, steps = first.pool, first.steps
+    rows = np.array(list(first.yielded[i].values()), dtype=np.int64)
+    if not rows.shape[0]:
         return None
+    # its margin with each teammate alone
+    each = prediction.judge_each(*_judged(owns[i], v.command, keep, _Near(pool, rows, steps)))
+    alone = dict(zip(first.yielded[i], each.tolist(), strict=True))
     j = min(alone, key=alone.__getitem__)
-    slack_i, slack_j = SLACK_S * m.speed_m_s, SLACK_S * motions[j].speed_m_s
+    slack_i, slack_j = SLACK_S * m.speed_m_s, SLACK_S * owns[j].motion.speed_m_s
     if alone[j] >= slack_i:
         return None
-    mj, cj = motions[j], commands[j]
+    mj, cj = owns[j].motion, commands[j]
     # j's teammates but i, and i on the flight it was given (row i)
     theirs = _Near(
-        pool, np.array([row for k, row in first.yielded[j].items() if k != i] + [i], dtype=np.int64)
+        pool,
+        np.array([row for k, row in first.yielded[j].items() if k != i] + [i], dtype=np.int64),
+        steps,
     )
     scratch = pool.shape[0] - 1
     with_candidate = np.array(
@@ -455,18 +501,19 @@ def _make_way(
     )
     now = max(slack_i - v.chosen_margin_m, slack_j - first.verdicts[j].chosen_margin_m)
     best: tuple[float, Command] | None = None
+    altitudes = escape_altitudes(mj, cj, "teammate", hold_s, keep)
     candidates = (
         Command(wrap(cj.course_rad + offset), z)
         for offset in (0.0, *ESCAPE_OFFSETS)
-        for z in escape_altitudes(mj, cj, "teammate", hold_s, keep)
+        for z in altitudes
     )
     for candidate in candidates:
-        own, _ = _score(vectors[j], candidate, hold_s, keep, theirs)
+        own, _ = _score(owns[j], candidate, keep, theirs)
         if own < slack_j and best is not None and slack_j - own >= best[0]:
             continue  # cannot beat the best so far: skip the escape search
-        pool[scratch] = track(vectors[j], candidate, hold_s, after).path
-        near = _Near(pool, with_candidate)
-        escape, _ = _escape(m, vectors[i], commands[i], v.reason, hold_s, keep, near, None)
+        _put(pool, steps, scratch, track(owns[j].vector, candidate, hold_s, after))
+        near = _Near(pool, with_candidate, steps)
+        escape, _ = _escape(owns[i], commands[i], v.reason, keep, near, None)
         worse = max(slack_i - escape, slack_j - own)
         if worse <= 0.0:
             return j, candidate
@@ -478,11 +525,9 @@ def _make_way(
 
 
 def _escape(
-    m: Motion,
-    vector: FloatArray,
+    own: _Own,
     c: Command,
     reason: str | None,
-    hold_s: float,
     keep: KeepOut,
     near: _Near,
     previous: Escape | None,
@@ -491,21 +536,23 @@ def _escape(
     that is, turning the way ``previous`` turned (any way if none); else the best, the
     escape in force kept within ``ESCAPE_COMMIT_M``; one turning the other way only if it
     beats that by ``SIDE_SWITCH_S`` of flight, or keeps out where that does not."""
+    m, hold_s = own.motion, own.hold_s
     slack = SLACK_S * m.speed_m_s
     kept_command = None if previous is None else previous.command
     side = 0 if previous is None else previous.side
+    altitudes = escape_altitudes(m, c, reason, hold_s, keep)
     candidates = itertools.chain(
         () if kept_command is None else (kept_command,),
         (
             Command(wrap(c.course_rad + offset), z)
             for offset in (0.0, *ESCAPE_OFFSETS)
-            for z in escape_altitudes(m, c, reason, hold_s, keep)
+            for z in altitudes
         ),
     )
     best: tuple[float, Command] | None = None
     other: tuple[float, Command] | None = None  # the best turning the other way
     for candidate in candidates:
-        s, _ = _score(vector, candidate, hold_s, keep, near)
+        s, _ = _score(own, candidate, keep, near)
         if side and candidate != kept_command and turn_side(m, candidate.course_rad) == -side:
             if other is None or s > other[0]:
                 other = (s, candidate)
@@ -543,7 +590,10 @@ def warm_up() -> None:
     sphere = Obstacles(np.array([[500.0, 0.0, 100.0]]), np.array([100.0]), np.zeros((1, 3)))
     keep = KeepOut(sphere, 0.0, 25.0, 50.0)
     assure([m], [Command(0.0, 100.0)], 1.0, replace(keep, zones=_WARM_UP_ZONES))
-    assure([m, replace(m, pos_m=(0.0, 300.0, 100.0))], [Command(0.0, 100.0)] * 2, 1.0, keep)
+    beside = replace(m, pos_m=(0.0, 300.0, 100.0))
+    assure([m, beside], [Command(0.0, 100.0)] * 2, 1.0, keep)
+    near = _Near.of([straight_track(beside, 1.0, int(prediction.escape_steps(motion_vector(m))))])
+    prediction.judge_each(*_judged(_Own.of(m, 1.0), Command(0.0, 100.0), keep, near))
     advance(m, Command(0.0, 100.0), 1.0)
     escape_s(m)
     prediction.height_demand_now(motion_vector(m))  # the holds' stack

@@ -205,6 +205,74 @@ def escape_arc(m: FloatArray, end: FloatArray, side: float) -> FloatArray:
 
 
 @njit(cache=True)
+def longest_step(path: FloatArray) -> float:
+    """The longest step (m) between consecutive instants of ``path`` [k,3]: how far it can
+    move from one instant to the next (``margin`` skips instants by it)."""
+    most = 0.0
+    for i in range(1, path.shape[0]):
+        d = math.sqrt(
+            (path[i, 0] - path[i - 1, 0]) ** 2
+            + (path[i, 1] - path[i - 1, 1]) ** 2
+            + (path[i, 2] - path[i - 1, 2]) ** 2
+        )
+        most = max(most, d)
+    return most
+
+
+SKIP_TOLERANCE_M = 1e-6
+"""What ``margin``'s skipping leaves for rounding (m): far more than the error of a
+distance of 100 km in float64 (~1e-11 m), so the skipping changes no result."""
+
+
+@njit(cache=True)
+def _nearest_teammate(
+    path: FloatArray,
+    pool: FloatArray,
+    steps: FloatArray,
+    which: IntArray,
+    start: int,
+    last: int,
+    beyond_m: float,
+) -> float:
+    """The least distance (m) from ``path`` to the teammates' flights (``margin``), exact
+    where it is less than ``beyond_m``; otherwise some distance of at least ``beyond_m``.
+
+    Instants that cannot come nearer than the nearest so far are skipped: two points that
+    move at most ``own`` and ``steps[j]`` (m) an instant close by at most their sum an
+    instant (the triangle inequality).  A teammate far off is looked at every few instants
+    instead of at every one: the sum is the same, and the result, to the bit."""
+    own = longest_step(path)
+    n = path.shape[0]
+    gap2 = math.inf
+    for jj in range(which.shape[0]):  # the first instant first: the nearest so far is near
+        j = which[jj]
+        gap2 = min(
+            gap2,
+            (path[0, 0] - pool[j, start, 0]) ** 2
+            + (path[0, 1] - pool[j, start, 1]) ** 2
+            + (path[0, 2] - pool[j, start, 2]) ** 2,
+        )
+    for jj in range(which.shape[0]):
+        j = which[jj]
+        closing = own + steps[j]
+        i = 0
+        while i < n:
+            k = start + min(i, last)
+            d2 = (
+                (path[i, 0] - pool[j, k, 0]) ** 2
+                + (path[i, 1] - pool[j, k, 1]) ** 2
+                + (path[i, 2] - pool[j, k, 2]) ** 2
+            )
+            gap2 = min(gap2, d2)
+            i += 1
+            if closing > 0.0:
+                ahead = math.sqrt(d2) - min(math.sqrt(gap2), beyond_m) - SKIP_TOLERANCE_M
+                if ahead > 0.0:
+                    i += int(ahead / closing)
+    return math.sqrt(gap2)
+
+
+@njit(cache=True)
 def margin(
     path: FloatArray,
     centers: FloatArray,
@@ -212,10 +280,12 @@ def margin(
     safe_obstacle: float,
     ground_z: float,
     pool: FloatArray,
+    steps: FloatArray,
     which: IntArray,
     start: int,
     last: int,
     safe_uav: float,
+    cap: float,
     zone_kind: IntArray,
     zone_geom: FloatArray,
     zone_vstart: IntArray,
@@ -228,7 +298,9 @@ def margin(
     plus the same, on its free side; the ground's (``ground_z``, NaN: none)
     the same above it; a teammate's ``safe_uav`` around where it is at each instant: of the
     flights ``pool`` [P,L,3], those in rows ``which`` [n], ``path``'s instant i at their
-    ``start + min(i, last)`` (the last instant held on).
+    ``start + min(i, last)`` (the last instant held on); ``steps`` [P]: each row's
+    ``longest_step``.  Exact below ``cap``; at or above it, some margin at or above it
+    (what a caller that needs only to know that is spared).
 
     The teammates' distance is the square root of the least square distance (the square
     root is monotonic and correctly rounded: the least of the square roots, exactly, one
@@ -263,18 +335,8 @@ def margin(
         if low - ground_z - safe_obstacle < best:
             best, reason = low - ground_z - safe_obstacle, GROUND
     if which.shape[0]:
-        gap2 = math.inf
-        for jj in range(which.shape[0]):
-            j = which[jj]
-            for i in range(path.shape[0]):
-                k = start + min(i, last)
-                d2 = (
-                    (path[i, 0] - pool[j, k, 0]) ** 2
-                    + (path[i, 1] - pool[j, k, 1]) ** 2
-                    + (path[i, 2] - pool[j, k, 2]) ** 2
-                )
-                gap2 = min(gap2, d2)
-        gap = math.sqrt(gap2)
+        beyond = min(best, cap) + safe_uav  # nearer than this, a teammate decides
+        gap = _nearest_teammate(path, pool, steps, which, start, last, beyond)
         if gap - safe_uav < best:
             best, reason = gap - safe_uav, TEAMMATE
     return best, reason
@@ -288,16 +350,26 @@ def escape_steps(m: FloatArray) -> int:
 
 
 @njit(cache=True)
-def score(
-    m: FloatArray,
-    course: float,
-    z: float,
-    hold_s: float,
+def flights(
+    m: FloatArray, course: float, z: float, hold_s: float
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """A command's predicted flights: its hold (``fly_hold``), and the escapes to the left
+    and to the right from the hold's end (``escape_arc``), as ``judge`` takes them."""
+    path, end = fly_hold(m, course, z, hold_s)
+    return path, escape_arc(m, end, 1.0), escape_arc(m, end, -1.0)
+
+
+@njit(cache=True)
+def judge(
+    path: FloatArray,
+    left: FloatArray,
+    right: FloatArray,
     centers: FloatArray,
     radii: FloatArray,
     safe_obstacle: float,
     ground_z: float,
     pool: FloatArray,
+    steps: FloatArray,
     which: IntArray,
     safe_uav: float,
     zone_kind: IntArray,
@@ -305,21 +377,37 @@ def score(
     zone_vstart: IntArray,
     zone_verts: FloatArray,
 ) -> tuple[float, int]:
-    """A command's margin: along its hold (the teammates along theirs: rows ``which`` of
-    ``pool`` [P,L,3], their flights, ``vehicle_motion.Track``, the first ``hold_steps`` + 1
-    instants at the same instants), then along the better of its two escapes (the teammates
-    flying on meanwhile, from their hold's end, ``STEP_S`` apart, the last held on); with
-    the keep-out it is to."""
-    path, end = fly_hold(m, course, z, hold_s)
-    k = hold_steps(hold_s)
+    """A command's margin from its ``flights``: along its hold (the teammates along theirs:
+    rows ``which`` of ``pool`` [P,L,3], their flights, ``vehicle_motion.Track``, the first
+    ``hold_steps`` + 1 instants at the same instants; ``steps`` [P] each row's
+    ``longest_step``), then along the better of its two escapes (the teammates flying on
+    meanwhile, from their hold's end, ``STEP_S`` apart, the last held on); with the
+    keep-out it is to.  An escape at least as good as the hold decides nothing (the hold's
+    margin is the command's): the other escape is then not looked at, and an escape only as
+    far as it could fall below the hold's margin (``margin``'s ``cap``)."""
+    k = path.shape[0] - 1
     zk, zg, zs, zv = zone_kind, zone_geom, zone_vstart, zone_verts
     held, reason = margin(
-        path, centers, radii, safe_obstacle, ground_z, pool, which, 0, k, safe_uav, zk, zg, zs, zv
+        path,
+        centers,
+        radii,
+        safe_obstacle,
+        ground_z,
+        pool,
+        steps,
+        which,
+        0,
+        k,
+        safe_uav,
+        math.inf,
+        zk,
+        zg,
+        zs,
+        zv,
     )
     escape, escape_reason = -math.inf, NO_KEEP_OUT
     after = pool.shape[1] - k - 1
-    for side in (1.0, -1.0):
-        arc = escape_arc(m, end, side)
+    for arc in (left, right):
         e, r = margin(
             arc,
             centers,
@@ -327,10 +415,12 @@ def score(
             safe_obstacle,
             ground_z,
             pool,
+            steps,
             which,
             k,
             after,
             safe_uav,
+            held,
             zk,
             zg,
             zs,
@@ -338,6 +428,50 @@ def score(
         )
         if e > escape:
             escape, escape_reason = e, r
+        if escape >= held:
+            break
     if escape < held:
         return escape, escape_reason
     return held, reason
+
+
+@njit(cache=True)
+def judge_each(
+    path: FloatArray,
+    left: FloatArray,
+    right: FloatArray,
+    centers: FloatArray,
+    radii: FloatArray,
+    safe_obstacle: float,
+    ground_z: float,
+    pool: FloatArray,
+    steps: FloatArray,
+    which: IntArray,
+    safe_uav: float,
+    zone_kind: IntArray,
+    zone_geom: FloatArray,
+    zone_vstart: IntArray,
+    zone_verts: FloatArray,
+) -> FloatArray:
+    """``judge``'s margin with each teammate of ``which`` alone: [n], the flights predicted
+    once for all of them."""
+    out = np.empty(which.shape[0])
+    for jj in range(which.shape[0]):
+        out[jj], _ = judge(
+            path,
+            left,
+            right,
+            centers,
+            radii,
+            safe_obstacle,
+            ground_z,
+            pool,
+            steps,
+            which[jj : jj + 1],
+            safe_uav,
+            zone_kind,
+            zone_geom,
+            zone_vstart,
+            zone_verts,
+        )
+    return out
