@@ -21,7 +21,6 @@ the planner's margins).
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -193,13 +192,28 @@ class _Own:
         return found
 
 
-def _judged(own: _Own, c: Command, keep: KeepOut, near: _Near) -> tuple[Any, ...]:
-    """``prediction.judge``'s arguments (and ``judge_each``'s): the command's flights, the
-    keep-outs and the teammates.  One signature: no compiling in flight."""
+def _around(keep: KeepOut, near: _Near) -> tuple[Any, ...]:
+    """The keep-outs and the teammates as ``prediction.judge`` takes them, after the flights
+    (one signature: no compiling in flight)."""
     centers, radii, safe_obstacle, ground, safe_uav, zk, zg, zs, zv = keep.compiled
-    path, left, right = own.flights(c)
     teammates = (near.pool, near.steps, near.which, safe_uav)
-    return (path, left, right, centers, radii, safe_obstacle, ground, *teammates, zk, zg, zs, zv)
+    return (centers, radii, safe_obstacle, ground, *teammates, zk, zg, zs, zv)
+
+
+def _judged(own: _Own, c: Command, keep: KeepOut, near: _Near) -> tuple[Any, ...]:
+    """``prediction.judge``'s arguments (and ``judge_each``'s) for ``c``."""
+    return (*own.flights(c), *_around(keep, near))
+
+
+def _in_turn(
+    own: _Own, candidates: list[Command], ends: list[bool], slack: float, keep: KeepOut, near: _Near
+) -> tuple[Any, ...]:
+    """``prediction.judge_in_turn``'s arguments: ``_escape``'s candidates and which of them
+    may end its search."""
+    courses = np.array([float(c.course_rad) for c in candidates], dtype=np.float64)
+    altitudes = np.array([float(c.z_m) for c in candidates], dtype=np.float64)
+    search = (own.vector, courses, altitudes, np.array(ends, dtype=np.bool_), own.hold_s, slack)
+    return (*search, *_around(keep, near))
 
 
 def _score(own: _Own, c: Command, keep: KeepOut, near: _Near) -> tuple[float, str | None]:
@@ -541,19 +555,24 @@ def _escape(
     kept_command = None if previous is None else previous.command
     side = 0 if previous is None else previous.side
     altitudes = escape_altitudes(m, c, reason, hold_s, keep)
-    candidates = itertools.chain(
-        () if kept_command is None else (kept_command,),
-        (
+    candidates = [
+        *(() if kept_command is None else (kept_command,)),
+        *(
             Command(wrap(c.course_rad + offset), z)
             for offset in (0.0, *ESCAPE_OFFSETS)
             for z in altitudes
         ),
-    )
+    ]
+    # one that turns the other way does not end the search
+    ends = [
+        not (side and candidate != kept_command and turn_side(m, candidate.course_rad) == -side)
+        for candidate in candidates
+    ]
+    scores = prediction.judge_in_turn(*_in_turn(own, candidates, ends, slack, keep, near))
     best: tuple[float, Command] | None = None
     other: tuple[float, Command] | None = None  # the best turning the other way
-    for candidate in candidates:
-        s, _ = _score(own, candidate, keep, near)
-        if side and candidate != kept_command and turn_side(m, candidate.course_rad) == -side:
+    for candidate, s, may_end in zip(candidates, scores.tolist(), ends, strict=True):
+        if not may_end:
             if other is None or s > other[0]:
                 other = (s, candidate)
             continue
@@ -593,7 +612,9 @@ def warm_up() -> None:
     beside = replace(m, pos_m=(0.0, 300.0, 100.0))
     assure([m, beside], [Command(0.0, 100.0)] * 2, 1.0, keep)
     near = _Near.of([straight_track(beside, 1.0, int(prediction.escape_steps(motion_vector(m))))])
-    prediction.judge_each(*_judged(_Own.of(m, 1.0), Command(0.0, 100.0), keep, near))
+    own, ahead = _Own.of(m, 1.0), Command(0.0, 100.0)
+    prediction.judge_each(*_judged(own, ahead, keep, near))
+    prediction.judge_in_turn(*_in_turn(own, [ahead], [True], 1.0, keep, near))
     advance(m, Command(0.0, 100.0), 1.0)
     escape_s(m)
     prediction.height_demand_now(motion_vector(m))  # the holds' stack

@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numpy.typing as npt
 from numba import njit
 
 from gcs_ppf.guidance.airframe import G_M_S2
@@ -474,4 +475,65 @@ def judge_each(
             zone_vstart,
             zone_verts,
         )
+    return out
+
+
+@njit(cache=True)
+def judge_in_turn(
+    m: FloatArray,
+    courses: FloatArray,
+    altitudes: FloatArray,
+    ends: npt.NDArray[np.bool_],
+    hold_s: float,
+    slack: float,
+    centers: FloatArray,
+    radii: FloatArray,
+    safe_obstacle: float,
+    ground_z: float,
+    pool: FloatArray,
+    steps: FloatArray,
+    which: IntArray,
+    safe_uav: float,
+    zone_kind: IntArray,
+    zone_geom: FloatArray,
+    zone_vstart: IntArray,
+    zone_verts: FloatArray,
+) -> FloatArray:
+    """``judge``'s margins [n] of candidate commands (``courses``, ``altitudes``), flown
+    (``flights``) and judged in turn until the first that may end the search (``ends``)
+    has ``slack`` or more; NaN after it.  One call for an escape's whole search."""
+    out = np.full(courses.shape[0], np.nan)
+    for c in range(courses.shape[0]):
+        path, left, right = flights(m, courses[c], altitudes[c], hold_s)
+        out[c], _ = judge(
+            path,
+            left,
+            right,
+            centers,
+            radii,
+            safe_obstacle,
+            ground_z,
+            pool,
+            steps,
+            which,
+            safe_uav,
+            zone_kind,
+            zone_geom,
+            zone_vstart,
+            zone_verts,
+        )
+        if ends[c] and out[c] >= slack:
+            break
+    return out
+
+
+@njit(cache=True)
+def track_path(m: FloatArray, course: float, z: float, hold_s: float, after: int) -> FloatArray:
+    """Positions [k+1+after,3]: the hold (``fly_hold``), then ``after`` more ``STEP_S``
+    on the same course and altitude (``fly_on``)."""
+    path, end = fly_hold(m, course, z, hold_s)
+    on = fly_on(m, end, course, z, after)
+    out = np.empty((path.shape[0] + after, 3))
+    out[: path.shape[0]] = path
+    out[path.shape[0] :] = on[1:]
     return out

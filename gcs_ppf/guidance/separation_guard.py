@@ -79,13 +79,15 @@ def resolve(
     n = fleet.pos.shape[0]
     vel = velocities(scene)
     d = fleet.pos[:, None] - fleet.pos[None]  # [i, k]: i's offset from k
-    miss = closest_approach(d, vel[:, None] - vel[None], horizon_s)
     overtaking = ((d * vel[:, None]).sum(-1) < 0.0) & (fleet.speed[:, None] > fleet.speed[None])
     gives_way = (fleet.rank[None] < fleet.rank[:, None]) | overtaking
     pairs = gives_way & fleet.active[:, None] & fleet.active[None] & ~np.eye(n, dtype=bool)
     if in_formation is not None:
         flying_formation = np.array(in_formation[:n], dtype=bool)
         pairs &= ~(flying_formation[:, None] & flying_formation[None])
+    i_of, k_of = np.nonzero(pairs)  # the closest approach of these pairs only
+    miss = np.full((n, n), np.inf)
+    miss[i_of, k_of] = closest_approach(d[i_of, k_of], vel[i_of] - vel[k_of], horizon_s)
     held = np.zeros(n, dtype=bool)
     if previous is not None:
         held[: min(n, len(previous))] = previous[:n]

@@ -155,9 +155,8 @@ class Track:
 
 def track(vector: FloatArray, c: Command, hold_s: float, after_steps: int) -> Track:
     """A vehicle's predicted flight on ``c``: its hold, then ``after_steps`` more."""
-    path, end = prediction.fly_hold(vector, float(c.course_rad), float(c.z_m), float(hold_s))
-    on = prediction.fly_on(vector, end, float(c.course_rad), float(c.z_m), after_steps)
-    return Track(np.concatenate((path, on[1:])))
+    course, z = float(c.course_rad), float(c.z_m)
+    return Track(prediction.track_path(vector, course, z, float(hold_s), int(after_steps)))
 
 
 def straight_track(m: Motion, hold_s: float, after_steps: int) -> Track:
