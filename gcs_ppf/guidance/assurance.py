@@ -37,7 +37,6 @@ from gcs_ppf.guidance.vehicle_motion import (
     escape_s,
     motion_vector,
     straight_track,
-    track,
     turn_side,
     wrap,
 )
@@ -157,10 +156,11 @@ class _Near:
         return _Near(pool, np.arange(len(tracks), dtype=np.int64), steps)
 
 
-def _put(pool: FloatArray, steps: FloatArray, row: int, flight: Track) -> None:
-    """A flight into row ``row`` of ``pool``, and its longest step into ``steps``."""
-    pool[row] = flight.path
-    steps[row] = prediction.longest_step(pool[row])
+def _put(pool: FloatArray, steps: FloatArray, row: int, own: _Own, c: Command) -> None:
+    """The vehicle's flight on ``c`` (``vehicle_motion.track``, as long as the rows) into row
+    ``row`` of ``pool``, and its longest step into ``steps``."""
+    course, z = float(c.course_rad), float(c.z_m)
+    prediction.track_into(own.vector, course, z, own.hold_s, pool, steps, row)
 
 
 Flights = tuple[FloatArray, FloatArray, FloatArray]
@@ -217,8 +217,15 @@ def _in_turn(
 
 
 def _score(own: _Own, c: Command, keep: KeepOut, near: _Near) -> tuple[float, str | None]:
-    """A command's margin and the keep-out it is to."""
-    s, reason = prediction.judge(*_judged(own, c, keep, near))
+    """A command's margin and the keep-out it is to (its flights predicted and judged in one
+    call the first time, kept for the next)."""
+    key = (float(c.course_rad), float(c.z_m))
+    if key in own.tried:
+        s, reason = prediction.judge(*own.tried[key], *_around(keep, near))
+    else:
+        flown = prediction.judge_flown(own.vector, *key, own.hold_s, *_around(keep, near))
+        s, reason = flown[0], flown[1]
+        own.tried[key] = flown[2:]
     return float(s), REASONS.get(reason)
 
 
@@ -345,12 +352,11 @@ def shortfall(motions: Sequence[Motion], verdicts: Sequence[Verdict]) -> float:
 
 @dataclass(frozen=True, slots=True)
 class _Pass:
-    """One pass of ``assure`` in priority order: each vehicle's verdict, the flight it was
-    given, and the teammates it yielded to (by index, on the flights it took them to fly:
-    the row of ``pool`` each one's is in)."""
+    """One pass of ``assure`` in priority order: each vehicle's verdict, the teammates it
+    yielded to (by index, on the flights it took them to fly: the row of ``pool`` each
+    one's is in), and the flights (``pool``: each vehicle's as it was given it)."""
 
     verdicts: list[Verdict]
-    paths: list[Track]
     yielded: list[dict[int, int]]
     pool: FloatArray
     """[2N+1,L,3]: row j vehicle j's flight as assured, row N + j the one the vehicles
@@ -412,7 +418,6 @@ def _in_order(
     n = len(owns)
     hold_s = owns[0].hold_s if owns else 0.0
     verdicts: list[Verdict] = []
-    paths: list[Track] = []
     yielded: list[dict[int, int]] = []
     length = int(prediction.hold_steps(float(hold_s))) + 1 + after
     pool = np.empty((2 * n + 1, length, 3))
@@ -421,12 +426,9 @@ def _in_order(
         if earlier is not None and j not in forced:
             pool[n + j], steps[n + j] = earlier.pool[n + j], earlier.steps[n + j]
             continue
-        taken = (
-            track(owns[j].vector, forced[j][1], hold_s, after)
-            if j in forced
-            else straight_track(owns[j].motion, hold_s, after)
-        )
-        _put(pool, steps, n + j, taken)
+        mj = owns[j].motion
+        taken = forced[j][1] if j in forced else Command(mj.yaw_rad, mj.pos_m[2])  # held on
+        _put(pool, steps, n + j, owns[j], taken)
     changed: set[int] = set()  # flying otherwise than in ``earlier``
     for i, (own, c) in enumerate(zip(owns, commands, strict=True)):
         m = own.motion
@@ -437,7 +439,6 @@ def _in_order(
             and not any(j in changed if j < i else j in forced for j in yields[i])
         ):
             verdicts.append(earlier.verdicts[i])
-            paths.append(earlier.paths[i])
             pool[i], steps[i] = earlier.pool[i], earlier.steps[i]
             yielded.append(to)
             continue
@@ -471,13 +472,11 @@ def _in_order(
                 forced[i][0] if i in forced else None,
             )
         )
-        flown = track(own.vector, chosen, hold_s, after)
         if earlier is not None and chosen != earlier.verdicts[i].command:
             changed.add(i)
-        paths.append(flown)
-        _put(pool, steps, i, flown)
+        _put(pool, steps, i, own, chosen)
         yielded.append(to)
-    return _Pass(verdicts, paths, yielded, pool, steps)
+    return _Pass(verdicts, yielded, pool, steps)
 
 
 def _make_way(
@@ -525,7 +524,7 @@ def _make_way(
         own, _ = _score(owns[j], candidate, keep, theirs)
         if own < slack_j and best is not None and slack_j - own >= best[0]:
             continue  # cannot beat the best so far: skip the escape search
-        _put(pool, steps, scratch, track(owns[j].vector, candidate, hold_s, after))
+        _put(pool, steps, scratch, owns[j], candidate)
         near = _Near(pool, with_candidate, steps)
         escape, _ = _escape(owns[i], commands[i], v.reason, keep, near, None)
         worse = max(slack_i - escape, slack_j - own)
@@ -615,6 +614,9 @@ def warm_up() -> None:
     own, ahead = _Own.of(m, 1.0), Command(0.0, 100.0)
     prediction.judge_each(*_judged(own, ahead, keep, near))
     prediction.judge_in_turn(*_in_turn(own, [ahead], [True], 1.0, keep, near))
+    _score(own, ahead, keep, near)  # flown and judged (judge_flown), then judged again
+    _score(own, ahead, keep, near)
+    _put(near.pool, near.steps, 0, own, ahead)  # track_into
     advance(m, Command(0.0, 100.0), 1.0)
     escape_s(m)
     prediction.height_demand_now(motion_vector(m))  # the holds' stack

@@ -537,3 +537,62 @@ def track_path(m: FloatArray, course: float, z: float, hold_s: float, after: int
     out[: path.shape[0]] = path
     out[path.shape[0] :] = on[1:]
     return out
+
+
+@njit(cache=True)
+def track_into(
+    m: FloatArray,
+    course: float,
+    z: float,
+    hold_s: float,
+    pool: FloatArray,
+    steps: FloatArray,
+    row: int,
+) -> None:
+    """``track_path`` as long as ``pool``'s rows, written into row ``row``, and its
+    ``longest_step`` into ``steps[row]``."""
+    path = track_path(m, course, z, hold_s, pool.shape[1] - hold_steps(hold_s) - 1)
+    pool[row] = path
+    steps[row] = longest_step(path)
+
+
+@njit(cache=True)
+def judge_flown(
+    m: FloatArray,
+    course: float,
+    z: float,
+    hold_s: float,
+    centers: FloatArray,
+    radii: FloatArray,
+    safe_obstacle: float,
+    ground_z: float,
+    pool: FloatArray,
+    steps: FloatArray,
+    which: IntArray,
+    safe_uav: float,
+    zone_kind: IntArray,
+    zone_geom: FloatArray,
+    zone_vstart: IntArray,
+    zone_verts: FloatArray,
+) -> tuple[float, int, FloatArray, FloatArray, FloatArray]:
+    """``judge`` of a command's ``flights``, flown here: its margin, the keep-out it is to,
+    and the flights (kept by the caller for the next time the command is judged)."""
+    path, left, right = flights(m, course, z, hold_s)
+    s, reason = judge(
+        path,
+        left,
+        right,
+        centers,
+        radii,
+        safe_obstacle,
+        ground_z,
+        pool,
+        steps,
+        which,
+        safe_uav,
+        zone_kind,
+        zone_geom,
+        zone_vstart,
+        zone_verts,
+    )
+    return s, reason, path, left, right

@@ -287,8 +287,9 @@ def test_after_warm_up_nothing_is_compiled_in_flight() -> None:
     assurance.warm_up()
     compiled = {
         f: len(getattr(prediction, f).signatures)
-        for f in ("flights", "judge", "judge_each", "judge_in_turn", "longest_step",
-                  "track_path", "fly_hold", "escape_s", "escape_steps", "height_demand_now")
+        for f in ("flights", "judge", "judge_each", "judge_in_turn", "judge_flown", "track_into",
+                  "longest_step", "track_path", "fly_hold", "escape_s", "escape_steps",
+                  "height_demand_now")
     }  # fmt: skip
     assert all(compiled.values()), compiled  # warmed up, each of them
     yields_compiled = len(reach.yields.signatures)
