@@ -16,7 +16,7 @@ from typing import Literal
 
 import numpy as np
 
-from gcs_ppf.planning.scene import FloatArray, Obstacles
+from gcs_ppf.planning.scene import BoolArray, FloatArray, Obstacles
 from gcs_ppf.planning.zones import Zones, zone_clearances
 
 Kind = Literal["obstacle", "zone", "teammate", "ground"]
@@ -53,6 +53,20 @@ def aligned(positions: FloatArray, velocities: FloatArray, ages_s: FloatArray) -
         return positions
     behind = np.clip(np.asarray(ages_s, dtype=float) - np.min(ages_s), 0.0, MAX_ALIGN_S)
     return positions + velocities * behind[:, None]
+
+
+def current(ages_s: FloatArray) -> BoolArray:
+    """Which reports [N] (``ages_s``, vehicle seconds) are of the moment the monitor judges:
+    no more than ``MAX_ALIGN_S`` behind the newest.  A vehicle gone silent for longer is
+    where it was, not where it is (until the watchdog calls it lost): judged there, a
+    wingman passing the spot where a teammate had stopped reporting 3.5 s before was a
+    violation, 45.4 m from a vehicle that was not there (test_flown_safety, a CPU burner
+    per core; the independent observer on the vehicles' ports judges every one)."""
+    ages = np.asarray(ages_s, dtype=float)
+    if ages.size == 0:
+        return np.zeros(0, dtype=bool)
+    out: BoolArray = ages - ages.min() <= MAX_ALIGN_S
+    return out
 
 
 def violations(

@@ -499,11 +499,11 @@ async def tick(station: Station, run: Run) -> bool:
         # distances), of those not lost (``losses`` has just matched them to the fleet's)
         reporting = [(v, p) for v, p in located if v.system_id not in run.lost_ids]
         ids = [v.system_id for v, _ in reporting]
-        together = reported_together(reporting)
+        together, now = reported_together(reporting)
     with phases.phase("monitoring"):
-        watch_safety(
-            station, run, ids, together, mission.ground if mission.ground is not None else ground
-        )
+        judged = [i for i, c in zip(ids, now, strict=True) if c]  # not gone silent
+        watch_ground = mission.ground if mission.ground is not None else ground
+        watch_safety(station, run, judged, together[now], watch_ground)
         watch_formation(station, run, reporting, together)
     with phases.phase("prediction"):
         recent = list(itertools.islice(reversed(run.tick_latency_s), RECENT_TICKS))
@@ -520,7 +520,8 @@ async def tick(station: Station, run: Run) -> bool:
         watched = sorted(active)
         positions = together[[at[i] for i in watched]].reshape(-1, 3)
         obstacles = obstacles_from_mission(mission).at(run.mission_time_s)
-        run.min_separation_m = min_of(run.min_separation_m, separations(positions))
+        of_now = together[[at[i] for i in watched if now[at[i]]]].reshape(-1, 3)
+        run.min_separation_m = min_of(run.min_separation_m, separations(of_now))
         nearest = nearest_keep_outs(positions, obstacles, run.zones)
         run.nearest_keep_out = dict(zip(watched, nearest, strict=True))
         clear = [d for _, d in nearest if d is not None]

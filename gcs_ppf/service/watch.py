@@ -11,8 +11,8 @@ import numpy as np
 
 from gcs_ppf.geodesy import velocity_ned_to_enu
 from gcs_ppf.guidance.online import home_ground
-from gcs_ppf.guidance.safety_monitor import aligned
-from gcs_ppf.planning.scene import FloatArray, obstacles_from_mission
+from gcs_ppf.guidance.safety_monitor import aligned, current
+from gcs_ppf.planning.scene import BoolArray, FloatArray, obstacles_from_mission
 from gcs_ppf.service.fleet import Vehicle
 from gcs_ppf.service.run import Run, RunState, summary
 from gcs_ppf.service.station import Station
@@ -59,21 +59,32 @@ def watch_safety(
         )
 
 
-def reported_together(located: Located) -> FloatArray:
+def reported_together(located: Located) -> tuple[FloatArray, BoolArray]:
     """The reported positions [N,3] (ICS) on one instant: each carried along its velocity by
-    how much older it is than the newest (its age since it arrived, on its own clock)."""
+    how much older it is than the newest (its age since it arrived, on its own clock); and
+    which of them are of that instant (``safety_monitor.current``: not a vehicle gone
+    silent, carried at most ``MAX_ALIGN_S``)."""
     now = time.monotonic()
     positions = np.array([p for _, p in located], dtype=float).reshape(-1, 3)
     velocities = np.zeros_like(positions)
     ages = np.zeros(len(located))
+    carried = np.zeros(len(located))  # ages, those without a velocity taken as they are
     for k, (v, _) in enumerate(located):
         t = v.telemetry
+        if t.position_received_s is not None:
+            ages[k] = v.clock.vehicle_seconds(max(0.0, now - t.position_received_s))
         if t.vn_m_s is None or t.ve_m_s is None or t.vd_m_s is None:
             continue  # no velocity: taken as it is
         velocities[k] = velocity_ned_to_enu(t.vn_m_s, t.ve_m_s, t.vd_m_s)
-        if t.position_received_s is not None:
-            ages[k] = v.clock.vehicle_seconds(max(0.0, now - t.position_received_s))
-    return aligned(positions, velocities, ages)
+        carried[k] = ages[k]
+    return aligned(positions, velocities, carried), current(ages)
+
+
+def watched(located: Located) -> tuple[list[int], FloatArray]:
+    """The ids and positions [N,3] the safety monitor judges: ``reported_together``'s, of the
+    vehicles whose reports are of its instant."""
+    together, now = reported_together(located)
+    return [v.system_id for (v, _), c in zip(located, now, strict=True) if c], together[now]
 
 
 def ground(run: Run, located: Located) -> float | None:
@@ -94,14 +105,7 @@ def watch_once(station: Station, run: Run, located: Located, after_end_s: float)
     others take off, ``after_end_s`` 0; the holds and the watch after the end): a violation
     is a ``safety_violation`` event, and a completed run becomes ``completed_unsafe``."""
     before = run.safety.count
-    watch_safety(
-        station,
-        run,
-        [v.system_id for v, _ in located],
-        reported_together(located),
-        ground(run, located),
-        after_end_s,
-    )
+    watch_safety(station, run, *watched(located), ground(run, located), after_end_s)
     if run.safety.count > before and run.state == RunState.COMPLETED:
         run.state = RunState.COMPLETED_UNSAFE
         run.outcome = f"{run.outcome}; a safety violation after the end"

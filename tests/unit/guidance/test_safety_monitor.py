@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as hs
 
-from gcs_ppf.guidance.safety_monitor import MAX_ALIGN_S, Monitor, aligned, violations
+from gcs_ppf.guidance.safety_monitor import MAX_ALIGN_S, Monitor, aligned, current, violations
 from gcs_ppf.mission import CylinderZone, Mission, PolygonZone
 from gcs_ppf.planning.scene import Obstacles
 from gcs_ppf.planning.zones import Zones, zones_of
@@ -105,6 +105,21 @@ def test_reports_of_different_moments_are_carried_to_the_newest() -> None:
     far = aligned(positions, velocities, np.array([5.0, 0.0]))
     assert far[0] == pytest.approx([20.0 - 100.0 * MAX_ALIGN_S, 0.0, 100.0])
     assert aligned(positions, velocities, np.zeros(2)) == pytest.approx(positions)
+
+
+def test_a_vehicle_gone_silent_is_not_judged_where_it_last_was() -> None:
+    """Flown (a CPU burner per core): wingman 4's link died, and 3.5 s later wingman 3 passed
+    45.4 m from where 4 had last reported; judged there, that was a violation with no
+    vehicle in it.  A report more than ``MAX_ALIGN_S`` behind the newest is not judged."""
+    ages = np.array([0.0, 0.4, MAX_ALIGN_S, MAX_ALIGN_S + 0.01, 3.5])
+    assert current(ages).tolist() == [True, True, True, False, False]
+    assert current(ages + 10.0).tolist() == current(ages).tolist()  # behind the newest
+    assert current(np.zeros(0)).tolist() == []
+    positions = np.array([[0.0, 0.0, 300.0], [45.4, 0.0, 300.0]])  # 3 now, 4's last report
+    now = current(np.array([0.0, 3.5]))
+    ids = [i for i, c in zip([3, 4], now, strict=True) if c]
+    assert violations([3, 4], positions, spheres(), None, 50.0, 25.0)  # were it judged
+    assert not violations(ids, positions[now], spheres(), None, 50.0, 25.0)
 
 
 def _zones() -> Zones:
