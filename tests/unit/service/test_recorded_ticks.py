@@ -6,9 +6,9 @@ the same messages in the same order, the same events and the same state after, t
 Recorded before the tick was made to scale (issue 29), so that making it faster cannot
 change what it decides; ``formation_100_bench`` (the service benchmark's 100 vehicles, two
 ticks of them with 30 commands replaced) was recorded after the assurance's first speed-ups
-and replayed identical by the code before them.  A change of the planner itself re-plans the recorded results from
-the recorded inputs (crossing_point's guard on a teammate moved 5 of them by at most
-1.1e-13 m, rounding; the verdicts and commands replayed unchanged)."""
+and replayed identical by the code before them.  A change of the planner itself re-plans
+the recorded results from the recorded inputs (crossing_point's guard on a teammate moved 5
+of them by at most 1.1e-13 m, rounding; the verdicts and commands replayed unchanged)."""
 
 from __future__ import annotations
 
