@@ -192,17 +192,12 @@ class _Own:
         return found
 
 
-def _around(keep: KeepOut, near: _Near) -> tuple[Any, ...]:
-    """The keep-outs and the teammates as ``prediction.judge`` takes them, after the flights
-    (one signature: no compiling in flight)."""
+def _around(keep: KeepOut, near: _Near) -> prediction.Around:
+    """The keep-outs and the teammates as ``prediction.judge`` takes them (one signature: no
+    compiling in flight)."""
     centers, radii, safe_obstacle, ground, safe_uav, zk, zg, zs, zv = keep.compiled
     teammates = (near.pool, near.steps, near.which, safe_uav)
     return (centers, radii, safe_obstacle, ground, *teammates, zk, zg, zs, zv)
-
-
-def _judged(own: _Own, c: Command, keep: KeepOut, near: _Near) -> tuple[Any, ...]:
-    """``prediction.judge``'s arguments (and ``judge_each``'s) for ``c``."""
-    return (*own.flights(c), *_around(keep, near))
 
 
 def _in_turn(
@@ -213,7 +208,7 @@ def _in_turn(
     courses = np.array([float(c.course_rad) for c in candidates], dtype=np.float64)
     altitudes = np.array([float(c.z_m) for c in candidates], dtype=np.float64)
     search = (own.vector, courses, altitudes, np.array(ends, dtype=np.bool_), own.hold_s, slack)
-    return (*search, *_around(keep, near))
+    return (*search, _around(keep, near))
 
 
 def _score(own: _Own, c: Command, keep: KeepOut, near: _Near) -> tuple[float, str | None]:
@@ -221,9 +216,9 @@ def _score(own: _Own, c: Command, keep: KeepOut, near: _Near) -> tuple[float, st
     call the first time, kept for the next)."""
     key = (float(c.course_rad), float(c.z_m))
     if key in own.tried:
-        s, reason = prediction.judge(*own.tried[key], *_around(keep, near))
+        s, reason = prediction.judge(*own.tried[key], _around(keep, near))
     else:
-        flown = prediction.judge_flown(own.vector, *key, own.hold_s, *_around(keep, near))
+        flown = prediction.judge_flown(own.vector, *key, own.hold_s, _around(keep, near))
         s, reason = flown[0], flown[1]
         own.tried[key] = flown[2:]
     return float(s), REASONS.get(reason)
@@ -495,7 +490,9 @@ def _make_way(
     if not rows.shape[0]:
         return None
     # its margin with each teammate alone
-    each = prediction.judge_each(*_judged(owns[i], v.command, keep, _Near(pool, rows, steps)))
+    each = prediction.judge_each(
+        *owns[i].flights(v.command), _around(keep, _Near(pool, rows, steps))
+    )
     alone = dict(zip(first.yielded[i], each.tolist(), strict=True))
     j = min(alone, key=alone.__getitem__)
     slack_i, slack_j = SLACK_S * m.speed_m_s, SLACK_S * owns[j].motion.speed_m_s
@@ -612,7 +609,7 @@ def warm_up() -> None:
     assure([m, beside], [Command(0.0, 100.0)] * 2, 1.0, keep)
     near = _Near.of([straight_track(beside, 1.0, int(prediction.escape_steps(motion_vector(m))))])
     own, ahead = _Own.of(m, 1.0), Command(0.0, 100.0)
-    prediction.judge_each(*_judged(own, ahead, keep, near))
+    prediction.judge_each(*own.flights(ahead), _around(keep, near))
     prediction.judge_in_turn(*_in_turn(own, [ahead], [True], 1.0, keep, near))
     _score(own, ahead, keep, near)  # flown and judged (judge_flown), then judged again
     _score(own, ahead, keep, near)

@@ -273,27 +273,22 @@ def _nearest_teammate(
     return math.sqrt(gap2)
 
 
+Around = tuple[
+    FloatArray, FloatArray, float, float, FloatArray, FloatArray, IntArray, float,
+    IntArray, FloatArray, IntArray, FloatArray,
+]  # fmt: skip
+"""The keep-outs and the teammates a path is judged against (``margin``, ``judge``): the
+spheres' centres and radii, ``safe_obstacle``, ``ground_z``; the teammates' flights
+``pool``, their ``steps`` and the rows ``which``, ``safe_uav``; the zones' arrays."""
+
+
 @njit(cache=True)
 def margin(
-    path: FloatArray,
-    centers: FloatArray,
-    radii: FloatArray,
-    safe_obstacle: float,
-    ground_z: float,
-    pool: FloatArray,
-    steps: FloatArray,
-    which: IntArray,
-    start: int,
-    last: int,
-    safe_uav: float,
-    cap: float,
-    zone_kind: IntArray,
-    zone_geom: FloatArray,
-    zone_vstart: IntArray,
-    zone_verts: FloatArray,
+    path: FloatArray, around: Around, start: int, last: int, cap: float
 ) -> tuple[float, int]:
-    """How far ``path`` [k,3] (``STEP_S`` apart) stays outside every keep-out (m; negative:
-    inside), and which one is nearest (``OBSTACLE``, ``GROUND``, ``TEAMMATE``, ``ZONE``).
+    """How far ``path`` [k,3] (``STEP_S`` apart) stays outside every keep-out ``around``
+    (m; negative: inside), and which one is nearest (``OBSTACLE``, ``GROUND``, ``TEAMMATE``,
+    ``ZONE``).
     A sphere's keep-out is its surface plus ``safe_obstacle``; a zone's (the arrays of
     ``gcs_ppf.planning.zones``: cylinders and polygons, exclusion or inclusion) its surface
     plus the same, on its free side; the ground's (``ground_z``, NaN: none)
@@ -306,6 +301,8 @@ def margin(
     The teammates' distance is the square root of the least square distance (the square
     root is monotonic and correctly rounded: the least of the square roots, exactly, one
     root instead of one per instant)."""
+    centers, radii, safe_obstacle, ground_z, pool, steps, which, safe_uav = around[:8]
+    zone_kind, zone_geom, zone_vstart, zone_verts = around[8:]
     best, reason = math.inf, NO_KEEP_OUT
     if radii.shape[0]:
         gap = math.inf
@@ -362,21 +359,7 @@ def flights(
 
 @njit(cache=True)
 def judge(
-    path: FloatArray,
-    left: FloatArray,
-    right: FloatArray,
-    centers: FloatArray,
-    radii: FloatArray,
-    safe_obstacle: float,
-    ground_z: float,
-    pool: FloatArray,
-    steps: FloatArray,
-    which: IntArray,
-    safe_uav: float,
-    zone_kind: IntArray,
-    zone_geom: FloatArray,
-    zone_vstart: IntArray,
-    zone_verts: FloatArray,
+    path: FloatArray, left: FloatArray, right: FloatArray, around: Around
 ) -> tuple[float, int]:
     """A command's margin from its ``flights``: along its hold (the teammates along theirs:
     rows ``which`` of ``pool`` [P,L,3], their flights, ``vehicle_motion.Track``, the first
@@ -387,46 +370,11 @@ def judge(
     margin is the command's): the other escape is then not looked at, and an escape only as
     far as it could fall below the hold's margin (``margin``'s ``cap``)."""
     k = path.shape[0] - 1
-    zk, zg, zs, zv = zone_kind, zone_geom, zone_vstart, zone_verts
-    held, reason = margin(
-        path,
-        centers,
-        radii,
-        safe_obstacle,
-        ground_z,
-        pool,
-        steps,
-        which,
-        0,
-        k,
-        safe_uav,
-        math.inf,
-        zk,
-        zg,
-        zs,
-        zv,
-    )
+    held, reason = margin(path, around, 0, k, math.inf)
     escape, escape_reason = -math.inf, NO_KEEP_OUT
-    after = pool.shape[1] - k - 1
+    after = around[4].shape[1] - k - 1  # the pool's instants after the hold
     for arc in (left, right):
-        e, r = margin(
-            arc,
-            centers,
-            radii,
-            safe_obstacle,
-            ground_z,
-            pool,
-            steps,
-            which,
-            k,
-            after,
-            safe_uav,
-            held,
-            zk,
-            zg,
-            zs,
-            zv,
-        )
+        e, r = margin(arc, around, k, after, held)
         if e > escape:
             escape, escape_reason = e, r
         if escape >= held:
@@ -437,44 +385,14 @@ def judge(
 
 
 @njit(cache=True)
-def judge_each(
-    path: FloatArray,
-    left: FloatArray,
-    right: FloatArray,
-    centers: FloatArray,
-    radii: FloatArray,
-    safe_obstacle: float,
-    ground_z: float,
-    pool: FloatArray,
-    steps: FloatArray,
-    which: IntArray,
-    safe_uav: float,
-    zone_kind: IntArray,
-    zone_geom: FloatArray,
-    zone_vstart: IntArray,
-    zone_verts: FloatArray,
-) -> FloatArray:
+def judge_each(path: FloatArray, left: FloatArray, right: FloatArray, around: Around) -> FloatArray:
     """``judge``'s margin with each teammate of ``which`` alone: [n], the flights predicted
     once for all of them."""
+    which = around[6]
     out = np.empty(which.shape[0])
     for jj in range(which.shape[0]):
-        out[jj], _ = judge(
-            path,
-            left,
-            right,
-            centers,
-            radii,
-            safe_obstacle,
-            ground_z,
-            pool,
-            steps,
-            which[jj : jj + 1],
-            safe_uav,
-            zone_kind,
-            zone_geom,
-            zone_vstart,
-            zone_verts,
-        )
+        alone = (*around[:6], which[jj : jj + 1], *around[7:])
+        out[jj], _ = judge(path, left, right, alone)
     return out
 
 
@@ -486,18 +404,7 @@ def judge_in_turn(
     ends: npt.NDArray[np.bool_],
     hold_s: float,
     slack: float,
-    centers: FloatArray,
-    radii: FloatArray,
-    safe_obstacle: float,
-    ground_z: float,
-    pool: FloatArray,
-    steps: FloatArray,
-    which: IntArray,
-    safe_uav: float,
-    zone_kind: IntArray,
-    zone_geom: FloatArray,
-    zone_vstart: IntArray,
-    zone_verts: FloatArray,
+    around: Around,
 ) -> FloatArray:
     """``judge``'s margins [n] of candidate commands (``courses``, ``altitudes``), flown
     (``flights``) and judged in turn until the first that may end the search (``ends``)
@@ -505,23 +412,7 @@ def judge_in_turn(
     out = np.full(courses.shape[0], np.nan)
     for c in range(courses.shape[0]):
         path, left, right = flights(m, courses[c], altitudes[c], hold_s)
-        out[c], _ = judge(
-            path,
-            left,
-            right,
-            centers,
-            radii,
-            safe_obstacle,
-            ground_z,
-            pool,
-            steps,
-            which,
-            safe_uav,
-            zone_kind,
-            zone_geom,
-            zone_vstart,
-            zone_verts,
-        )
+        out[c], _ = judge(path, left, right, around)
         if ends[c] and out[c] >= slack:
             break
     return out
@@ -558,41 +449,10 @@ def track_into(
 
 @njit(cache=True)
 def judge_flown(
-    m: FloatArray,
-    course: float,
-    z: float,
-    hold_s: float,
-    centers: FloatArray,
-    radii: FloatArray,
-    safe_obstacle: float,
-    ground_z: float,
-    pool: FloatArray,
-    steps: FloatArray,
-    which: IntArray,
-    safe_uav: float,
-    zone_kind: IntArray,
-    zone_geom: FloatArray,
-    zone_vstart: IntArray,
-    zone_verts: FloatArray,
+    m: FloatArray, course: float, z: float, hold_s: float, around: Around
 ) -> tuple[float, int, FloatArray, FloatArray, FloatArray]:
     """``judge`` of a command's ``flights``, flown here: its margin, the keep-out it is to,
     and the flights (kept by the caller for the next time the command is judged)."""
     path, left, right = flights(m, course, z, hold_s)
-    s, reason = judge(
-        path,
-        left,
-        right,
-        centers,
-        radii,
-        safe_obstacle,
-        ground_z,
-        pool,
-        steps,
-        which,
-        safe_uav,
-        zone_kind,
-        zone_geom,
-        zone_vstart,
-        zone_verts,
-    )
+    s, reason = judge(path, left, right, around)
     return s, reason, path, left, right

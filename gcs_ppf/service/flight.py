@@ -52,7 +52,7 @@ from gcs_ppf.service.returning import home_heights
 from gcs_ppf.service.run import NOT_RESPONDING_S, Run, RunState, changes, min_of, slots
 from gcs_ppf.service.station import Station
 from gcs_ppf.service.tick_rate import TickRate
-from gcs_ppf.service.watch import Located, reported_together, watch_safety
+from gcs_ppf.service.watch import Located, current_reports, reported_together, watch_safety
 
 log = logging.getLogger("gcs_ppf.service.runs")  # the runs' log, under its name of old
 
@@ -501,9 +501,8 @@ async def tick(station: Station, run: Run) -> bool:
         ids = [v.system_id for v, _ in reporting]
         together, now = reported_together(reporting)
     with phases.phase("monitoring"):
-        judged = [i for i, c in zip(ids, now, strict=True) if c]  # not gone silent
         watch_ground = mission.ground if mission.ground is not None else ground
-        watch_safety(station, run, judged, together[now], watch_ground)
+        watch_safety(station, run, *current_reports(ids, together, now), watch_ground)
         watch_formation(station, run, reporting, together)
     with phases.phase("prediction"):
         recent = list(itertools.islice(reversed(run.tick_latency_s), RECENT_TICKS))

@@ -80,11 +80,12 @@ def reported_together(located: Located) -> tuple[FloatArray, BoolArray]:
     return aligned(positions, velocities, carried), current(ages)
 
 
-def watched(located: Located) -> tuple[list[int], FloatArray]:
-    """The ids and positions [N,3] the safety monitor judges: ``reported_together``'s, of the
-    vehicles whose reports are of its instant."""
-    together, now = reported_together(located)
-    return [v.system_id for (v, _), c in zip(located, now, strict=True) if c], together[now]
+def current_reports(
+    ids: list[int], together: FloatArray, now: BoolArray
+) -> tuple[list[int], FloatArray]:
+    """The ids and positions [N,3] the safety monitor judges: of ``reported_together``'s
+    (``together``, ``now``), the vehicles whose reports are of its instant."""
+    return [i for i, c in zip(ids, now, strict=True) if c], together[now]
 
 
 def ground(run: Run, located: Located) -> float | None:
@@ -105,7 +106,9 @@ def watch_once(station: Station, run: Run, located: Located, after_end_s: float)
     others take off, ``after_end_s`` 0; the holds and the watch after the end): a violation
     is a ``safety_violation`` event, and a completed run becomes ``completed_unsafe``."""
     before = run.safety.count
-    watch_safety(station, run, *watched(located), ground(run, located), after_end_s)
+    ids = [v.system_id for v, _ in located]
+    judged = current_reports(ids, *reported_together(located))
+    watch_safety(station, run, *judged, ground(run, located), after_end_s)
     if run.safety.count > before and run.state == RunState.COMPLETED:
         run.state = RunState.COMPLETED_UNSAFE
         run.outcome = f"{run.outcome}; a safety violation after the end"

@@ -85,13 +85,13 @@ def test_judging_with_short_cuts_gives_the_margin_of_every_flight(seed: int) -> 
     keep = (centers, radii, 25.0, 0.0)
     c = Command(float(rng.uniform(-math.pi, math.pi)), float(rng.uniform(250, 350)))
     path, left, right = prediction.flights(vector, c.course_rad, c.z_m, hold_s)
-    fast = prediction.judge(path, left, right, *keep, pool, steps, which, 50.0, *NO_ZONES)
+    fast = prediction.judge(path, left, right, (*keep, pool, steps, which, 50.0, *NO_ZONES))
     every = np.full_like(steps, math.inf)
     k = path.shape[0] - 1
 
     def margin(p: FloatArray, start: int, last: int) -> tuple[float, int]:
-        rows = (pool, every, which, start, last)
-        return prediction.margin(p, centers, radii, 25.0, 0.0, *rows, 50.0, math.inf, *NO_ZONES)
+        around = (*keep, pool, every, which, 50.0, *NO_ZONES)
+        return prediction.margin(p, around, start, last, math.inf)
 
     held = margin(path, 0, k)
     escape = max(margin(left, k, pool.shape[1] - k - 1), margin(right, k, pool.shape[1] - k - 1))
