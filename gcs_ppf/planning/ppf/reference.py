@@ -177,13 +177,19 @@ def _obstacle_repulsion(
     pad = lim.leader_keep_out_pad
     slow_refused = np.zeros(len(obs_radius), dtype=bool)  # static, a slow turn not clearing
     if pad > 0.0:  # the leader's whole formation keeps out, the leader turning as it follows
-        keep[0] += np.where(np.linalg.norm(target - obs_center, axis=-1) <= keep[0] + pad, 0, pad)
         slow = speed[0] / min(omega, lim.leader_turn_rate)
         steps = INFLUENCE_STEPS * speed[0] * dt
+        # … where its target lies beyond the reach the pad gives (the kernel's ``padding``)
+        slow_j = np.where(u_obs == 0, slow, rho[0, 0])
+        padded = keep[0] + pad
+        reach = np.sqrt((padded + slow_j) ** 2 - slow_j**2) + steps
+        reach = reach + (rho[0, 0] if airframe_limited(lim) else 0.0)
+        far = np.linalg.norm(target - obs_center, axis=-1) > reach
+        keep[0] = np.where(far, padded, keep[0])
         after = dist[0] ** 2 + 2.0 * steps * s[0] + steps**2
         clears = (s[0] >= 0) | (after + 2.0 * slow * lateral[0] >= own_keep * (own_keep + 2 * slow))
-        turn[0] = np.where((u_obs == 0) & clears, slow, turn[0])
-        slow_refused = (u_obs == 0) & ~clears & (lim.leader_turn_rate < omega)
+        turn[0] = np.where((u_obs == 0) & clears & far, slow, turn[0])
+        slow_refused = (u_obs == 0) & ~(clears & far) & (lim.leader_turn_rate < omega)
     radius = np.sqrt((keep + turn) ** 2 - turn**2) + INFLUENCE_STEPS * (speed * dt)[:, None]
     radius = radius + closing * AVOIDANCE_TURN_ANGLE / omega
     if airframe_limited(lim):

@@ -38,14 +38,26 @@ CONFLICT = 2  # a teammate that repels (a moving obstacle)
 
 @njit(cache=True, inline="always")
 def padding(
-    target: np.ndarray, obs_center: np.ndarray, j: int, keep_out: float, pad: float
+    target: np.ndarray,
+    obs_center: np.ndarray,
+    j: int,
+    keep_out: float,
+    pad: float,
+    turn_radius: float,
+    beyond: float,
 ) -> float:
-    """``pad``, or 0 where the target lies within ``keep_out + pad`` of obstacle j's centre:
-    a leader kept that far out could never reach it."""
+    """``pad``, or 0 where the target lies within the reach the pad gives obstacle j: its
+    influence radius (``influence_radius``) round ``keep_out + pad`` at a turn of
+    ``turn_radius`` (the formation's, round a static one), ``beyond`` more (the steps of
+    travel and a half turn the radius grows by).  A leader kept that far out could never
+    reach it: repelled with ε₁ wherever it is within that radius, Table 3's leader passing
+    its last sphere as a formation (the target 1,803 m from the centre, the pad's reach
+    2,231 m) circled the target 325–800 m off it for ever."""
     dx = target[0] - obs_center[j, 0]
     dy = target[1] - obs_center[j, 1]
     dz = target[2] - obs_center[j, 2]
-    reach = keep_out + pad
+    padded = keep_out + pad  # (``influence_radius`` at that turn radius)
+    reach = math.sqrt((padded + turn_radius) ** 2 - turn_radius**2) + beyond
     return 0.0 if dx * dx + dy * dy + dz * dz <= reach * reach else pad
 
 
@@ -168,18 +180,24 @@ def obstacles_repelling(
         d2 = dx * dx + dy * dy + dz * dz
         own_keep_out = obs_radius[j] + lim.safe_distance_obstacle
         keep_out = own_keep_out
-        if pad > 0.0:
-            keep_out += padding(target, obs_center, j, keep_out, pad)
         u_max = math.sqrt(
             obs_velocity[j, 0] ** 2 + obs_velocity[j, 1] ** 2 + obs_velocity[j, 2] ** 2
         )
         turn = rho
         slow = rho
-        if pad > 0.0 and u_max == 0.0:  # the leader turns as its formation can follow …
-            slow = vi / min(omega, lim.leader_turn_rate)
+        if pad > 0.0:  # the leader's whole formation keeps out, where its target is not
             steps = INFLUENCE_STEPS * vi * dt
-            if room_to_turn_away(dx, dy, dz, ux, uy, uz, steps, slow, own_keep_out):
-                turn = slow  # … where that still clears the obstacle
+            if u_max == 0.0:
+                slow = vi / min(omega, lim.leader_turn_rate)
+            padded = padding(target, obs_center, j, keep_out, pad, slow, steps + half_turn)
+            keep_out += padded
+            # the leader turns as its formation can follow, where that still clears it
+            if (
+                padded > 0.0
+                and u_max == 0.0
+                and room_to_turn_away(dx, dy, dz, ux, uy, uz, steps, slow, own_keep_out)
+            ):
+                turn = slow
         reach = (
             keep_out
             + turn

@@ -177,6 +177,18 @@ def test_one_step_agrees_while_a_wingman_round_an_obstacle_gives_ground_back() -
     _agree_at(run.scene, tr, run.dt, passage[np.linspace(0, passage.size - 2, 80).astype(int)])
 
 
+def test_one_step_agrees_where_the_pad_is_dropped_for_the_targets_sake() -> None:
+    """Table 3 passed as a formation: its target lies inside the pad's reach round the last
+    sphere (``repulsion.padding``), so that sphere is passed the paper's way near the end,
+    the leader the paper's leader while it repels it."""
+    doc = json.loads((EXAMPLES / "paper_table3.json").read_text())
+    run = plan_mission(Mission.model_validate({**doc, "obstacle_passage": "formation"}))
+    tr = run.trajectory
+    late = np.flatnonzero(tr.t >= 50.0)
+    assert late.size > 100
+    _agree_at(run.scene, tr, run.dt, late[np.linspace(0, late.size - 2, 80).astype(int)])
+
+
 def test_one_step_agrees_while_the_leader_passes_with_its_whole_formation() -> None:
     """The five-vehicle line abreast with ``obstacle_passage: "formation"``: the leader's
     keep-out padded by its farthest slot, turning round the sphere as its formation follows
