@@ -115,14 +115,12 @@ def scene_now(
     home_ground_m: float | None = None,
     envelope: OnlineLimits | None = None,
     teammate_margin_m: float | None = None,
-    teammate_lag_s: float = math.inf,
 ) -> Scene:
     """The mission's scene with the vehicles where telemetry says they are.
 
     ``margin_m`` widens both safe distances: flown closed loop, an aircraft lags its plan
     (and the leader leaves PPF for its final approach), so the plan keeps a margin for it;
-    ``teammate_margin_m``, when given, widens the teammates' one instead, and two teammates
-    keep of it what their closing speed covers in ``teammate_lag_s`` (``with_margins``).
+    ``teammate_margin_m``, when given, widens the teammates' one instead.
     The ground is the mission's, or else ``home_ground_m`` (ICS z of the ground under the
     vehicles' homes, see ``home_ground``): real aircraft do not fly in free space.
     ``envelope`` (``gcs_ppf.guidance.airframe.online_limits``, from the vehicles' parameters)
@@ -131,7 +129,7 @@ def scene_now(
     range that does not meet the mission's is the airframes' (they fly what they can).
     """
     teammates = margin_m if teammate_margin_m is None else teammate_margin_m
-    base = with_margins(scene_from_mission(mission), margin_m, teammates, teammate_lag_s)
+    base = with_margins(scene_from_mission(mission), margin_m, teammates)
     ground = mission.ground if mission.ground is not None else home_ground_m
     base = replace(
         base, limits=base.limits._replace(ground=-math.inf if ground is None else ground)

@@ -84,20 +84,11 @@ def teammate_margin_m(mission: Mission, planning_margin_m: float) -> float:
     campaigns measured it, but never more than ``formation_tolerance`` (half of what the
     closest two slots have beyond the safe distance): Table 3's slots are 141 m from the
     leader and from each other, and with the whole 100 m on its 50 m no wingman could ever
-    be planned into its slot.  Of it, two teammates keep what their closing speed covers in
-    the lag it stands for (``teammate_lag_s``)."""
+    be planned into its slot."""
     lim = mission.limits
     if follows_speed_plan(lim.accel, lim.decel):
         return 0.0
     return min(planning_margin_m, formation_tolerance(mission))
-
-
-def teammate_lag_s(planning_margin_m: float, v_max_m_s: float, lagging_s: float) -> float:
-    """The lag the teammates' planning margin stands for: the response lag it was sized by
-    (the margin is v_max × that lag, ``airframe.planning_margin_m``) or the lag the tick
-    measured (``lagging_s``), whichever is longer.  Two teammates keep of the margin what
-    their closing speed covers in it (``repulsion.pair_safe_distance``)."""
-    return max(planning_margin_m / v_max_m_s, lagging_s)
 
 
 def plan(
@@ -139,7 +130,6 @@ def plan(
         ground_z_m,
         envelope=envelope.limits,
         teammate_margin_m=teammate_margin_m(mission, margin),
-        teammate_lag_s=teammate_lag_s(margin, envelope.limits.v_max or lim.v_max, lagging_s),
     )
     if leg is not None:
         leader = states.get(mission.leader.id)

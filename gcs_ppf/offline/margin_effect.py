@@ -1,11 +1,8 @@
 """What the closed loop's planning margins do to a mission's formation, planned offline.
 
 ``python -m gcs_ppf.offline.margin_effect MISSION --obstacle-margin 100 --teammate-margins 0
-15 45.7 [--teammate-lag-s 0.33]`` plans the mission from its start once per teammate
-margin, with both safe distances widened as the service widens them at every tick
-(``online.scene_now``; with ``--teammate-lag-s``, two teammates keep of their margin what
-their closing speed covers in that lag, as the service does: 100 m / 300 m/s at the paper's
-speeds; without it, all of it), and
+15 45.7`` plans the mission from its start once per teammate margin, with both safe
+distances widened as the service widens them at every tick (``online.scene_now``), and
 prints when the formation forms (every wingman within the target accuracy of its slot at
 one same moment, on the records every 0.1 s), when the leader arrives, and the worst
 wingman's distance from its slot at the best moment.  The flown loop plans every tick
@@ -15,7 +12,6 @@ with these margins: a mission whose plan does not form with them cannot form flo
 from __future__ import annotations
 
 import argparse
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -42,15 +38,10 @@ class MarginEffect:
 
 
 def margin_effect(
-    scene: Scene,
-    obstacle_margin_m: float,
-    teammate_margin_m: float,
-    dt: float,
-    max_time_s: float,
-    teammate_lag_s: float = math.inf,
+    scene: Scene, obstacle_margin_m: float, teammate_margin_m: float, dt: float, max_time_s: float
 ) -> MarginEffect:
     """Plan ``scene`` with the margins and measure its formation."""
-    widened = with_margins(scene, obstacle_margin_m, teammate_margin_m, teammate_lag_s)
+    widened = with_margins(scene, obstacle_margin_m, teammate_margin_m)
     result = advance(widened, dt, round(max_time_s / dt), record_every=RECORD_EVERY)
     tr = result.trajectory
     offsets = np.linalg.norm(local_target_points(tr, scene.fleet.slot) - tr.pos, axis=-1)
@@ -72,19 +63,13 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--teammate-margins", type=float, nargs="+", default=[0.0, 15.0, 45.7], help="m"
     )
-    parser.add_argument(
-        "--teammate-lag-s",
-        type=float,
-        default=math.inf,
-        help="the lag the teammates' margin stands for (s; default: all of it, at any speed)",
-    )
     args = parser.parse_args(argv)
     mission = load_mission(args.mission.read_text())
     scene = scene_from_mission(mission)
     dt, max_time = mission.planner.dt, mission.planner.max_time
     print("obstacle m  teammate m  formed s  arrived s  worst wingman at best m")
     for teammate in args.teammate_margins:
-        e = margin_effect(scene, args.obstacle_margin, teammate, dt, max_time, args.teammate_lag_s)
+        e = margin_effect(scene, args.obstacle_margin, teammate, dt, max_time)
         formed = "never" if e.formed_s is None else f"{e.formed_s:.1f}"
         arrived = "never" if e.arrived_s is None else f"{e.arrived_s:.2f}"
         print(

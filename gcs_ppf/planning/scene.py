@@ -120,24 +120,16 @@ def obstacles_from_mission(mission: Mission) -> Obstacles:
     )
 
 
-def with_margins(
-    scene: Scene,
-    obstacle_margin_m: float,
-    teammate_margin_m: float,
-    teammate_lag_s: float = math.inf,
-) -> Scene:
+def with_margins(scene: Scene, obstacle_margin_m: float, teammate_margin_m: float) -> Scene:
     """The scene with both safe distances widened: the obstacles' by ``obstacle_margin_m``,
     the teammates' by ``teammate_margin_m`` (the closed loop's planning margins,
-    ``gcs_ppf.guidance.online.scene_now``), of which two teammates keep what their closing
-    speed covers in ``teammate_lag_s`` (``repulsion.pair_safe_distance``; ∞: all of it)."""
+    ``gcs_ppf.guidance.online.scene_now``)."""
     lim = scene.limits
     return replace(
         scene,
         limits=lim._replace(
             safe_distance_uav=lim.safe_distance_uav + teammate_margin_m,
             safe_distance_obstacle=lim.safe_distance_obstacle + obstacle_margin_m,
-            teammate_margin=lim.teammate_margin + teammate_margin_m,
-            teammate_lag_s=teammate_lag_s,
         ),
     )
 

@@ -93,12 +93,6 @@ class KernelLimits(NamedTuple):
     """Metres the leader keeps beyond every obstacle's keep-out, its farthest slot's
     distance, so that every slot keeps out too and the formation passes whole (the mission's
     ``obstacle_passage: "formation"``; ``repulsion.obstacle_repulsion``); 0: the paper."""
-    teammate_margin: float = 0.0
-    """Metres of ``safe_distance_uav`` that are the closed loop's planning margin for the
-    lag (``scene.with_margins``), not the mission's safe distance; 0 offline."""
-    teammate_lag_s: float = math.inf
-    """The lag that margin stands for (s): two teammates closing at w keep min(margin,
-    w·lag) of it in the conflict test (``repulsion.pair_safe_distance``); ∞: all of it."""
 
 
 @njit(cache=True)
@@ -164,8 +158,6 @@ def with_turn_limits(
         lim.leader_turn_rate,
         lim.course_frame,
         lim.leader_keep_out_pad,
-        lim.teammate_margin,
-        lim.teammate_lag_s,
     )
 
 

@@ -251,22 +251,19 @@ def _conflicts(
     leader = np.zeros(pos.shape[0], dtype=bool)
     leader[0] = True
     together = formed[:, None] & (formed | leader)[None]  # a pair in formation: no turning
-    base = lim.safe_distance_uav - lim.teammate_margin  # (the kernel's pair_safe_distance)
-    lagged = np.sqrt(w2) * lim.teammate_lag_s if math.isfinite(lim.teammate_lag_s) else np.inf
-    safe = base + np.minimum(lim.teammate_margin, lagged)
     turning = np.where(together, 0.0, 0.5 * (speed[:, None] + speed[None]) * omega * t_cpa**2)
-    margin = 2 * speed[:, None] * dt + np.minimum(turning, safe)
+    margin = 2 * speed[:, None] * dt + np.minimum(turning, lim.safe_distance_uav)
     d2 = (d_m**2).sum(-1)
     mate_radius = (
         np.sqrt((lim.safe_distance_uav + speed / omega) ** 2 - (speed / omega) ** 2) + speed * dt
     )[:, None] + speed[None] * AVOIDANCE_TURN_ANGLE / omega
-    threshold = safe + margin
+    threshold = lim.safe_distance_uav + margin
     near = (
         (rank[None] < rank[:, None])
         & active[None]
         & (approach > 0)
         & (w2 > 0)
-        & (miss2 < (threshold + safe) ** 2)
+        & (miss2 < (threshold + lim.safe_distance_uav) ** 2)
         & (d2 <= mate_radius**2)
         & (d2 > 0)
     )

@@ -228,21 +228,6 @@ def obstacles_repelling(
 
 
 @njit(cache=True, inline="always")
-def pair_safe_distance(closing_speed: float, lim: KernelLimits) -> float:
-    """The safe distance two teammates closing at ``closing_speed`` (m/s, the speed of one
-    relative to the other) keep in the conflict test: the mission's, and of the closed
-    loop's margin for the lag (``lim.teammate_margin``) what that lag can take off the
-    distance between them, closing_speed × ``lim.teammate_lag_s``.  Each vehicle is planned
-    from telemetry some tenths of a second old and carried on; what the lag puts wrong
-    between two of them is their relative motion over it, not either one's speed.  The
-    whole margin (v_max × lag, 46 m on Table 3's slots 141 m apart, where two wingmen in
-    their slots keep 141 m) made every way into a slot a conflict while a neighbour flew
-    beside it at a few m/s, and Table 3 never formed, planned or flown."""
-    base = lim.safe_distance_uav - lim.teammate_margin
-    return base + min(lim.teammate_margin, closing_speed * lim.teammate_lag_s)
-
-
-@njit(cache=True, inline="always")
 def closest_approach(
     dx: float,
     dy: float,
@@ -272,11 +257,10 @@ def closest_approach(
     miss2 = d2 - 2.0 * approach * t_cpa + w2 * t_cpa * t_cpa
     # Either vehicle may be turning at full rate meanwhile (½ v ω t² each, at most one
     # more safe distance).
-    safe = pair_safe_distance(math.sqrt(w2), lim)
     turning = 0.0
     if not in_formation:
-        turning = min(0.5 * (vi + vk) * omega * t_cpa * t_cpa, safe)
-    return True, t_cpa, miss2, safe + (2.0 * vi * dt + turning)
+        turning = min(0.5 * (vi + vk) * omega * t_cpa * t_cpa, lim.safe_distance_uav)
+    return True, t_cpa, miss2, lim.safe_distance_uav + (2.0 * vi * dt + turning)
 
 
 @njit(cache=True, inline="always")
@@ -320,10 +304,7 @@ def teammate_conflict(
     closing, t_cpa, miss2, threshold = closest_approach(
         dx, dy, dz, wx, wy, wz, vi, vk, lim, dt, in_formation, horizon_turns
     )
-    if not closing:
-        return NO_CONFLICT, 0.0, 0.0, 0.0
-    band = pair_safe_distance(math.sqrt(wx * wx + wy * wy + wz * wz), lim)
-    if miss2 >= (threshold + band) ** 2:
+    if not closing or miss2 >= (threshold + lim.safe_distance_uav) ** 2:
         return NO_CONFLICT, 0.0, 0.0, 0.0
     d = math.sqrt(dx * dx + dy * dy + dz * dz)
     radius = own_reach + vk * AVOIDANCE_TURN_ANGLE / min(lim.max_pitch_rate, lim.max_yaw_rate)

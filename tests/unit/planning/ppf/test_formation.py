@@ -22,7 +22,7 @@ from gcs_ppf.planning.ppf.kernel import (
 )
 from gcs_ppf.planning.ppf.primitives import LEADER_PATH_ANGLE_SHARE, leader_limits
 from gcs_ppf.planning.ppf.reference import _crossing
-from gcs_ppf.planning.ppf.repulsion import padding, pair_safe_distance
+from gcs_ppf.planning.ppf.repulsion import padding
 from gcs_ppf.planning.scene import Scene, scene_from_mission, with_margins
 from tests.conftest import EXAMPLES
 
@@ -316,18 +316,3 @@ def test_passed_as_a_formation_the_leader_pitches_no_faster_than_its_formation_t
     pitch_rate = np.abs(np.diff(tr.pitch[:, 0])) / np.diff(tr.t)
     assert pitch_rate[passing].max() <= scene.limits.leader_turn_rate * (1 + 1e-6)
     assert pitch_rate[passing].max() > 0.5 * scene.limits.leader_turn_rate  # it does pitch
-
-
-def test_a_pair_keeps_of_the_teammates_margin_what_its_closing_speed_covers() -> None:
-    """``pair_safe_distance``: the mission's safe distance, and of the closed loop's
-    margin for the lag, closing speed × lag, never more than the margin; offline (no
-    margin) and with the lag unknown (∞: the whole margin at any speed) as before."""
-    doc = json.loads((EXAMPLES / "paper_table3.json").read_text())
-    scene = scene_from_mission(Mission.model_validate(doc))
-    lim = with_margins(scene, 100.0, 45.7, 0.5).limits
-    assert pair_safe_distance(0.0, lim) == pytest.approx(50.0)
-    assert pair_safe_distance(20.0, lim) == pytest.approx(60.0)
-    assert pair_safe_distance(300.0, lim) == pytest.approx(95.7)
-    whole = with_margins(scene, 100.0, 45.7).limits
-    assert pair_safe_distance(1.0, whole) == pytest.approx(95.7)
-    assert pair_safe_distance(1.0, scene.limits) == pytest.approx(50.0)

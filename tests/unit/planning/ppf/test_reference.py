@@ -18,7 +18,7 @@ from gcs_ppf.planning.planner import Trajectory, advance
 from gcs_ppf.planning.ppf.kernel import YIELD_BACK_TURNS, influence_radius, teammate_conflict
 from gcs_ppf.planning.ppf.reference import reference_step
 from gcs_ppf.planning.ppf.repulsion import CONFLICT
-from gcs_ppf.planning.scene import Fleet, Scene, scene_from_mission, with_margins
+from gcs_ppf.planning.scene import Fleet, Scene, scene_from_mission
 
 EXAMPLES = Path(__file__).resolve().parents[4] / "examples"
 BREACHES = Path(__file__).resolve().parents[3] / "data" / "breaches"
@@ -175,18 +175,6 @@ def test_one_step_agrees_while_a_wingman_round_an_obstacle_gives_ground_back() -
     tr = run.trajectory
     passage = np.flatnonzero((tr.t >= 56.0) & (tr.t <= 80.0))
     _agree_at(run.scene, tr, run.dt, passage[np.linspace(0, passage.size - 2, 80).astype(int)])
-
-
-def test_one_step_agrees_with_the_closed_loops_margin_kept_by_closing_speed() -> None:
-    """Table 3 planned as the closed loop plans it: 100 m on the obstacles, 45.7 m on the
-    teammates of which each pair keeps what it closes by in 0.333 s
-    (``repulsion.pair_safe_distance``), through the wingmen's joining and the spheres."""
-    doc = json.loads((EXAMPLES / "paper_table3.json").read_text())
-    scene = with_margins(scene_from_mission(Mission.model_validate(doc)), 100.0, 45.7, 0.333)
-    run = advance(scene, 0.01, 7000, record_every=1)
-    tr = run.trajectory
-    records = np.linspace(200, len(tr.t) - 2, 80).astype(int)
-    _agree_at(scene, tr, 0.01, records)
 
 
 def test_one_step_agrees_where_the_pad_is_dropped_for_the_targets_sake() -> None:
