@@ -285,9 +285,6 @@ def escape_altitudes(
     for alt in (m.pos_m[2], m.pos_m[2] + m.climb_m_s * (hold_s + escape_s(m))):
         if alt > z and all(abs(alt - a) > 1.0 for a in out):
             out.append(alt)
-    level = m.pos_m[2]
-    if reason == "teammate" and level < z and all(abs(level - a) > 1.0 for a in out):
-        out.append(level)  # a climb stopped: a teammate climbing beside it
     return out
 
 

@@ -310,20 +310,3 @@ def test_after_warm_up_nothing_is_compiled_in_flight() -> None:
     levelling_height(state, Airframe(tecs_time_constant_s=5), mission)
     assert {f: len(getattr(prediction, f).signatures) for f in compiled} == compiled
     assert len(reach.yields.signatures) == yields_compiled == 1
-
-
-def test_a_climb_may_be_stopped_to_keep_clear_of_a_teammate() -> None:
-    """A vehicle climbing to a level above it may escape a teammate by levelling off where
-    it is (a vertical resolution); not an obstacle or the ground, which a climb may be
-    clearing.  In the holds after the 100-vehicle formation, two wingmen climbed side by
-    side 36 m apart in height for 27 s while their circles closed across, and the escapes
-    at their levels, all turns, had none left (−2.4 m; 47.9 m apart, safe 50 m)."""
-    climbing = Motion((0.0, 0.0, 800.0), 0.0, 100.0, 0.5, 87.0, 87.0, climb_rate_m_s=80.0)
-    to_level = Command(0.0, 3000.0)
-    k = keep(sphere(1e5, 0, 0, 1))
-    assert 800.0 in escape_altitudes(climbing, to_level, "teammate", 0.5, k)
-    assert 800.0 not in escape_altitudes(climbing, to_level, "obstacle", 0.5, k)
-    assert 800.0 not in escape_altitudes(climbing, to_level, "ground", 0.5, k)
-    descending = Motion((0.0, 0.0, 800.0), 0.0, 100.0, 0.5, 87.0, 87.0, climb_rate_m_s=-30.0)
-    down = escape_altitudes(descending, Command(0.0, 300.0), "teammate", 0.5, k)
-    assert down[:2] == [300.0, 800.0]  # as before: its level, and level where it is
