@@ -191,6 +191,17 @@ class _Own:
             self.tried[key] = found
         return found
 
+    def judged(self, c: Command, around: prediction.Around) -> tuple[float, int]:
+        """``prediction.judge`` of ``c``'s flights, flown and judged in one call the first
+        time (``judge_flown``), kept for the next."""
+        key = (float(c.course_rad), float(c.z_m))
+        found = self.tried.get(key)
+        if found is not None:
+            return prediction.judge(*found, around)
+        s, reason, *flown = prediction.judge_flown(self.vector, key[0], key[1], self.hold_s, around)
+        self.tried[key] = (flown[0], flown[1], flown[2])
+        return s, reason
+
 
 def _around(keep: KeepOut, near: _Near) -> prediction.Around:
     """The keep-outs and the teammates as ``prediction.judge`` takes them (one signature: no
@@ -212,15 +223,8 @@ def _in_turn(
 
 
 def _score(own: _Own, c: Command, keep: KeepOut, near: _Near) -> tuple[float, str | None]:
-    """A command's margin and the keep-out it is to (its flights predicted and judged in one
-    call the first time, kept for the next)."""
-    key = (float(c.course_rad), float(c.z_m))
-    if key in own.tried:
-        s, reason = prediction.judge(*own.tried[key], _around(keep, near))
-    else:
-        flown = prediction.judge_flown(own.vector, *key, own.hold_s, _around(keep, near))
-        s, reason = flown[0], flown[1]
-        own.tried[key] = flown[2:]
+    """A command's margin and the keep-out it is to (``_Own.judged``)."""
+    s, reason = own.judged(c, _around(keep, near))
     return float(s), REASONS.get(reason)
 
 

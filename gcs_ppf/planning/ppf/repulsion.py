@@ -167,11 +167,12 @@ def obstacles_repelling(
     formation_turn = True
     rho = vi / omega
     half_turn = rho if airframe_limited(lim) else 0.0
-    height = pz - lim.ground - lim.safe_distance_obstacle - INFLUENCE_STEPS * vi * dt
+    steps = INFLUENCE_STEPS * vi * dt  # a few steps of travel
+    height = pz - lim.ground - lim.safe_distance_obstacle - steps
     room = not airframe_limited(lim) and lowest_climb(height, vi, lim) == -1.0
     ux, uy, uz = direction[i, 0], direction[i, 1], direction[i, 2]
     # What a vehicle giving way to a teammate first keeps in hand (``HAND_BACK_TURNS``).
-    hand_back = INFLUENCE_STEPS * vi * dt + HAND_BACK_TURNS * AVOIDANCE_TURN_ANGLE * rho
+    hand_back = steps + HAND_BACK_TURNS * AVOIDANCE_TURN_ANGLE * rho
     for c in range(near_start[i], near_start[i + 1]):
         j = near_obstacles[c]
         dx = px - obs_center[j, 0]
@@ -186,7 +187,6 @@ def obstacles_repelling(
         turn = rho
         slow = rho
         if pad > 0.0:  # the leader's whole formation keeps out, where its target is not
-            steps = INFLUENCE_STEPS * vi * dt
             if u_max == 0.0:
                 slow = vi / min(omega, lim.leader_turn_rate)
             padded = padding(target, obs_center, j, keep_out, pad, slow, steps + half_turn)
@@ -198,20 +198,14 @@ def obstacles_repelling(
                 and room_to_turn_away(dx, dy, dz, ux, uy, uz, steps, slow, own_keep_out)
             ):
                 turn = slow
-        reach = (
-            keep_out
-            + turn
-            + INFLUENCE_STEPS * vi * dt
-            + u_max * AVOIDANCE_TURN_ANGLE / omega
-            + half_turn
-        )
+        reach = keep_out + turn + steps + u_max * AVOIDANCE_TURN_ANGLE / omega + half_turn
         if d2 > reach * reach:  # cheap rejection: R ≤ keep_out + ρ
             continue
         d = math.sqrt(d2)
         closing = closing_speed(
             dx, dy, dz, d, obs_velocity[j, 0], obs_velocity[j, 1], obs_velocity[j, 2]
         )
-        radius = influence_radius(vi, vi / turn, keep_out) + INFLUENCE_STEPS * vi * dt
+        radius = influence_radius(vi, vi / turn, keep_out) + steps
         radius += closing * AVOIDANCE_TURN_ANGLE / omega + half_turn
         if d <= radius and d > 0.0:
             formation_turn = formation_turn and turn == slow
