@@ -355,6 +355,59 @@ def formation_holds(
     return None
 
 
+def spread_holds(
+    requests: Sequence[HoldRequest],
+    yaw_rad: float,
+    ahead_m: float,
+    separation_m: float,
+    obstacles: Obstacles,
+    keep_out_m: float,
+    zones: Zones | None = None,
+) -> list[Hold] | None:
+    """Every vehicle's circle on a grid ahead of the fleet (the nearest row ``ahead_m`` or
+    further beyond its foremost vehicle, nearest the bearing ``yaw_rad`` first) whose rings,
+    as flown (``flown_width_m``), are ``separation_m`` apart: no two circles cross at any
+    height, so none is stacked above another and no vehicle climbs to its hold.  The grid
+    keeps the fleet's order, its foremost vehicles to the furthest row and left to right
+    along each row, so that no way to a circle crosses another's as they fan out; None if
+    no placement keeps every circle and approach ``keep_out_m`` from the obstacles."""
+    if not requests:
+        return []
+    n = len(requests)
+    cols = math.ceil(math.sqrt(n))
+    rows = math.ceil(n / cols)
+    wide = max(flown_width_m(r.radius_m, r.motion) for r in requests)
+    pitch = 2.0 * wide + separation_m
+    for step in REACH_STEPS:
+        for bearing in BEARINGS:
+            heading = yaw_rad + bearing
+            fwd = np.array([math.cos(heading), math.sin(heading)])
+            side = np.array([-fwd[1], fwd[0]])
+            pos = np.array([r.pos_m[:2] for r in requests], dtype=float)
+            along, across = pos @ fwd, pos @ side
+            nearest = float(along.max()) + ahead_m + step * wide
+            middle = float(across.mean())
+            order = sorted(range(n), key=lambda i: -along[i])
+            centres: dict[int, FloatArray] = {}
+            for k in range(rows):
+                chunk = sorted(order[k * cols : (k + 1) * cols], key=lambda i: across[i])
+                row_along = nearest + (rows - 1 - k) * pitch
+                for c, i in enumerate(chunk):
+                    offset = middle + (c - (len(chunk) - 1) / 2.0) * pitch
+                    centres[i] = row_along * fwd + offset * side
+            holds: list[Hold] = []
+            for i, r in enumerate(requests):
+                x, y = (float(v) for v in centres[i])
+                way = math.atan2(y - float(r.pos_m[1]), x - float(r.pos_m[0]))
+                hold = hold_at(r.pos_m, r.z_m, r.radius_m, x, y, way, obstacles, r.motion, zones)
+                if hold.clearance_m < keep_out_m:
+                    break  # this placement fails: the next is tried
+                holds.append(hold)
+            if len(holds) == n:
+                return holds
+    return None
+
+
 def holding_circle(
     pos_m: FloatArray,
     yaw_rad: float,

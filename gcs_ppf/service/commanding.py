@@ -44,6 +44,12 @@ HOLD_TURN_RADII = 1.5
 """A holding circle is this many of the vehicle's tightest turns wide …"""
 HOLD_MIN_RADIUS_M = 80.0
 """… and at least ArduPlane's WP_LOITER_RAD."""
+STACK_LEVELS_MAX = 10
+"""A fleet of more vehicles holds on circles spread apart (``holding.spread_holds``), each at
+its own height, not stacked: climbing to a stack of 100 levels (15 km at Table 3's 150 m)
+the vehicles climbed side by side for minutes on crossing circles, and two pairs came to
+47.9 and 49.6 m after the end in 2 of 5 runs of ``examples/formation_100.json``; the
+campaigns flew stacks of up to 9."""
 HOLD_RETRY = confirmation.Retry(attempts=10, copies=3)
 """A hold is sent, three copies at a time, until it is ACCEPTED (×5 with 20 % loss each
 way and 300 ms of latency, a leader's hold got through at its fourth send: it flew its last
@@ -352,16 +358,29 @@ def _holds(
     obstacles: Obstacles,
     keep_out: float,
     zones: Zones | None = None,
+    spread: bool = False,
 ) -> dict[int, holding.Hold]:
     """The formation's present layout translated (``holding.formation_holds``, towards the
-    leader's heading), or, where no translation clears the obstacles, each vehicle's own
-    circle clear of those chosen before it."""
+    leader's heading), or ``spread`` apart on a grid (``holding.spread_holds``), or, where
+    neither clears the obstacles, each vehicle's own circle clear of those chosen before
+    it."""
     reference = states.get(mission.leader.id) or next(iter(states.values()), None)
     yaw = 0.0 if reference is None else reference.yaw_rad
     ids = list(requests)
-    together = holding.formation_holds(
-        [requests[i] for i in ids], yaw, LOITER_AHEAD_M, obstacles, keep_out, zones
-    )
+    if spread:
+        together = holding.spread_holds(
+            [requests[i] for i in ids],
+            yaw,
+            LOITER_AHEAD_M,
+            stack_spacing_m(mission),
+            obstacles,
+            keep_out,
+            zones,
+        )
+    else:
+        together = holding.formation_holds(
+            [requests[i] for i in ids], yaw, LOITER_AHEAD_M, obstacles, keep_out, zones
+        )
     if together is not None:
         return dict(zip(ids, together, strict=True))
     taken: list[tuple[holding.Hold, float]] = []  # the circles chosen so far, flown this wide
@@ -445,7 +464,9 @@ def hold_plan(
     one climbing through it to a higher one, 14.2 m apart, 3.9 s after the end of a Table 3
     run; stacked by the heights they had, a wingman 20 m above another but diving at 50 m/s
     got the higher level, dived 70 m more before it climbed, and climbed through the other's
-    level 42 m from it, 7.7 s after a run, ×5 on a lossy link). A vehicle without a state is
+    level 42 m from it, 7.7 s after a run, ×5 on a lossy link). More than
+    ``STACK_LEVELS_MAX`` vehicles (with no return home to fly from the stack) hold each at its
+    own levelling height, on circles spread apart instead. A vehicle without a state is
     put in LOITER; one not ``heard`` (lost) is not commanded. A ``hold_not_clear`` event
     when no circle keeps the keep-out.  The stack's lowest level is at least ``floor_z_m``
     (a return home over every keep-out: ``failsafe.return_floor_m``)."""
@@ -459,6 +480,8 @@ def hold_plan(
         for vid, st in states.items()
     }
     spacing = stack_spacing_m(mission)
+    flying = [v.id for v in mission.vehicles if v.id in heard and v.id in states]
+    spread = len(flying) > STACK_LEVELS_MAX and floor_z_m == -math.inf
     requests: dict[int, holding.HoldRequest] = {}
     for v in mission.vehicles:
         if v.id not in heard:
@@ -479,11 +502,12 @@ def hold_plan(
         omega = min(airframe_omega or math.inf, mission.limits.max_yaw_rate)
         radius = max(HOLD_MIN_RADIUS_M, HOLD_TURN_RADII * s.speed_m_s / omega)
         base = max(mission.target[2] if stacked else highest, floor_z_m)
-        z = base + spacing * stack_level(v.id, heights)
+        z = heights[v.id] if spread else base + spacing * stack_level(v.id, heights)
         requests[v.id] = holding.HoldRequest(
             np.array(s.pos_m), s.yaw_rad, z, radius, motion(s, airframes[v.id], mission)
         )
-    circles = _holds(requests, states, mission, obstacles, keep_out, zones_from_mission(mission))
+    zones = zones_from_mission(mission)
+    circles = _holds(requests, states, mission, obstacles, keep_out, zones, spread)
     for vid, hold in circles.items():
         if hold.clearance_m < keep_out:
             event("hold_not_clear", vid, clearance_m=round(hold.clearance_m, 1))

@@ -167,6 +167,44 @@ def test_a_formation_holds_as_it_flies_translated() -> None:
     assert all(h.clearance_m >= 50.0 for h in moved)
 
 
+def test_a_large_fleet_holds_on_circles_spread_apart_in_its_order() -> None:
+    """Thirty vehicles in rows of six, 150 m apart (a stack would climb them side by side for
+    minutes): every ring as flown is the separation clear of every other at any height, each
+    circle at its vehicle's own height, the foremost row to the furthest circles and each
+    row left to right as it flies; a sphere where the grid would be moves all of it."""
+    from gcs_ppf.guidance.holding import flown_width_m, spread_holds
+
+    def requests() -> list[HoldRequest]:
+        out = []
+        for k in range(30):
+            pos = (-150.0 * (k // 6), 150.0 * (k % 6), 500.0 + 7.0 * k)
+            out.append(HoldRequest(np.array(pos), 0.0, pos[2], 287.0,
+                                   Motion(pos, 0.0, 100.0, 0.52, 34.0, 42.0, 1.0)))  # fmt: skip
+        return out
+
+    none = Obstacles(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
+    holds = spread_holds(requests(), 0.0, 800.0, 150.0, none, 50.0)
+    assert holds is not None
+    wide = flown_width_m(287.0, requests()[0].motion)
+    for i, a in enumerate(holds):
+        assert a.z_m == requests()[i].z_m
+        for b in holds[i + 1 :]:
+            assert math.hypot(a.x_m - b.x_m, a.y_m - b.y_m) - 2.0 * wide >= 150.0 - 1e-6
+    for i in range(30):
+        for j in range(30):
+            if i // 6 < j // 6:  # i's row flies ahead of j's
+                assert holds[i].x_m > holds[j].x_m
+            elif i // 6 == j // 6 and i % 6 < j % 6:  # the order across the row kept
+                assert holds[i].y_m < holds[j].y_m
+    assert min(h.x_m for h in holds) == pytest.approx(800.0)
+    ahead = holds[0]
+    sphere = spheres((ahead.x_m, ahead.y_m, 500.0, 300.0))
+    moved = spread_holds(requests(), 0.0, 800.0, 150.0, sphere, 50.0)
+    assert moved is not None
+    assert all(h.clearance_m >= 50.0 for h in moved)
+    assert (moved[0].x_m, moved[0].y_m) != (ahead.x_m, ahead.y_m)
+
+
 def fly_loiter_course(m: Motion, x: float, y: float, ring_m: float, seconds: float) -> Motion:
     """``m`` flown ``seconds`` on ``loiter_course`` by a course P-controller (the turn the
     course error over the heading time constant, at most the turn rate) at 10 Hz."""

@@ -70,6 +70,42 @@ def test_a_vehicle_diving_fast_is_stacked_below_one_it_will_level_off_under() ->
     assert stack_level(3, {3: 794.0, 4: 774.0}) == 1  # by the heights they had
 
 
+def test_a_fleet_too_large_for_a_stack_holds_spread_apart_at_its_own_heights() -> None:
+    """Ten vehicles stack; eleven hold at their own heights on circles that cross nowhere
+    (``STACK_LEVELS_MAX``: climbing to 100 levels, neighbours climbed side by side on crossing
+    circles, 47.9 m apart); a return home still flies from a stack."""
+    from gcs_ppf.guidance.holding import flown_width_m
+    from gcs_ppf.service.commanding import STACK_LEVELS_MAX, stack_spacing_m
+
+    mission = Mission.model_validate({
+        "target": [8000.0, 0.0, 500.0],
+        "vehicles": [{"id": 1, "role": "leader", "position": [0.0, 0.0, 500.0],
+                      "pitch": 0.0, "yaw": 0.0}]
+        + [{"id": k, "role": "wingman", "position": [-150.0 * k, 0.0, 500.0], "pitch": 0.0,
+            "yaw": 0.0, "slot": [-150.0 * k, 0.0, 0.0]} for k in range(2, 13)],
+    })  # fmt: skip
+
+    def plan(n: int, floor: float = -math.inf) -> dict[int, Any]:
+        states = {k: VehicleState((9000.0 - 150.0 * k, 150.0 * (k % 2), 500.0 + 3.0 * k), 0.0,
+                                  0.0, 100.0) for k in range(1, n + 1)}  # fmt: skip
+        airframes = {k: Airframe() for k in states}
+        return hold_plan(Orders(mission, "course", 1.0), states, airframes, 90.0, True,
+                         lambda *a, **k: None, set(states), floor).circles  # fmt: skip
+
+    stacked = plan(STACK_LEVELS_MAX)
+    assert len({round(h.z_m) for h in stacked.values()}) == STACK_LEVELS_MAX
+    spread = plan(STACK_LEVELS_MAX + 1)
+    assert {k: h.z_m for k, h in spread.items()} == {k: 500.0 + 3.0 * k for k in spread}
+    wide = flown_width_m(spread[1].radius_m, None)
+    for i, a in spread.items():
+        for j, b in spread.items():
+            if i < j:
+                assert math.hypot(a.x_m - b.x_m, a.y_m - b.y_m) > 2.0 * wide
+    levels = sorted(h.z_m for h in plan(STACK_LEVELS_MAX + 1, floor=500.0).values())
+    gaps = np.diff(levels)
+    assert gaps.min() == pytest.approx(stack_spacing_m(mission))
+
+
 def test_a_vehicle_whose_command_is_replaced_by_an_escape_is_told_to_fly_its_slowest() -> None:
     """The planner flies the leader straight at a sphere 650 m ahead at 200 m/s (its keep-out
     and the turn it needs are within the hold): the assurance replaces the course, and the
