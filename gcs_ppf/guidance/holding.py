@@ -367,45 +367,52 @@ def spread_holds(
     """Every vehicle's circle on a grid ahead of the fleet (the nearest row ``ahead_m`` or
     further beyond its foremost vehicle, nearest the bearing ``yaw_rad`` first) whose rings,
     as flown (``flown_width_m``), are ``separation_m`` apart: no two circles cross at any
-    height, so none is stacked above another and no vehicle climbs to its hold.  The grid
-    keeps the fleet's order, its foremost vehicles to the furthest row and left to right
-    along each row, so that no way to a circle crosses another's as they fan out; None if
-    no placement keeps every circle and approach ``keep_out_m`` from the obstacles."""
+    height, so none is stacked above another and no vehicle climbs to its hold
+    (``grid_centres``); None if no placement keeps every circle and approach ``keep_out_m``
+    from the obstacles."""
     if not requests:
         return []
-    n = len(requests)
-    cols = math.ceil(math.sqrt(n))
-    rows = math.ceil(n / cols)
+    pos = np.array([r.pos_m[:2] for r in requests], dtype=float)
     wide = max(flown_width_m(r.radius_m, r.motion) for r in requests)
     pitch = 2.0 * wide + separation_m
     for step in REACH_STEPS:
         for bearing in BEARINGS:
-            heading = yaw_rad + bearing
-            fwd = np.array([math.cos(heading), math.sin(heading)])
-            side = np.array([-fwd[1], fwd[0]])
-            pos = np.array([r.pos_m[:2] for r in requests], dtype=float)
-            along, across = pos @ fwd, pos @ side
-            nearest = float(along.max()) + ahead_m + step * wide
-            middle = float(across.mean())
-            order = sorted(range(n), key=lambda i: -along[i])
-            centres: dict[int, FloatArray] = {}
-            for k in range(rows):
-                chunk = sorted(order[k * cols : (k + 1) * cols], key=lambda i: across[i])
-                row_along = nearest + (rows - 1 - k) * pitch
-                for c, i in enumerate(chunk):
-                    offset = middle + (c - (len(chunk) - 1) / 2.0) * pitch
-                    centres[i] = row_along * fwd + offset * side
+            centres = grid_centres(pos, yaw_rad + bearing, ahead_m + step * wide, pitch)
             holds: list[Hold] = []
-            for i, r in enumerate(requests):
-                x, y = (float(v) for v in centres[i])
+            for r, (x, y) in zip(requests, centres, strict=True):
                 way = math.atan2(y - float(r.pos_m[1]), x - float(r.pos_m[0]))
                 hold = hold_at(r.pos_m, r.z_m, r.radius_m, x, y, way, obstacles, r.motion, zones)
                 if hold.clearance_m < keep_out_m:
                     break  # this placement fails: the next is tried
                 holds.append(hold)
-            if len(holds) == n:
+            if len(holds) == len(requests):
                 return holds
     return None
+
+
+def grid_centres(
+    pos_m: FloatArray, heading_rad: float, ahead_m: float, pitch_m: float
+) -> list[tuple[float, float]]:
+    """Centres [n] for vehicles at ``pos_m`` [n,2] on a square grid ``pitch_m`` apart, its
+    nearest row ``ahead_m`` beyond the foremost vehicle along ``heading_rad``, its rows
+    centred across the fleet.  The grid keeps the fleet's order: its foremost vehicles to the
+    furthest row, and each row in their order across, so that the ways out fan apart."""
+    n = len(pos_m)
+    cols = math.ceil(math.sqrt(n))
+    rows = math.ceil(n / cols)
+    fwd = np.array([math.cos(heading_rad), math.sin(heading_rad)])
+    side = np.array([-fwd[1], fwd[0]])
+    along, across = pos_m @ fwd, pos_m @ side
+    nearest, middle = float(along.max()) + ahead_m, float(across.mean())
+    foremost = sorted(range(n), key=lambda i: -along[i])
+    centres: list[tuple[float, float]] = [(0.0, 0.0)] * n
+    for k in range(rows):
+        row = sorted(foremost[k * cols : (k + 1) * cols], key=lambda i: across[i])
+        row_along = nearest + (rows - 1 - k) * pitch_m
+        for c, i in enumerate(row):
+            x, y = row_along * fwd + (middle + (c - (len(row) - 1) / 2.0) * pitch_m) * side
+            centres[i] = (float(x), float(y))
+    return centres
 
 
 def holding_circle(

@@ -351,6 +351,13 @@ def hold_retry(clock_rate: float) -> confirmation.Retry:
     return replace(HOLD_RETRY, ack_timeout_s=wait)
 
 
+def _leader_yaw(states: dict[int, VehicleState], mission: Mission) -> float:
+    """The heading the holds are laid out towards: the leader's (another's if it has no
+    state; 0 without any)."""
+    reference = states.get(mission.leader.id) or next(iter(states.values()), None)
+    return 0.0 if reference is None else reference.yaw_rad
+
+
 def _holds(
     requests: dict[int, holding.HoldRequest],
     states: dict[int, VehicleState],
@@ -358,29 +365,15 @@ def _holds(
     obstacles: Obstacles,
     keep_out: float,
     zones: Zones | None = None,
-    spread: bool = False,
 ) -> dict[int, holding.Hold]:
     """The formation's present layout translated (``holding.formation_holds``, towards the
-    leader's heading), or ``spread`` apart on a grid (``holding.spread_holds``), or, where
-    neither clears the obstacles, each vehicle's own circle clear of those chosen before
-    it."""
-    reference = states.get(mission.leader.id) or next(iter(states.values()), None)
-    yaw = 0.0 if reference is None else reference.yaw_rad
+    leader's heading), or, where no translation clears the obstacles, each vehicle's own
+    circle clear of those chosen before it."""
+    yaw = _leader_yaw(states, mission)
     ids = list(requests)
-    if spread:
-        together = holding.spread_holds(
-            [requests[i] for i in ids],
-            yaw,
-            LOITER_AHEAD_M,
-            stack_spacing_m(mission),
-            obstacles,
-            keep_out,
-            zones,
-        )
-    else:
-        together = holding.formation_holds(
-            [requests[i] for i in ids], yaw, LOITER_AHEAD_M, obstacles, keep_out, zones
-        )
+    together = holding.formation_holds(
+        [requests[i] for i in ids], yaw, LOITER_AHEAD_M, obstacles, keep_out, zones
+    )
     if together is not None:
         return dict(zip(ids, together, strict=True))
     taken: list[tuple[holding.Hold, float]] = []  # the circles chosen so far, flown this wide
@@ -402,6 +395,26 @@ def _holds(
         taken.append((hold, holding.flown_width_m(r.radius_m, r.motion)))
         out[vid] = hold
     return out
+
+
+def _spread(
+    requests: dict[int, holding.HoldRequest],
+    heights: dict[int, float],
+    states: dict[int, VehicleState],
+    mission: Mission,
+    obstacles: Obstacles,
+    keep_out: float,
+    zones: Zones | None,
+) -> dict[int, holding.Hold] | None:
+    """Each vehicle's circle at the height it levels off at (``heights``), on a grid whose
+    rings are a stack level apart (``holding.spread_holds``, towards the leader's heading);
+    None where no grid clears the obstacles."""
+    yaw = _leader_yaw(states, mission)
+    ids = list(requests)
+    level = [replace(requests[i], z_m=heights[i]) for i in ids]
+    spacing = stack_spacing_m(mission)
+    spread = holding.spread_holds(level, yaw, LOITER_AHEAD_M, spacing, obstacles, keep_out, zones)
+    return None if spread is None else dict(zip(ids, spread, strict=True))
 
 
 def levelling_height(state: VehicleState, airframe: Airframe, mission: Mission) -> float:
@@ -465,10 +478,11 @@ def hold_plan(
     run; stacked by the heights they had, a wingman 20 m above another but diving at 50 m/s
     got the higher level, dived 70 m more before it climbed, and climbed through the other's
     level 42 m from it, 7.7 s after a run, ×5 on a lossy link). More than
-    ``STACK_LEVELS_MAX`` vehicles (with no return home to fly from the stack) hold each at its
-    own levelling height, on circles spread apart instead. A vehicle without a state is
-    put in LOITER; one not ``heard`` (lost) is not commanded. A ``hold_not_clear`` event
-    when no circle keeps the keep-out.  The stack's lowest level is at least ``floor_z_m``
+    ``STACK_LEVELS_MAX`` vehicles (but a completion that flies home from the stack, one level
+    each) hold each at its own levelling height on circles spread apart instead, where such
+    a grid clears the obstacles (``_spread``). A vehicle without a state is put in LOITER;
+    one not ``heard`` (lost) is not commanded. A ``hold_not_clear`` event when no circle
+    keeps the keep-out.  The stack's lowest level is at least ``floor_z_m``
     (a return home over every keep-out: ``failsafe.return_floor_m``)."""
     mission = orders.mission
     obstacles = obstacles_from_mission(mission).at(mission_time_s)
@@ -481,7 +495,8 @@ def hold_plan(
     }
     spacing = stack_spacing_m(mission)
     flying = [v.id for v in mission.vehicles if v.id in heard and v.id in states]
-    spread = len(flying) > STACK_LEVELS_MAX and floor_z_m == -math.inf
+    home_from_stack = stacked and mission.at_end == "rtl"  # ``returning``: one level each
+    spread = len(flying) > STACK_LEVELS_MAX and not home_from_stack
     requests: dict[int, holding.HoldRequest] = {}
     for v in mission.vehicles:
         if v.id not in heard:
@@ -502,12 +517,16 @@ def hold_plan(
         omega = min(airframe_omega or math.inf, mission.limits.max_yaw_rate)
         radius = max(HOLD_MIN_RADIUS_M, HOLD_TURN_RADII * s.speed_m_s / omega)
         base = max(mission.target[2] if stacked else highest, floor_z_m)
-        z = heights[v.id] if spread else base + spacing * stack_level(v.id, heights)
+        z = base + spacing * stack_level(v.id, heights)
         requests[v.id] = holding.HoldRequest(
             np.array(s.pos_m), s.yaw_rad, z, radius, motion(s, airframes[v.id], mission)
         )
     zones = zones_from_mission(mission)
-    circles = _holds(requests, states, mission, obstacles, keep_out, zones, spread)
+    circles = (
+        _spread(requests, heights, states, mission, obstacles, keep_out, zones) if spread else None
+    )
+    if circles is None:  # not too many for a stack, or no grid clear of the obstacles
+        circles = _holds(requests, states, mission, obstacles, keep_out, zones)
     for vid, hold in circles.items():
         if hold.clearance_m < keep_out:
             event("hold_not_clear", vid, clearance_m=round(hold.clearance_m, 1))

@@ -77,20 +77,22 @@ def test_a_fleet_too_large_for_a_stack_holds_spread_apart_at_its_own_heights() -
     from gcs_ppf.guidance.holding import flown_width_m
     from gcs_ppf.service.commanding import STACK_LEVELS_MAX, stack_spacing_m
 
-    mission = Mission.model_validate({
+    doc = {
         "target": [8000.0, 0.0, 500.0],
         "vehicles": [{"id": 1, "role": "leader", "position": [0.0, 0.0, 500.0],
                       "pitch": 0.0, "yaw": 0.0}]
         + [{"id": k, "role": "wingman", "position": [-150.0 * k, 0.0, 500.0], "pitch": 0.0,
             "yaw": 0.0, "slot": [-150.0 * k, 0.0, 0.0]} for k in range(2, 13)],
-    })  # fmt: skip
+    }  # fmt: skip
+    mission = Mission.model_validate(doc)
 
-    def plan(n: int, floor: float = -math.inf) -> dict[int, Any]:
+    def plan(n: int, at_end: str = "loiter", completed: bool = True) -> dict[int, Any]:
         states = {k: VehicleState((9000.0 - 150.0 * k, 150.0 * (k % 2), 500.0 + 3.0 * k), 0.0,
                                   0.0, 100.0) for k in range(1, n + 1)}  # fmt: skip
         airframes = {k: Airframe() for k in states}
-        return hold_plan(Orders(mission, "course", 1.0), states, airframes, 90.0, True,
-                         lambda *a, **k: None, set(states), floor).circles  # fmt: skip
+        m = Mission.model_validate({**doc, "at_end": at_end})
+        return hold_plan(Orders(m, "course", 1.0), states, airframes, 90.0, completed,
+                         lambda *a, **k: None, set(states)).circles  # fmt: skip
 
     stacked = plan(STACK_LEVELS_MAX)
     assert len({round(h.z_m) for h in stacked.values()}) == STACK_LEVELS_MAX
@@ -101,9 +103,10 @@ def test_a_fleet_too_large_for_a_stack_holds_spread_apart_at_its_own_heights() -
         for j, b in spread.items():
             if i < j:
                 assert math.hypot(a.x_m - b.x_m, a.y_m - b.y_m) > 2.0 * wide
-    levels = sorted(h.z_m for h in plan(STACK_LEVELS_MAX + 1, floor=500.0).values())
-    gaps = np.diff(levels)
-    assert gaps.min() == pytest.approx(stack_spacing_m(mission))
+    levels = sorted(h.z_m for h in plan(STACK_LEVELS_MAX + 1, at_end="rtl").values())
+    assert np.diff(levels).min() == pytest.approx(stack_spacing_m(mission))
+    aborted = plan(STACK_LEVELS_MAX + 1, at_end="rtl", completed=False)  # no way home flown
+    assert {k: h.z_m for k, h in aborted.items()} == {k: 500.0 + 3.0 * k for k in aborted}
 
 
 def test_a_vehicle_whose_command_is_replaced_by_an_escape_is_told_to_fly_its_slowest() -> None:
