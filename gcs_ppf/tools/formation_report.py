@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from gcs_ppf.geodesy import geodetic_to_enu
+from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mission import Mission
 from gcs_ppf.tools.campaign import AFTER_S, EXAMPLES, mission_path
 from gcs_ppf.tools.observer import held_s, slot_distances, slot_errors
@@ -109,6 +110,22 @@ def observed_tracks(path: Path, mission: Mission) -> dict[int, FloatArray]:
         ]
         out[int(key)] = np.array(rows, dtype=float).reshape(-1, 5)
     return out
+
+
+def takeoff_ended_s(path: Path) -> float | None:
+    """The vehicle second by which every vehicle that flew TAKEOFF had left it (the
+    observer's HEARTBEAT modes in a run's ``observer.json``); None if none flew it."""
+    raw = json.loads(path.read_text())
+    ended: list[float] = []
+    for key, rec in raw.items():
+        if not key.isdigit():
+            continue
+        modes = rec.get("modes", [])
+        took = [k for k, (_, mode) in enumerate(modes) if mode == PlaneMode.TAKEOFF]
+        if took:
+            after = [tbm for tbm, mode in modes[took[0] :] if mode != PlaneMode.TAKEOFF]
+            ended.append(after[0] / 1000.0 if after else math.inf)
+    return max(ended) if ended else None
 
 
 def record_mission(rec: dict[str, Any]) -> Mission:
@@ -230,26 +247,38 @@ ArduPlane's 20° takeoff climb)."""
 @dataclass(frozen=True)
 class StraightAndTurns:
     """The worst wingman's RMS slot error (m) on the straight legs, on those flown level,
-    and in the turns (None where there were none)."""
+    and in the turns (None where there were none); and on the straight legs from the first
+    moment in formation after the takeoff (None without one)."""
 
     straight_m: float
     level_m: float | None
     turns_m: float
+    airborne_m: float | None = None
 
 
 def run_turns(rec: dict[str, Any], after_s: float = AFTER_S) -> StraightAndTurns | None:
-    """``straight_and_turns`` of one campaign record."""
-    return straight_and_turns(*_observed(rec, after_s))
+    """``straight_and_turns`` of one campaign record, with its takeoff's end
+    (``takeoff_ended_s``)."""
+    airborne = takeoff_ended_s(Path(rec["dir"]) / "observer.json")
+    return straight_and_turns(*_observed(rec, after_s), airborne_s=airborne)
 
 
 def straight_and_turns(
-    mission: Mission, tracks: dict[int, FloatArray], start: float, end: float
+    mission: Mission,
+    tracks: dict[int, FloatArray],
+    start: float,
+    end: float,
+    airborne_s: float | None = None,
 ) -> StraightAndTurns | None:
     """The worst wingman's RMS slot error on the straight legs (all, and level only) and in
     the turns of ``tracks`` ([K,4] rows of vehicle s, x, y, z) from ``start`` to ``end``,
     from the first moment in formation (None if it never formed, or it never turned): the
     leader turns while its course over the ground changes faster than ``TURNING_RAD_S``,
-    flies level while its flight-path angle is within ``LEVEL_RAD``."""
+    flies level while its flight-path angle is within ``LEVEL_RAD``.  With ``airborne_s``
+    (the vehicle second the takeoff ended), the straight legs also from the first moment in
+    formation after it: a formation takeoff is "formed" on the runway, and in the leader's
+    takeoff climb (20° at ArduPlane's scale) a slot 100 m behind lies 34 m below the
+    wingman climbing beside it."""
     worst_of = _worst(mission, tracks, start, end)
     if worst_of is None:
         return None
@@ -276,30 +305,41 @@ def straight_and_turns(
         return float(np.sqrt(np.mean(worst[where] ** 2)))
 
     flat = after & ~turning & level
+    airborne_m = None
+    if airborne_s is not None:
+        up = formed & (t >= airborne_s)
+        since = after & (np.arange(t.size) >= int(np.argmax(up)))
+        airborne_m = rms(since & ~turning) if up.any() and (since & ~turning).any() else None
     return StraightAndTurns(
-        rms(after & ~turning), rms(flat) if flat.any() else None, rms(after & turning)
+        rms(after & ~turning),
+        rms(flat) if flat.any() else None,
+        rms(after & turning),
+        airborne_m,
     )
 
 
 def turns_report(records: list[dict[str, Any]]) -> str:
     """One line per (mission, condition): the median over its runs of the worst wingman's
-    RMS slot error on the straight legs, on those flown level, and in the turns
-    (``run_turns``)."""
+    RMS slot error on the straight legs, on those flown level, in the turns, and on the
+    straight legs after the takeoff (``run_turns``), with the runs' min–max."""
     groups = _by_row(records, run_turns)
-    lines = [f"{'mission':<14}{'cond':>5}{'runs':>5}  rms m straight / level / turns (min–max)"]
+    head = "rms m straight / level / turns / straight after takeoff (min–max)"
+    lines = [f"{'mission':<14}{'cond':>5}{'runs':>5}  {head}"]
     for (name, cond), runs in sorted(groups.items()):
-        straight = np.array([r.straight_m for r in runs])
-        turns = np.array([r.turns_m for r in runs])
-        level = np.array([r.level_m for r in runs if r.level_m is not None])
-        flat = (
-            f"{np.median(level):.1f} ({level.min():.1f}–{level.max():.1f})" if level.size else "-"
-        )
-        lines.append(
-            f"{name:<14}{cond:>5}{len(runs):>5}  {np.median(straight):.1f} "
-            f"({straight.min():.1f}–{straight.max():.1f}) / {flat} / "
-            f"{np.median(turns):.1f} ({turns.min():.1f}–{turns.max():.1f})"
-        )
+        cells = [
+            _spread([getattr(r, k) for r in runs])
+            for k in ("straight_m", "level_m", "turns_m", "airborne_m")
+        ]
+        lines.append(f"{name:<14}{cond:>5}{len(runs):>5}  {' / '.join(cells)}")
     return "\n".join(lines) + "\n"
+
+
+def _spread(values: list[float | None]) -> str:
+    """The median of ``values`` and their min–max ("-" without any)."""
+    known = np.array([v for v in values if v is not None])
+    if not known.size:
+        return "-"
+    return f"{np.median(known):.1f} ({known.min():.1f}–{known.max():.1f})"
 
 
 def main(argv: list[str] | None = None) -> int:

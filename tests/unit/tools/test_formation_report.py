@@ -18,6 +18,7 @@ from gcs_ppf.tools.formation_report import (
     observed_tracks,
     report,
     run_turns,
+    takeoff_ended_s,
     turns_report,
 )
 
@@ -42,14 +43,19 @@ def _flown(mission: Mission, t: np.ndarray, off_m: np.ndarray) -> dict[int, np.n
 
 
 def _write_observer(
-    where: Path, mission: Mission, t: np.ndarray, tracks: dict[int, np.ndarray]
+    where: Path,
+    mission: Mission,
+    t: np.ndarray,
+    tracks: dict[int, np.ndarray],
+    modes: list[list[int]] | None = None,
 ) -> None:
-    """``observer.json`` as the campaign stores it (wall, boot ms, lat, lon, alt, height)."""
+    """``observer.json`` as the campaign stores it (wall, boot ms, lat, lon, alt, height;
+    each vehicle's ``modes``, [boot ms, mode] rows, if given)."""
     raw: dict[str, object] = {"end_wall": 0.0}
     for vid, track in tracks.items():
         lat, lon, alt = enu_to_geodetic_many(track[:, 1:4], mission.origin)
         rows = np.column_stack([np.zeros_like(t), np.round(1000 * t), lat, lon, alt, track[:, 4]])
-        raw[str(vid)] = {"pos": rows.tolist()}
+        raw[str(vid)] = {"pos": rows.tolist(), "modes": modes or []}
     (where / "observer.json").write_text(json.dumps(raw))
 
 
@@ -145,3 +151,40 @@ def test_the_slot_error_is_split_into_the_straight_legs_and_the_turns(tmp_path: 
     assert split.turns_m == pytest.approx(12.0, abs=1.0)
     row = turns_report([rec]).splitlines()[1].split()
     assert row[:3] == [mission.name, "a", "1"]
+
+
+def test_a_formation_takeoffs_straight_legs_are_also_measured_once_airborne(
+    tmp_path: Path,
+) -> None:
+    """Formed on the runway, the wingmen climb beside a leader climbing at 20° in TAKEOFF
+    for 9 s (in its climbing frame a slot 200 m behind lies 68 m lower), then fly 2 m off
+    their slots, and turn: the straight legs count the takeoff; after it, 2 m."""
+    path = ROOT / "examples" / "paper_table3.json"
+    mission = load_mission_file(path)
+    t = np.arange(0.0, 80.0, 0.1)
+    rate = np.where((t >= 40.0) & (t < 50.0), np.radians(4.5), 0.0)
+    gamma = np.where((t >= 1.0) & (t < 10.0), np.radians(20.0), 0.0)
+    course = np.cumsum(rate) * 0.1
+    x, y = np.cumsum(30.0 * np.cos(course)) * 0.1, np.cumsum(30.0 * np.sin(course)) * 0.1
+    z = np.cumsum(30.0 * np.tan(gamma)) * 0.1
+    tracks = {mission.leader.id: np.column_stack([t, x, y, z, z])}
+    for w in mission.wingmen:
+        assert w.slot is not None
+        sx, sy, _ = w.slot
+        beside = np.where(t < 10.0, 0.0, 2.0)  # 2 m to the left once airborne
+        wx = x + sx * np.cos(course) - (sy + beside) * np.sin(course)
+        wy = y + sx * np.sin(course) + (sy + beside) * np.cos(course)
+        tracks[w.id] = np.column_stack([t, wx, wy, z, z])  # level with the leader
+    _write_observer(tmp_path, mission, t, tracks, modes=[[0, 13], [10000, 15]])
+    rec = {"mission": mission.name, "mission_file": str(path), "condition": "a",
+           "dir": str(tmp_path), "window_s": [0.0, 80.0 + 30.0]}  # fmt: skip
+    assert takeoff_ended_s(tmp_path / "observer.json") == pytest.approx(10.0)
+    split = run_turns(rec)
+    assert split is not None
+    assert split.straight_m > 10.0
+    assert split.airborne_m == pytest.approx(2.0, abs=0.3)
+    _write_observer(tmp_path, mission, t, tracks)  # no TAKEOFF flown
+    assert takeoff_ended_s(tmp_path / "observer.json") is None
+    split = run_turns(rec)
+    assert split is not None
+    assert split.airborne_m is None
