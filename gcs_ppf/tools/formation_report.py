@@ -22,9 +22,9 @@ from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
+from pymavlink.dialects.v20.ardupilotmega import PLANE_MODE_TAKEOFF
 
 from gcs_ppf.geodesy import geodetic_to_enu
-from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mission import Mission
 from gcs_ppf.tools.campaign import AFTER_S, EXAMPLES, mission_path
 from gcs_ppf.tools.observer import held_s, slot_distances, slot_errors
@@ -121,9 +121,9 @@ def takeoff_ended_s(path: Path) -> float | None:
         if not key.isdigit():
             continue
         modes = rec.get("modes", [])
-        took = [k for k, (_, mode) in enumerate(modes) if mode == PlaneMode.TAKEOFF]
+        took = [k for k, (_, mode) in enumerate(modes) if mode == PLANE_MODE_TAKEOFF]
         if took:
-            after = [tbm for tbm, mode in modes[took[0] :] if mode != PlaneMode.TAKEOFF]
+            after = [tbm for tbm, mode in modes[took[0] :] if mode != PLANE_MODE_TAKEOFF]
             ended.append(after[0] / 1000.0 if after else math.inf)
     return max(ended) if ended else None
 
