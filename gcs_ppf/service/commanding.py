@@ -494,9 +494,6 @@ def hold_plan(
         for vid, st in states.items()
     }
     spacing = stack_spacing_m(mission)
-    flying = [v.id for v in mission.vehicles if v.id in heard and v.id in states]
-    home_from_stack = stacked and mission.at_end == "rtl"  # ``returning``: one level each
-    spread = len(flying) > STACK_LEVELS_MAX and not home_from_stack
     requests: dict[int, holding.HoldRequest] = {}
     for v in mission.vehicles:
         if v.id not in heard:
@@ -522,6 +519,8 @@ def hold_plan(
             np.array(s.pos_m), s.yaw_rad, z, radius, motion(s, airframes[v.id], mission)
         )
     zones = zones_from_mission(mission)
+    home_from_stack = stacked and mission.at_end == "rtl"  # ``returning``: one level each
+    spread = len(requests) > STACK_LEVELS_MAX and not home_from_stack
     circles = (
         _spread(requests, heights, states, mission, obstacles, keep_out, zones) if spread else None
     )

@@ -171,7 +171,7 @@ def test_a_large_fleet_holds_on_circles_spread_apart_in_its_order() -> None:
     """Thirty vehicles in rows of six, 150 m apart (a stack would climb them side by side for
     minutes): every ring as flown is the separation clear of every other at any height, each
     circle at its vehicle's own height, the foremost row to the furthest circles and each
-    row left to right as it flies; a sphere where the grid would be moves all of it."""
+    row in its order across; a sphere where the grid would be moves all of it."""
     from gcs_ppf.guidance.holding import flown_width_m, spread_holds
 
     def requests() -> list[HoldRequest]:
