@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel
 
 from gcs_ppf.mission import Mission
 
@@ -56,9 +57,9 @@ def encode(obj: Any, mission: Mission | None = None) -> Any:
         if isinstance(o, np.ndarray):
             data = base64.b64encode(np.ascontiguousarray(o).tobytes()).decode("ascii")
             return {"__nd__": o.dtype.str, "shape": list(o.shape), "b64": data}
-        if isinstance(o, Mission):
-            if mission is not None and o is mission:
-                return {"__mission__": None}
+        if mission is not None and o is mission:
+            return {"__mission__": None}
+        if isinstance(o, BaseModel):  # the mission, a route's loiter
             return {"__model__": _name(type(o)), "value": o.model_dump(mode="json")}
         if dataclasses.is_dataclass(o) and not isinstance(o, type):
             return {"__dc__": _name(type(o)),
