@@ -90,3 +90,22 @@ def test_recorded_verdicts_and_commands_are_given_again(path: Path) -> None:
         assert same(events, mission) == same(rec["events"], mission), f"tick {k}: events"
         after = {"commanded_speed": args[7], "escaping": args[9], "trims": args[11]}
         assert same(after, mission) == same(rec["after"], mission), f"tick {k}: state after"
+
+
+def test_a_route_leg_with_its_loiter_is_recorded_and_read_back() -> None:
+    """A loiter route's tick passes its leg, which holds a pydantic ``Loiter``: recording it
+    failed ('cannot record a Loiter'); the mission itself stays a reference."""
+    from gcs_ppf.mission import load_mission_file
+    from gcs_ppf.planning.route import legs
+
+    mission = load_mission_file(
+        ticks.TICKS_DIR.parents[2] / "examples/arduplane_route_loiter_3.json"
+    )
+    leg = legs(mission)[0]
+    assert leg.loiter is not None
+    data = ticks.encode([mission, leg], mission)
+    assert data[0] == {"__mission__": None}
+    back_mission, back_leg = ticks.decode(json.loads(json.dumps(data)), mission)
+    assert back_mission is mission
+    assert back_leg.loiter == leg.loiter
+    assert same(back_leg, mission) == same(leg, mission)
