@@ -21,6 +21,8 @@ from typing import Any
 import pytest
 
 from gcs_ppf.guidance import tick_plan
+from gcs_ppf.mission import load_mission_file
+from gcs_ppf.planning.route import legs
 from gcs_ppf.service import commanding
 from tests import ticks
 from tests.record_ticks import message
@@ -95,9 +97,6 @@ def test_recorded_verdicts_and_commands_are_given_again(path: Path) -> None:
 def test_a_route_leg_with_its_loiter_is_recorded_and_read_back() -> None:
     """A loiter route's tick passes its leg, which holds a pydantic ``Loiter``: recording it
     failed ('cannot record a Loiter'); the mission itself stays a reference."""
-    from gcs_ppf.mission import load_mission_file
-    from gcs_ppf.planning.route import legs
-
     mission = load_mission_file(
         ticks.TICKS_DIR.parents[2] / "examples/arduplane_route_loiter_3.json"
     )
