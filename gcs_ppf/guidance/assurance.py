@@ -198,8 +198,10 @@ class _Own:
         found = self.tried.get(key)
         if found is not None:
             return prediction.judge(*found, around)
-        s, reason, *flown = prediction.judge_flown(self.vector, key[0], key[1], self.hold_s, around)
-        self.tried[key] = (flown[0], flown[1], flown[2])
+        s, reason, path, left, right = prediction.judge_flown(
+            self.vector, key[0], key[1], self.hold_s, around
+        )
+        self.tried[key] = (path, left, right)
         return s, reason
 
 

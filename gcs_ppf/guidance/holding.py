@@ -336,21 +336,9 @@ def formation_holds(
         for bearing in BEARINGS:
             heading = yaw_rad + bearing
             dx, dy = d * math.cos(heading), d * math.sin(heading)
-            holds = [
-                hold_at(
-                    r.pos_m,
-                    r.z_m,
-                    r.radius_m,
-                    float(r.pos_m[0]) + dx,
-                    float(r.pos_m[1]) + dy,
-                    heading,
-                    obstacles,
-                    r.motion,
-                    zones,
-                )
-                for r in requests
-            ]
-            if all(h.clearance_m >= keep_out_m for h in holds):
+            centres = [(float(r.pos_m[0]) + dx, float(r.pos_m[1]) + dy, heading) for r in requests]
+            holds = _clear_holds(requests, centres, obstacles, keep_out_m, zones)
+            if holds is not None:
                 return holds
     return None
 
@@ -377,17 +365,34 @@ def spread_holds(
     pitch = 2.0 * wide + separation_m
     for step in REACH_STEPS:
         for bearing in BEARINGS:
-            centres = grid_centres(pos, yaw_rad + bearing, ahead_m + step * wide, pitch)
-            holds: list[Hold] = []
-            for r, (x, y) in zip(requests, centres, strict=True):
-                way = math.atan2(y - float(r.pos_m[1]), x - float(r.pos_m[0]))
-                hold = hold_at(r.pos_m, r.z_m, r.radius_m, x, y, way, obstacles, r.motion, zones)
-                if hold.clearance_m < keep_out_m:
-                    break  # this placement fails: the next is tried
-                holds.append(hold)
-            if len(holds) == len(requests):
+            grid = grid_centres(pos, yaw_rad + bearing, ahead_m + step * wide, pitch)
+            centres = [
+                (x, y, math.atan2(y - float(r.pos_m[1]), x - float(r.pos_m[0])))
+                for r, (x, y) in zip(requests, grid, strict=True)
+            ]
+            holds = _clear_holds(requests, centres, obstacles, keep_out_m, zones)
+            if holds is not None:
                 return holds
     return None
+
+
+def _clear_holds(
+    requests: Sequence[HoldRequest],
+    centres: Sequence[tuple[float, float, float]],
+    obstacles: Obstacles,
+    keep_out_m: float,
+    zones: Zones | None,
+) -> list[Hold] | None:
+    """Each request's circle round its centre (x, y), approached along the bearing ``way``
+    of ``centres`` [(x, y, way)] (``hold_at``); None as soon as one comes nearer the
+    obstacles than ``keep_out_m``: that placement fails, the caller tries the next."""
+    holds = []
+    for r, (x, y, way) in zip(requests, centres, strict=True):
+        hold = hold_at(r.pos_m, r.z_m, r.radius_m, x, y, way, obstacles, r.motion, zones)
+        if hold.clearance_m < keep_out_m:
+            return None
+        holds.append(hold)
+    return holds
 
 
 def grid_centres(
