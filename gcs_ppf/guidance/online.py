@@ -38,6 +38,10 @@ class VehicleState:
     climb_rate_m_s: float | None = None
     """Its vertical speed (m/s, + up) as reported (the pitch may be from an average);
     None: the one the pitch gives."""
+    course_ahead_rad: float = 0.0
+    """How far the course it is planned from is ahead of the course it flies (rad, +: left;
+    ``speed_reference.reference_course``): a leader's slots are laid out from the course
+    it flies (``scene_now``)."""
 
 
 def state_from_velocity(
@@ -104,6 +108,7 @@ class Guidance:
     speed_plan_t_s: FloatArray | None = None  # [K] 0 and the plan's record times
     speed_plan_m_s: FloatArray | None = None  # [K,N] the planned speeds then (the start's first)
     climb_plan_m_s: FloatArray | None = None  # [K,N] the planned vertical speeds then (+: up)
+    course_plan_rad: FloatArray | None = None  # [K,N] the planned courses then (ICS yaw)
 
 
 def scene_now(
@@ -149,7 +154,21 @@ def scene_now(
         fleet.pitch[i] = max(-math.pi / 2, min(math.pi / 2, s.pitch_rad))
         fleet.yaw[i] = s.yaw_rad
         fleet.speed[i] = min(max(s.speed_m_s, lim.v_min), lim.v_max)
+    leader = states.get(int(fleet.ids[0]))
+    if leader is not None and leader.course_ahead_rad != 0.0:
+        fleet = replace(fleet, slot=_slots_turned(fleet.slot, -leader.course_ahead_rad))
     return replace(base, fleet=fleet, obstacles=obstacles)
+
+
+def _slots_turned(slot: FloatArray, angle_rad: float) -> FloatArray:
+    """[N,3] the slots (leader's VCS) turned by ``angle_rad`` about its vertical (+: left):
+    laid out from a leader planned ``-angle_rad`` ahead of the course it flies, they stand
+    where the course flown puts them (Eq. 6, to first order in its pitch)."""
+    c, s = math.cos(angle_rad), math.sin(angle_rad)
+    turned = slot.copy()
+    turned[:, 0] = c * slot[:, 0] - s * slot[:, 1]
+    turned[:, 1] = s * slot[:, 0] + c * slot[:, 1]
+    return turned
 
 
 def _within_envelope(lim: KernelLimits, env: OnlineLimits) -> KernelLimits:
@@ -278,6 +297,7 @@ def guidance(
         speed_plan_t_s=np.concatenate([[0.0], tr.t]),
         speed_plan_m_s=np.concatenate([scene.fleet.speed[None], tr.speed]),
         climb_plan_m_s=climb_plan,
+        course_plan_rad=np.concatenate([scene.fleet.yaw[None], tr.yaw]),
     )
 
 

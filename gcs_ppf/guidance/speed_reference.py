@@ -1,5 +1,5 @@
-"""The speed each tick plans from: where the previous plan's speed had got to by now (the
-commanded reference), not the speed measured, as long as the two stay close.
+"""The speed and course each tick plans from: where the previous plan's had got to by now
+(the commanded reference), not the ones measured, as long as the two stay close.
 
 Pure.  The plan is re-made every tick; its speed law (Eq. 21–24) changes the speed at the
 mission's ``accel``/``decel`` from the speed the plan starts at, and the service commands
@@ -19,6 +19,7 @@ from what it flies.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -30,6 +31,16 @@ REFERENCE_BOUND_M_S = 2.0
 """The reference is kept within this of the measured speed (m/s): what ArduPlane lags an
 airspeed ramp at the mission's rates by, with room (measured: 0.5–1.2 m/s behind a demand
 ramping at 0.6–0.8 m/s², and ground speed 1–2 m/s above airspeed)."""
+
+
+REFERENCE_COURSE_BOUND_RAD = math.radians(2.0)
+"""The leader's course planned from is kept within this of the course it flies (rad): what
+it lags the heading sent by while its course turns slowly (the loiter route's first leg,
+turning at 0.005–0.007 rad/s: 1–2°).  In a turn at the formation's held rate it lags by
+more, and the plan's leader is that much further round: its wingmen's aims, carried 1/ω
+ahead along its direction, swing in by v/ω × the offset.  With 5°, the loiter route's
+outer wingman was 24 m inside its slot at the turn onto the circle (13–16 m with 2°, 8–10
+m from the course flown); round the circle, 3.4–5.9 m (1.6–2.6 m with 2°, 7.7–8.5 m)."""
 
 
 SPEED_COMMAND_LEAD_S = 0.25
@@ -80,30 +91,44 @@ def follows_speed_plan(accel_m_s2: float, decel_m_s2: float) -> bool:
 class SpeedPlan:
     """The speeds one tick planned: ``speed_m_s`` [K,N] at ``t_s`` [K] seconds after the
     plan's start (``t_s[0]`` = 0, the speeds it started from), for the vehicles ``ids``
-    [N] in the plan's order, the plan made at mission time ``planned_at_s``."""
+    [N] in the plan's order, the plan made at mission time ``planned_at_s``; and the
+    courses (ICS yaw) planned then, ``course_rad`` [K,N] (None: not planned)."""
 
     ids: tuple[int, ...]
     t_s: FloatArray
     speed_m_s: FloatArray
     planned_at_s: float
+    course_rad: FloatArray | None = None
 
     @staticmethod
     def of(g: Guidance, planned_at_s: float) -> SpeedPlan | None:
-        """The speed plan of ``g`` (None if it carries none)."""
+        """The speed plan of ``g`` (None if it carries none), with its courses."""
         if g.speed_plan_t_s is None or g.speed_plan_m_s is None:
             return None
-        return SpeedPlan(tuple(g.ids), g.speed_plan_t_s, g.speed_plan_m_s, planned_at_s)
+        ids = tuple(g.ids)
+        return SpeedPlan(ids, g.speed_plan_t_s, g.speed_plan_m_s, planned_at_s, g.course_plan_rad)
 
-    def speed_at(self, vehicle_id: int, mission_time_s: float) -> float | None:
-        """The speed the plan had reached at ``mission_time_s`` (None: the vehicle is not in
-        it, or the moment is before its start or past its end)."""
+    def _column(self, plan: FloatArray, vehicle_id: int, mission_time_s: float) -> float | None:
+        """``plan``'s column of ``vehicle_id`` at ``mission_time_s`` (None: the vehicle is
+        not in it, or the moment is before its start or past its end)."""
         if vehicle_id not in self.ids:
             return None
         elapsed = mission_time_s - self.planned_at_s
         if elapsed < 0.0 or elapsed > float(self.t_s[-1]):
             return None
-        column = self.speed_m_s[:, self.ids.index(vehicle_id)]
-        return float(np.interp(elapsed, self.t_s, column))
+        return float(np.interp(elapsed, self.t_s, plan[:, self.ids.index(vehicle_id)]))
+
+    def speed_at(self, vehicle_id: int, mission_time_s: float) -> float | None:
+        """The speed the plan had reached at ``mission_time_s`` (None: the vehicle is not in
+        it, or the moment is before its start or past its end)."""
+        return self._column(self.speed_m_s, vehicle_id, mission_time_s)
+
+    def course_at(self, vehicle_id: int, mission_time_s: float) -> float | None:
+        """The course the plan had reached at ``mission_time_s`` (None as ``speed_at``, or
+        no courses planned)."""
+        if self.course_rad is None:
+            return None
+        return self._column(np.unwrap(self.course_rad, axis=0), vehicle_id, mission_time_s)
 
 
 def reference_speed(
@@ -116,18 +141,50 @@ def reference_speed(
     return min(max(planned_m_s, measured_m_s - bound_m_s), measured_m_s + bound_m_s)
 
 
+def reference_course(
+    planned_rad: float | None, measured_rad: float, bound_rad: float = REFERENCE_COURSE_BOUND_RAD
+) -> float:
+    """The course to plan from: the previous plan's course now (``planned_rad``) kept within
+    ``bound_rad`` of the measured course, in (−π, π]; the measured course without a plan.
+
+    Planned from the course measured, each tick's plan opened with a turn at the formation's
+    held rate to put right the degree or two the autopilot lags a turning heading by, and
+    the wingmen planned their speeds to that turn (their slots swing with it: ±3.3 m/s for
+    slots 100 m out at 0.033 rad/s) for the 0.3 s it lasted: the airspeed commanded a quarter
+    second into the plan never changed (the loiter route flown: a wingman 11–12 m ahead of
+    its slot asked for more than the leader for 28 s)."""
+    if planned_rad is None:
+        return measured_rad
+    off = math.remainder(planned_rad - measured_rad, math.tau)
+    return math.remainder(measured_rad + min(max(off, -bound_rad), bound_rad), math.tau)
+
+
 def reference_states(
     states: dict[int, VehicleState],
     plan: SpeedPlan | None,
     mission_time_s: float,
     bound_m_s: float = REFERENCE_BOUND_M_S,
+    leader_id: int | None = None,
+    course_bound_rad: float = REFERENCE_COURSE_BOUND_RAD,
 ) -> dict[int, VehicleState]:
-    """``states`` with each speed replaced by its ``reference_speed`` (positions, attitudes
-    and turn rates as measured)."""
+    """``states`` with each speed replaced by its ``reference_speed``, and the course of the
+    leader (``leader_id``) by its ``reference_course`` (``course_ahead_rad`` saying by how
+    much); positions, flight paths, turn rates and the wingmen's courses as measured.
+
+    Only the leader's: its opening turn is what its wingmen's speeds answer.  A wingman's
+    own is its own, and in a held turn the built-in SITL's wingmen flew their courses 5°
+    and more ahead of their plans', so that planned from the reference they were planned
+    turning late, further off their slots each tick (the loiter route: 24 m at the turn
+    onto the circle where they had been 10 m)."""
     out = {}
     for vid, s in states.items():
         planned = None if plan is None else plan.speed_at(vid, mission_time_s)
-        out[vid] = replace(s, speed_m_s=reference_speed(planned, s.speed_m_s, bound_m_s))
+        s = replace(s, speed_m_s=reference_speed(planned, s.speed_m_s, bound_m_s))
+        course = None if plan is None or vid != leader_id else plan.course_at(vid, mission_time_s)
+        if course is not None:
+            yaw = reference_course(course, s.yaw_rad, course_bound_rad)
+            s = replace(s, yaw_rad=yaw, course_ahead_rad=math.remainder(yaw - s.yaw_rad, math.tau))
+        out[vid] = s
     return out
 
 

@@ -669,7 +669,9 @@ async def plan_and_command(
         # planned from the speeds the last plan had reached by now, not the measured ones
         follows = speed_reference.follows_speed_plan(lim.accel, lim.decel)
         reference = run.speed_plan if follows else None
-        planning = speed_reference.reference_states(states, reference, run.mission_time_s)
+        planning = speed_reference.reference_states(
+            states, reference, run.mission_time_s, leader_id=mission.leader.id
+        )
         g, ordered = tick_plan.plan(
             mission,
             planning,

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from gcs_ppf.frames import local_target_point
 from gcs_ppf.guidance.airframe import OnlineLimits
 from gcs_ppf.guidance.online import (
     VehicleState,
@@ -21,7 +23,7 @@ from gcs_ppf.guidance.online import (
 )
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.planner import advance
-from gcs_ppf.planning.scene import Obstacles, obstacles_from_mission
+from gcs_ppf.planning.scene import Obstacles, Scene, obstacles_from_mission
 from gcs_ppf.planning.zones import zones_from_mission
 
 
@@ -225,3 +227,31 @@ def test_the_flight_path_is_planned_from_the_averaged_vertical_speed_when_given(
     assert s.pitch_rad == pytest.approx(math.atan2(1.0, 20.0))
     plain = state_from_velocity((0.0, 0.0, 100.0), 20.0, 0.0, -3.0, age_s=1.0)
     assert plain.pitch_rad == pytest.approx(math.atan2(3.0, 20.0))
+
+
+def test_a_leader_planned_ahead_of_its_course_has_its_slots_where_its_course_puts_them(
+    table3: Mission,
+) -> None:
+    """Planned from a course 4° to the left of the one it flies (``speed_reference``), the
+    leader's slots are laid out from the course flown: its wingmen are planned to the same
+    points, however the plan turns it."""
+    flown = {vid: replace(s, pitch_rad=0.0) for vid, s in _states_at_start(table3).items()}
+    ahead = math.radians(4.0)
+    leader = flown[1]
+    planned = {**flown, 1: replace(leader, yaw_rad=leader.yaw_rad + ahead, course_ahead_rad=ahead)}
+    ids = set(flown)
+    as_flown = scene_now(table3, flown, ids, obstacles_from_mission(table3))
+    as_planned = scene_now(table3, planned, ids, obstacles_from_mission(table3))
+    assert as_planned.fleet.yaw[0] == pytest.approx(as_flown.fleet.yaw[0] + ahead)
+
+    def points(scene: Scene) -> np.ndarray:
+        f = scene.fleet
+        return np.array(
+            [local_target_point(f.pos[0], 0.0, float(f.yaw[0]), f.slot[i]) for i in range(5)]
+        )
+
+    assert np.allclose(points(as_planned), points(as_flown))
+    assert not np.allclose(as_planned.fleet.slot, as_flown.fleet.slot)  # turned to get there
+    assert np.allclose(
+        np.linalg.norm(as_planned.fleet.slot, axis=1), np.linalg.norm(as_flown.fleet.slot, axis=1)
+    )

@@ -3,6 +3,7 @@ kept within a bound of the measured speed."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -12,11 +13,13 @@ from gcs_ppf.guidance.online import Guidance, VehicleState
 from gcs_ppf.guidance.speed_reference import (
     HOLD_RESERVE_M_S,
     REFERENCE_BOUND_M_S,
+    REFERENCE_COURSE_BOUND_RAD,
     SPEED_COMMAND_LEAD_S,
     SpeedPlan,
     follows_speed_plan,
     formation_holds,
     leader_held,
+    reference_course,
     reference_speed,
     reference_states,
     speed_to_command,
@@ -55,6 +58,54 @@ def test_only_the_speed_is_replaced() -> None:
     assert out[1] == VehicleState((1.0, 2.0, 3.0), 0.1, 0.2, 23.0, 0.05)
     assert out[2] == measured  # not in the plan: as measured
     assert reference_states({1: measured}, None, 0.0)[1] == measured
+
+
+def _turning_plan(start_rad: float, rate_rad_s: float, at_s: float) -> SpeedPlan:
+    """``_plan`` at a steady speed with vehicle 1's course turning from ``start_rad`` at
+    ``rate_rad_s``, wrapped to (−π, π] as the planner records it."""
+    plan = _plan(22.0, 0.0, 22.0, at_s)
+    course = np.remainder(start_rad + rate_rad_s * plan.t_s + math.pi, math.tau) - math.pi
+    return replace(plan, course_rad=course[:, None])
+
+
+def test_the_course_reached_is_read_across_the_wrap() -> None:
+    plan = _turning_plan(math.pi - 0.01, 0.1, at_s=5.0)  # crosses ±π after 0.1 s
+    reached = plan.course_at(1, 5.2)
+    assert reached is not None
+    assert math.remainder(reached - (math.pi + 0.01), math.tau) == pytest.approx(0.0, abs=1e-9)
+    assert plan.course_at(1, 4.9) is None
+    assert plan.course_at(2, 5.2) is None
+    assert _plan(22.0, 0.0, 22.0, 5.0).course_at(1, 5.2) is None  # no courses planned
+
+
+def test_the_course_reference_is_kept_within_its_bound_of_the_course_flown() -> None:
+    bound = REFERENCE_COURSE_BOUND_RAD
+    assert reference_course(None, 1.0) == 1.0
+    assert reference_course(1.02, 1.0) == pytest.approx(1.02)  # within 2°
+    assert reference_course(1.5, 1.0) == pytest.approx(1.0 + bound)
+    assert reference_course(0.5, 1.0) == pytest.approx(1.0 - bound)
+    # across ±π: 0.02 rad to the left of a course of 3.13 rad is −3.13 rad
+    assert reference_course(-math.pi + 0.01, math.pi - 0.01) == pytest.approx(-math.pi + 0.01)
+    assert reference_course(-math.pi + 0.5, math.pi - 0.02) == pytest.approx(
+        math.remainder(math.pi - 0.02 + bound, math.tau)
+    )
+
+
+def test_only_the_leaders_course_is_planned_from_its_reference() -> None:
+    plan = _turning_plan(0.5, 0.1, at_s=0.0)
+    plan = replace(
+        plan,
+        ids=(1, 2),
+        speed_m_s=np.hstack([plan.speed_m_s] * 2),
+        course_rad=np.hstack([plan.course_rad] * 2),  # type: ignore[list-item]
+    )
+    flown = VehicleState((1.0, 2.0, 3.0), 0.1, 0.51, 22.0, 0.05)
+    out = reference_states({1: flown, 2: flown}, plan, 0.3, leader_id=1)
+    assert out[1].yaw_rad == pytest.approx(0.53)
+    assert out[1].course_ahead_rad == pytest.approx(0.02)
+    assert out[1].pos_m == flown.pos_m
+    assert out[2] == flown  # a wingman: its course as flown
+    assert reference_states({1: flown}, plan, 0.3)[1] == flown  # no leader named
 
 
 def _flown_accel(use_reference: bool, tau_s: float = 0.25) -> float:
