@@ -105,7 +105,7 @@ def plan(
 ) -> tuple[Guidance, list[Airframe]]:
     """The guidance for the ``active`` vehicles, and their airframes in its order, the
     leader flying the route's ``leg`` (None: straight to the target; a leg that ends in a
-    loiter, round its circle: ``route.loiter_point``).
+    loiter, round its circle: ``route.loiter_point``; by its turn point, if it has one).
 
     ``lagging_s`` (the telemetry interval and the measured lag, vehicle seconds) is what the
     planning margin and the guard's margins must cover (``gcs_ppf.guidance.airframe``)."""
@@ -136,14 +136,14 @@ def plan(
         if leg.loiter is not None and leader is not None:  # steered round the circle
             target = loiter_point(leg, np.array(leader.pos_m, dtype=float))
         else:
-            target = leg.end_m
+            target = leg.aim_m  # its turn point first (``route.onto_target``)
         scene = replace(scene, target=target)
     g = guidance(
         scene,
         lookahead_s=tuning.lookahead_s,
         dt=tuning.planner_dt_s,
         carrot_m=tuning.carrot_m,
-        final_leg=leg is None or leg.final,
+        final_leg=leg is None or (leg.final and leg.turn_point_m is None),
     )
     ordered = [airframes.get(vid, Airframe()) for vid in g.ids]
     if tuning.guard_horizon_s == 0.0:

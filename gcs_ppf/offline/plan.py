@@ -6,6 +6,7 @@ wall time of planning alone, after the one-time compilation) and reports progres
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -16,7 +17,7 @@ import numpy as np
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.metrics import FlightContext, compute_metrics
 from gcs_ppf.planning.planner import Method, Trajectory, advance, initial_record
-from gcs_ppf.planning.route import Loitering, legs, loiter_point
+from gcs_ppf.planning.route import Loitering, leg_flown, legs, loiter_point, onto_target
 from gcs_ppf.planning.scene import FloatArray, Scene, scene_from_mission
 
 Progress = Callable[[float], None]  # called with the flight time planned so far
@@ -85,9 +86,15 @@ def plan_mission(
     state = replace(state, target=leg.end_m)
     loiter = Loitering(state.fleet.pos[0].copy()) if leg.loiter is not None else None
     while steps < total_steps and not arrived:
-        n = min((1 if loiter else PROGRESS_CHUNKS) * chunk, total_steps - steps)
+        fleet = state.fleet
+        leg = onto_target(leg, fleet.pos[0], float(fleet.yaw[0]), float(fleet.speed[0]))
+        turning = leg.turn_point_m is not None  # straight on to the turn point first
+        previous = fleet.pos[0].copy()
+        n = min((1 if loiter or turning else PROGRESS_CHUNKS) * chunk, total_steps - steps)
         if loiter is not None:  # steered a little ahead on the circle, one chunk at a time
             state = replace(state, target=loiter_point(leg, state.fleet.pos[0]))
+        else:
+            state = replace(state, target=leg.aim_m)
         start = time.perf_counter()
         result = advance(
             state,
@@ -96,8 +103,8 @@ def plan_mission(
             method=method,
             t0=t,
             chunk_steps=chunk,
-            goal_radius_m=0.0 if loiter else leg.radius_m,
-            finish_normal=None if loiter else leg.finish_normal,
+            goal_radius_m=0.0 if loiter or turning else leg.radius_m,
+            finish_normal=None if loiter or turning else leg.finish_normal,
         )
         wall += time.perf_counter() - start
         parts.append(result.trajectory)
@@ -107,6 +114,9 @@ def plan_mission(
         if loiter is not None and leg.loiter is not None:
             loiter = loiter.on(leg, result.trajectory.pos[:, 0], t)
             arrived = loiter.flown(leg.loiter, t)
+        elif turning:  # the waypoint passed on the way to the turn point
+            track = np.concatenate([previous[None], result.trajectory.pos[:, 0]])
+            arrived = any(leg_flown(leg, a, b) for a, b in itertools.pairwise(track))
         if arrived and not leg.final:  # on to the next leg
             leg_times.append(round(t, 3))
             leg, arrived = route[leg.index + 1], False

@@ -42,7 +42,7 @@ from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_H
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning import succession
-from gcs_ppf.planning.route import Loitering, leg_flown
+from gcs_ppf.planning.route import Loitering, leg_flown, onto_target
 from gcs_ppf.planning.scene import FloatArray, Obstacles, obstacles_from_mission
 from gcs_ppf.planning.zones import zones_from_mission
 from gcs_ppf.service import commanding, launch, vehicle_fences
@@ -666,6 +666,21 @@ async def plan_and_command(
     telemetry_interval_s = 1.0 / positions_hz
     lagging_s = telemetry_interval_s + run.fleet_lag.total_s  # what the margins must cover
     with phases.phase("planning"):
+        leader = states.get(mission.leader.id)
+        if leader is not None:  # a waypoint inside the formation's turn: a turn point first
+            was = run.legs[run.leg]
+            position = np.array(leader.pos_m, dtype=float)
+            leg = onto_target(was, position, leader.yaw_rad, leader.speed_m_s)
+            run.legs[run.leg] = leg
+            if leg.turn_point_m is not None and was.turn_point_m is None:
+                station.event(
+                    run,
+                    "turn_point",
+                    mission.leader.id,
+                    waypoint=leg.index,
+                    turn_point_m=[round(float(c), 1) for c in leg.turn_point_m],
+                    ahead_m=round(float(np.linalg.norm(leg.turn_point_m[:2] - position[:2])), 1),
+                )
         # planned from the speeds the last plan had reached by now, not the measured ones
         follows = speed_reference.follows_speed_plan(lim.accel, lim.decel)
         reference = run.speed_plan if follows else None

@@ -268,9 +268,11 @@ def nearest_row(nearest: tuple[str | None, float | None]) -> dict[str, Any]:
 
 
 def leg_status(run: Run) -> dict[str, Any]:
-    """The leg of the route the leader flies: its index, of how many, where it ends; with a
+    """The leg of the route the leader flies: its index, of how many, where it ends, the turn
+    point it flies straight on to first (``route.onto_target``; None without one); with a
     loiter, its circle and how far it is flown (``loiter``; None without one)."""
     leg = run.legs[run.leg]
+    turn = leg.turn_point_m
     loiter: dict[str, Any] | None = None
     if leg.loiter is not None:
         going = run.loitering
@@ -286,6 +288,7 @@ def leg_status(run: Run) -> dict[str, Any]:
         "index": leg.index,
         "of": len(run.legs),
         "to_m": [round(float(c), 2) for c in leg.end_m],
+        "turn_point_m": None if turn is None else [round(float(c), 2) for c in turn],
         "final": leg.final,
         "loiter": loiter,
         "waypoint_times_s": list(run.waypoint_times_s),

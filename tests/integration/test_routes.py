@@ -131,7 +131,8 @@ def test_a_loiter_at_a_waypoint_is_flown_round_it_in_formation(tmp_path: Path) -
     """``arduplane_route_loiter_3``: one clockwise turn round the first waypoint on a 632 m
     circle (the tightest this formation holds), then on.  The leader's own track sweeps the
     one turn round the waypoint on the circle between ``loiter_began`` and
-    ``waypoint_reached`` (the leader's clock); the run is safe.  In ``make
+    ``waypoint_reached`` (the leader's clock), and flies out to a turn point before it turns
+    onto the target; the run is safe.  In ``make
     campaign-check``: ``make test`` is near its time budget."""
     doc = json.loads((EXAMPLES / "arduplane_route_loiter_3.json").read_text())
     seen: dict[str, Any] = {}
@@ -147,6 +148,8 @@ def test_a_loiter_at_a_waypoint_is_flown_round_it_in_formation(tmp_path: Path) -
     kinds = [(e["kind"], e["detail"]["waypoint"]) for e in events
              if e["kind"] in ("loiter_began", "waypoint_reached")]  # fmt: skip
     assert kinds == [("loiter_began", 0), ("waypoint_reached", 0), ("waypoint_reached", 1)]
+    # the target lies inside the V's turn from the last waypoint: a turn point first
+    assert [e["detail"]["waypoint"] for e in events if e["kind"] == "turn_point"][-1:] == [2]
     zero_s = next(e for e in events if e["kind"] == "run_running")["detail"]["leader_clock_zero_s"]
     began_s, done_s = (next(e["mission_time_s"] for e in events if e["kind"] == kind)
                        for kind in ("loiter_began", "waypoint_reached"))  # fmt: skip

@@ -111,6 +111,7 @@ function buildScene() {
     target_m: own ? (Array.isArray(doc.target) && doc.target.every(Number.isFinite) ? doc.target : null) : f && f.target_m,
     route: validRoute(own ? doc.route : f && f.route),
     leg: run && run.leg ? run.leg.index : null,
+    turnPoint: run && run.leg && Array.isArray(run.leg.turn_point_m) ? run.leg.turn_point_m : null,
     accuracy_m: limits ? limits.target_accuracy : 10,
     ground: doc ? doc.ground : null,
     limits,

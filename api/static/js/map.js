@@ -454,6 +454,22 @@ export class TopView {
       });
     }
 
+    // The turn point the leader flies straight on to before turning onto a waypoint that
+    // lies inside its formation's turn (the run's leg.turn_point_m).
+    if (s.turnPoint) {
+      const [x, y] = this.toScreen(s.turnPoint[0], s.turnPoint[1]);
+      ctx.strokeStyle = col.target;
+      ctx.lineWidth = 1.5 * dpr;
+      ctx.beginPath();
+      ctx.moveTo(x, y - 7 * dpr); ctx.lineTo(x + 7 * dpr, y); ctx.lineTo(x, y + 7 * dpr);
+      ctx.lineTo(x - 7 * dpr, y); ctx.closePath();
+      ctx.stroke();
+      ctx.fillStyle = col.target;
+      ctx.font = font(12);
+      ctx.textAlign = "left";
+      ctx.fillText("turn point", x + 10 * dpr, y + 4 * dpr);
+    }
+
     // The leader's target and its accuracy.
     if (s.target_m) {
       const [x, y] = this.toScreen(s.target_m[0], s.target_m[1]);

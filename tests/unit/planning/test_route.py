@@ -18,7 +18,17 @@ from gcs_ppf.offline.plan import plan_mission
 from gcs_ppf.planning.metrics import local_target_points
 from gcs_ppf.planning.planner import Trajectory
 from gcs_ppf.planning.ppf.primitives import KernelLimits, inside_turn
-from gcs_ppf.planning.route import Leg, Loitering, leg_flown, legs, loiter_point, on_circle
+from gcs_ppf.planning.route import (
+    TURN_POINT_WIDER,
+    Leg,
+    Loitering,
+    leg_flown,
+    legs,
+    loiter_point,
+    on_circle,
+    onto_target,
+    turn_point,
+)
 from gcs_ppf.planning.scene import FloatArray, scene_from_mission
 from gcs_ppf.planning.turns import slot_turn_rates, turn_envelope
 
@@ -304,6 +314,53 @@ def test_a_loiter_needs_turns_or_time_and_a_radius_the_leader_can_turn() -> None
     ):
         with pytest.raises(MissionError, match=re.escape(field)):
             load_mission(json.dumps(route_doc([{**base, "loiter": loiter}], [0.0, 4000.0, 150.0])))
+
+
+def test_a_waypoint_inside_the_turn_is_reached_from_a_turn_point_straight_on() -> None:
+    # heading +x from the origin, turns of 400 m: circles centred at (0, ±400)
+    point = turn_point(np.array([100.0, 300.0, 150.0]), np.zeros(3), 0.0, 400.0)
+    assert point is not None
+    assert point[1] == pytest.approx(0.0)  # straight on …
+    assert point[2] == 150.0  # … at the waypoint's height
+    centre = np.array([point[0], 400.0])  # the left turn from there
+    assert math.dist(centre, (100.0, 300.0)) == pytest.approx((1 + TURN_POINT_WIDER) * 400.0)
+    right = turn_point(np.array([100.0, -300.0, 0.0]), np.zeros(3), 0.0, 400.0)
+    assert right is not None
+    assert right[0] == pytest.approx(point[0])  # either side alike
+    assert turn_point(np.array([2000.0, 300.0, 0.0]), np.zeros(3), 0.0, 400.0) is None
+    assert turn_point(np.array([-900.0, 0.0, 0.0]), np.zeros(3), 0.0, 400.0) is None
+
+
+def test_the_turn_point_is_kept_until_passed_and_only_where_turns_are_held() -> None:
+    held = Leg(0, np.zeros(3), np.array([100.0, 300.0, 0.0]), 10.0, np.zeros(3),
+               turn_rate_rad_s=0.05)  # fmt: skip
+    leg = onto_target(held, np.zeros(3), 0.0, 20.0)  # turns of 400 m
+    assert leg.turn_point_m is not None
+    assert np.array_equal(leg.aim_m, leg.turn_point_m)
+    along = leg.turn_point_m[0]
+    turned = onto_target(leg, np.array([along - 1.0, 5.0, 0.0]), 0.3, 20.0)
+    assert turned is leg  # not passed yet, whatever the heading now
+    passed = onto_target(leg, np.array([along + 1.0, 0.0, 0.0]), 0.0, 20.0)
+    assert passed.turn_point_m is None
+    assert np.array_equal(passed.aim_m, held.end_m)
+    free = Leg(0, np.zeros(3), np.array([100.0, 300.0, 0.0]), 10.0, np.zeros(3))
+    assert onto_target(free, np.zeros(3), 0.0, 20.0) is free  # turns as it can
+    assert all(leg.turn_rate_rad_s == math.inf for leg in legs(load_mission_file(
+        EXAMPLES / "arduplane_5.json")))  # fmt: skip
+
+
+def test_the_loiter_routes_last_turn_is_flown_in_formation() -> None:
+    """The target lies 1 km on from the last waypoint, inside the 633 m turn the V follows:
+    the leader flies out to a turn point and turns back onto it with its formation (every
+    wingman within 2x the target accuracy of its slot; 46-115 m turning onto it at 0.3
+    rad/s, as before)."""
+    m = load_mission_file(EXAMPLES / "arduplane_route_loiter_3.json")
+    run = plan_mission(m)
+    assert run.arrived
+    tr = run.trajectory
+    last = int(np.searchsorted(tr.t, run.metrics["waypoint_times_s"][-1]))
+    error = np.linalg.norm(tr.pos - local_target_points(tr, run.scene.fleet.slot), axis=-1)
+    assert error[last:, 1:].max() <= 2 * m.limits.target_accuracy
 
 
 def test_the_loiter_example_circles_its_waypoint_in_formation() -> None:
