@@ -53,6 +53,9 @@ log = logging.getLogger("gcs_ppf.service.launch")
 
 ON_GROUND_ALT_M = 5.0
 """Below this height above home a vehicle is on the ground (whatever its speed)."""
+HEIGHT_WAIT_S = 10.0
+"""How long (our seconds) the launch waits for a vehicle's first height above home before
+it decides whether the vehicle is on the ground (``launch``)."""
 TAKEOFF_DONE_FRACTION = 0.9
 """A vehicle taking off is switched to GUIDED once at this fraction of its TKOFF_ALT."""
 LOST_POLL_S = 0.1
@@ -381,7 +384,16 @@ async def launch(
 
     took_off: set[int] = set()
 
+    def height_known(vid: int) -> bool:
+        t = fleet.telemetry(vid)
+        return t is not None and t.relative_alt_m is not None
+
     async def airborne(vid: int) -> None:
+        # Where a vehicle is must be known before it is judged on the ground or flying: on a
+        # link losing 20 % of its messages a wingman had reported no position yet, was taken
+        # for one flying, armed in GUIDED on the runway and left there (2 runs of 20).
+        if not await wait_until(lambda: height_known(vid), HEIGHT_WAIT_S, LOST_POLL_S):
+            raise CommandFailed(vid, "launch", reason="no height above home reported")
         t = fleet.telemetry(vid)
         if t is None:
             raise CommandFailed(vid, "launch", reason="no telemetry")

@@ -230,6 +230,38 @@ def test_a_vehicle_on_the_ground_takes_off_and_goes_guided_only_near_its_tkoff_a
     assert ("takeoff", 2, {"takeoff_alt_m": 80.0}) in events
 
 
+def test_a_vehicle_whose_height_is_not_known_yet_is_waited_for_then_taken_off() -> None:
+    """On a lossy link the first position can come after the launch begins: a vehicle on
+    the ground whose height has not been reported yet is not taken for one flying (armed
+    in GUIDED on the runway, it stayed there); once reported, it takes off."""
+    ground = FakePlane(2, 0.2, mode=PlaneMode.MANUAL)
+    ground.t = dataclasses.replace(ground.t, relative_alt_m=None)
+    events, event = recorder()
+
+    async def launched() -> None:
+        asyncio.get_running_loop().call_later(
+            0.2, lambda: setattr(ground, "t", dataclasses.replace(ground.t, relative_alt_m=0.2))
+        )
+        await launch.launch(FakeFleet(ground), [2], 80.0, event, FAST)
+
+    run(launched())
+    modes = [int(m.param2) for m in ground.sent if getattr(m, "command", None) == 176]
+    assert modes == [PlaneMode.TAKEOFF, PlaneMode.GUIDED]
+    assert ("takeoff", 2, {"takeoff_alt_m": 80.0}) in events
+
+
+def test_a_vehicle_that_never_reports_its_height_fails_the_launch_untouched(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr(launch, "HEIGHT_WAIT_S", 0.3)
+    silent = FakePlane(2, 0.2, mode=PlaneMode.MANUAL)
+    silent.t = dataclasses.replace(silent.t, relative_alt_m=None)
+    _, event = recorder()
+    with pytest.raises(launch.CommandFailed, match="no height"):
+        run(launch.launch(FakeFleet(silent), [2], 80.0, event, FAST))
+    assert silent.sent == []  # neither armed nor switched
+
+
 def test_a_takeoff_distance_makes_them_climb_out_straight() -> None:
     """TKOFF_DIST set (and read back) before TAKEOFF: ArduPlane then climbs towards a point
     that far ahead rather than circling one 200 m ahead."""
