@@ -83,7 +83,6 @@ def plan_mission(
     route = legs(mission)
     state, t, steps, wall, arrived = scene, 0.0, 0, 0.0, False
     leg, leg_times = route[0], []
-    state = replace(state, target=leg.end_m)
     loiter = Loitering(state.fleet.pos[0].copy()) if leg.loiter is not None else None
     while steps < total_steps and not arrived:
         fleet = state.fleet
@@ -91,10 +90,9 @@ def plan_mission(
         turning = leg.turn_point_m is not None  # straight on to the turn point first
         previous = fleet.pos[0].copy()
         n = min((1 if loiter or turning else PROGRESS_CHUNKS) * chunk, total_steps - steps)
-        if loiter is not None:  # steered a little ahead on the circle, one chunk at a time
-            state = replace(state, target=loiter_point(leg, state.fleet.pos[0]))
-        else:
-            state = replace(state, target=leg.aim_m)
+        # a loiter's leader steered a little ahead on the circle, one chunk at a time
+        target = leg.aim_m if loiter is None else loiter_point(leg, fleet.pos[0])
+        state = replace(state, target=target)
         start = time.perf_counter()
         result = advance(
             state,
@@ -120,7 +118,6 @@ def plan_mission(
         if arrived and not leg.final:  # on to the next leg
             leg_times.append(round(t, 3))
             leg, arrived = route[leg.index + 1], False
-            state = replace(state, target=leg.end_m)
             loiter = Loitering(state.fleet.pos[0].copy()) if leg.loiter is not None else None
         if progress is not None:
             progress(t)
