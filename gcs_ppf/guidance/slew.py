@@ -255,9 +255,11 @@ def slew_command(
     horizon_s: float,
     current_course_rad: float | None = None,
     climb_trim_m_s: float = 0.0,
+    formation_turn_rad_s: float | None = None,
 ) -> SlewCommand:
     """Vehicle ``i`` of ``g``'s course (led for its P-controller when it reports GUIDED_P,
-    the lead cut against the turn from ``current_course_rad``, ``opposing_lead_rad``) and
+    the lead cut against the turn from ``current_course_rad``, ``opposing_lead_rad``; with
+    ``formation_turn_rad_s``, led for that turn instead, uncut) and
     altitude: with TECS limits known, param3 = 0 and the demand shaped
     (``altitude_demand`` of ``tecs_altitude_demand`` when TECS_TIME_CONST is known and the
     plan's climb is finite, else of the planned altitude ``horizon_s`` ahead, as on the
@@ -267,13 +269,11 @@ def slew_command(
     asks only what the airframe climbs within its horizon)."""
     speed = float(g.speed_m_s[i])
     turn = float(g.turn_rate_rad_s[i])
+    lead_turn, now = turn, current_course_rad
+    if formation_turn_rad_s is not None:  # the formation's turn led, the wingman's own not
+        lead_turn, now = formation_turn_rad_s, None
     course = course_command_rad(
-        float(g.course_rad[i]),
-        turn,
-        speed,
-        airframe.guided_p,
-        airframe.roll_limit_deg,
-        current_course_rad,
+        float(g.course_rad[i]), lead_turn, speed, airframe.guided_p, airframe.roll_limit_deg, now
     )
     accel = lateral_accel_limit(turn, speed, plan_accel_limit_m_s2, airframe.roll_limit_deg)
     planned_z = float(g.guided_point_m[i, 2])

@@ -8,9 +8,10 @@ the leg.  The target has no finish line: it is reached within the target accurac
 
 A waypoint with a loiter (``Waypoint.loiter``) ends its leg once the leader has flown its
 circles round it, as ArduPlane flies ``NAV_LOITER_TURNS``: from the leg's start the leader
-is steered to a point on the circle a little ahead of it (``loiter_point``), which brings
-it onto the circle along a tangent; the turns are counted by the angle it sweeps round the
-waypoint while on the circle (``swept_rad``), the time from when it first came onto it.
+is steered to the circle's tangent point, and near it to a point on the circle a little
+ahead of it (``loiter_point``), which brings it onto the circle along a tangent; the turns
+are counted by the angle it sweeps round the waypoint while on the circle (``swept_rad``),
+the time from when it first came onto it.
 The waypoint's acceptance radius does not apply.
 
 A leader that holds its turns to what its formation follows cannot turn onto a waypoint
@@ -176,17 +177,24 @@ def leg_flown(leg: Leg, previous_m: FloatArray | None, position_m: FloatArray) -
 
 
 def loiter_point(leg: Leg, position_m: FloatArray) -> FloatArray:
-    """Where the leader loitering round ``leg``'s end is steered: on the circle,
-    ``LOITER_LEAD_RAD`` round from its own bearing from the centre in the direction of
-    circling, at the centre's altitude (from the centre itself, along the leg)."""
+    """Where the leader loitering round ``leg``'s end is steered: on the circle, round from
+    its own bearing from the centre in the direction of circling, at the centre's altitude
+    (from the centre itself, along the leg).  Near the circle the point lies
+    ``LOITER_LEAD_RAD`` round; further out than where that point is the tangent point, at
+    the tangent point, which stays where it is as the leader flies to it: the approach is
+    a straight line, as each tick's plan sees it (steered ``LOITER_LEAD_RAD`` round from afar,
+    the leader curves in slowly where each plan sees it fly straight, and its wingmen fall
+    inside that turn)."""
     assert leg.loiter is not None
     c = leg.end_m
-    dx, dy = float(position_m[0] - c[0]), float(position_m[1] - c[1])
-    if math.hypot(dx, dy) < 1e-6:
-        dx, dy = float(leg.finish_normal[0]), float(leg.finish_normal[1])
-    lead = -LOITER_LEAD_RAD if leg.loiter.clockwise else LOITER_LEAD_RAD  # ENU: x east, y north
-    a = math.atan2(dy, dx) + lead
     r = leg.loiter_radius_m
+    dx, dy = float(position_m[0] - c[0]), float(position_m[1] - c[1])
+    d = math.hypot(dx, dy)
+    if d < 1e-6:
+        dx, dy = float(leg.finish_normal[0]), float(leg.finish_normal[1])
+    round_rad = max(LOITER_LEAD_RAD, math.acos(r / d)) if d > r else LOITER_LEAD_RAD
+    lead = -round_rad if leg.loiter.clockwise else round_rad  # ENU: x east, y north
+    a = math.atan2(dy, dx) + lead
     return np.array([c[0] + r * math.cos(a), c[1] + r * math.sin(a), c[2]])
 
 

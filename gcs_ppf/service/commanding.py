@@ -9,6 +9,7 @@ The shell between the pure planner and the fleet: what the commands carry is
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from contextlib import nullcontext
 from dataclasses import dataclass, replace
@@ -66,6 +67,12 @@ SIDE_MEMORY_S = 3.0
 """The way a vehicle's last escape turned binds its next one for this long after it went
 back to its plan (mission seconds; ``assurance.SIDE_SWITCH_S``): a wingman flew its plan
 and escapes to either side by turns, each for a few ticks, and flew straight on."""
+
+
+SPEED_ACK_VEHICLE_S = 1.0
+"""An airspeed (DO_CHANGE_SPEED) not acknowledged within this many of the vehicle's seconds
+is sent again (``_send_speed``): a round trip on a telemetry radio with 300 ms each way,
+and the autopilot's answer, take less."""
 
 
 class Sender(Protocol):
@@ -138,12 +145,18 @@ def planned_commands(
     trims: dict[int, slew.ClimbTrim] | None = None,
 ) -> list[slew.SlewCommand]:
     """Each vehicle's course and altitude as the plan asks (in ``g``'s order); in point
-    guidance the course is the bearing to the guided point.  The course lead is ``cut``
-    against the correction (``slew.opposing_lead_rad``) in missions at ArduPlane's scale
-    (``speed_reference.follows_speed_plan``), where the cancellation it removes was
-    measured; at the paper's 100–300 m/s the P-controller's and the pursuit's time
-    constants are far apart and the lead is flown as before."""
+    guidance the course is the bearing to the guided point.  In missions at ArduPlane's
+    scale (``cut``: ``speed_reference.follows_speed_plan``) a wingman not avoiding is led
+    for its leader's planned turn, the formation's (each slot's course turns with it), not
+    for its own: its own plan turns back from the correction it makes at once, faster than
+    ArduPlane's P-controller turns, and leading that turn back sent it the other way (the
+    loiter route: wingmen 8–16 m inside their leader's turns for 30–40 s).  The leader and
+    a wingman avoiding are led for their own turns, the lead ``cut`` against the correction
+    (``slew.opposing_lead_rad``).  At the paper's 100–300 m/s the P-controller's and the
+    pursuit's time constants are far apart and the lead is flown as before."""
     out = []
+    leader_id = orders.mission.leader.id
+    leader = g.ids.index(leader_id) if leader_id in g.ids else None
     for i, vid in enumerate(g.ids):
         if orders.guidance_mode == "point":  # the point's altitude led as the course mode's
             x, y, z = (float(c) for c in g.guided_point_m[i])
@@ -156,9 +169,20 @@ def planned_commands(
         s = states[vid]
         trim = 0.0 if trims is None or vid not in trims else trims[vid].trim_m_s
         course = s.yaw_rad if cut else None
+        formation_turn = None
+        if cut and i != leader and leader is not None and not (g.avoiding and g.avoiding[i]):
+            formation_turn = float(g.turn_rate_rad_s[leader])
         out.append(
             slew.slew_command(
-                g, i, airframes[i], s.pos_m[2], turn_accel_m_s2, orders.lookahead_s, course, trim
+                g,
+                i,
+                airframes[i],
+                s.pos_m[2],
+                turn_accel_m_s2,
+                orders.lookahead_s,
+                course,
+                trim,
+                formation_turn,
             )
         )
     return out
@@ -180,13 +204,17 @@ async def command_fleet(
     trims: dict[int, slew.ClimbTrim] | None = None,
     *,
     phases: TickPhases | None = None,
+    speed_sent_s: dict[int, float] | None = None,
+    speed_ack_wait_s: float = SPEED_ACK_VEHICLE_S,
 ) -> dict[int, assurance.Verdict]:
     """Send every active vehicle its commands for this tick, each assured first; returns
     each one's verdict (the command it was sent).  ``escaping`` holds each vehicle's escape
     in force, or the way its last one turned for ``SIDE_MEMORY_S`` after it ended (mission
     time ``now_s``), updated here; ``trims`` each vehicle's climb trim
     (``slew.climb_trim``), updated here too.  ``phases``: the assurance's time is timed
-    apart (``service.tick_phases``)."""
+    apart (``service.tick_phases``).  ``speed_sent_s``: when (our monotonic seconds) each
+    vehicle was last sent its airspeed, updated here; with it, an airspeed not acknowledged
+    within ``speed_ack_wait_s`` (ours) is sent again (``_send_speed``)."""
     mission = orders.mission
     turn_accel = mission.limits.v_max * mission.limits.max_yaw_rate  # the plan limits turns
     follows = speed_reference.follows_speed_plan(mission.limits.accel, mission.limits.decel)
@@ -222,7 +250,18 @@ async def command_fleet(
             trims[vid] = slew.ClimbTrim(held.trim_m_s, asked, now_s)
         await _send_course(fleet, vid, planned[i], v, m, orders, where)
         slowest = mission.limits.v_min if v.replaced else None
-        await _send_speed(fleet, vid, g, i, airframes[i], commanded_speed, follows, slowest)
+        await _send_speed(
+            fleet,
+            vid,
+            g,
+            i,
+            airframes[i],
+            commanded_speed,
+            follows,
+            slowest,
+            speed_sent_s,
+            speed_ack_wait_s,
+        )
     return {g.ids[i]: v for i, v in zip(idx, verdicts, strict=True)}
 
 
@@ -319,6 +358,8 @@ async def _send_speed(
     commanded_speed: dict[int, float],
     follows: bool = True,
     slowest_m_s: float | None = None,
+    sent_s: dict[int, float] | None = None,
+    ack_wait_s: float = SPEED_ACK_VEHICLE_S,
 ) -> None:
     """DO_CHANGE_SPEED when the airspeed to fly (``speed_reference.speed_to_command``, over
     the averaged airspeed / ground speed ratio) changes by ``SPEED_DEADBAND_M_S``; the
@@ -327,7 +368,13 @@ async def _send_speed(
     (the tightest turn; the assurance predicts it at the speed the vehicle has, or is told,
     whichever is faster: Table 3, ×5 on a lossy link, a leader accelerating from 102 to
     160 m/s through an escape turned wider than predicted, each tick's margin 5–10 m less
-    than the last, and went 17.6 m into a sphere)."""
+    than the last, and went 17.6 m into a sphere).
+
+    With ``sent_s`` (when each vehicle was last sent one, our monotonic seconds), an airspeed
+    not acknowledged within ``ack_wait_s`` is sent again: sent only when it changes, one
+    lost on the link was never sent again while the plan's speed stayed within the deadband
+    of it (the loiter route at 20 % loss: the leader sent 20.44 m/s flew on at 20.09 for
+    295 s)."""
     t = fleet.telemetry(vid)
     if t is None:
         return
@@ -341,7 +388,20 @@ async def _send_speed(
     speed = slew.airspeed_command(planned, t.airspeed_m_s, path_speed, airframe, t.speed_ratio_mean)
     if abs(commanded_speed.get(vid, -1.0) - speed) >= deadband:
         commanded_speed[vid] = speed
-        await fleet.send(vid, commands.change_speed(vid, speed))
+    elif sent_s is None or not _speed_unacknowledged(t, sent_s.get(vid), ack_wait_s):
+        return
+    if sent_s is not None:
+        sent_s[vid] = time.monotonic()
+    await fleet.send(vid, commands.change_speed(vid, commanded_speed[vid]))
+
+
+def _speed_unacknowledged(t: VehicleTelemetry, sent_s: float | None, wait_s: float) -> bool:
+    """Whether the airspeed last sent at ``sent_s`` (our monotonic seconds) has had no
+    COMMAND_ACK for ``wait_s`` since (any result: one refused is not sent again)."""
+    if sent_s is None or time.monotonic() - sent_s < wait_s:
+        return False
+    ack = t.ack(commands.MAV_CMD_DO_CHANGE_SPEED)
+    return ack is None or ack.received_s < sent_s
 
 
 def hold_retry(clock_rate: float) -> confirmation.Retry:

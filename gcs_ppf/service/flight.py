@@ -741,6 +741,8 @@ async def plan_and_command(
             run.mission_time_s,
             run.climb_trims,
             phases=phases,
+            speed_sent_s=run.speed_sent_s,
+            speed_ack_wait_s=commanding.SPEED_ACK_VEHICLE_S / station.fleet.clock_rate(),
         )
     with phases.phase("confirmation"):
         for vid, v in verdicts.items():

@@ -118,6 +118,8 @@ class Run:
     duplicates: dict[int, tuple[int, ...]] = field(default_factory=dict)
     """Vehicle id → the links it was heard on at once (``duplicate_system_id`` told)."""
     commanded_speed: dict[int, float] = field(default_factory=dict)
+    speed_sent_s: dict[int, float] = field(default_factory=dict)
+    """When (our monotonic seconds) each vehicle was last sent its airspeed."""
     climb_trims: dict[int, slew.ClimbTrim] = field(default_factory=dict)
     """Each vehicle's climb trim (``gcs_ppf.guidance.slew.climb_trim``)."""
     ended_vehicle_s: float | None = None

@@ -105,20 +105,25 @@ def test_a_lead_against_the_correction_is_cut_by_the_correction() -> None:
     assert 0.45 < cut < 0.5  # still on the correction's side of the vehicle
 
 
-def _pursuit_error_m(cut: bool, seconds: float = 40.0) -> float:
-    """A wingman ``e`` m beside its slot, flown closed loop (ArduPlane's P-controller, the
-    roll following its demand in 0.25 s, 50 Hz) on a plan re-made every step: PPF's course
-    towards the slot one turn time (v/ω) ahead, and that plan's turn rate, the turn back
-    as it closes.  Returns the error left after ``seconds``."""
+def _pursuit_error_m(lead: str, seconds: float = 40.0, ahead_s: float | None = None) -> float:
+    """A wingman 8 m beside its slot in a formation flying straight, flown closed loop
+    (ArduPlane's P-controller, the roll following its demand in 0.25 s, 50 Hz) on a plan
+    re-made every step: PPF's course towards the slot ``ahead_s`` ahead (one turn time,
+    v/ω, by default), and that plan's turn rate, the turn back as it closes.  ``lead``:
+    the plan's turn led (``plan``), that lead cut against the correction (``cut``), or the
+    formation's turn led (``formation``: none, flying straight).  Returns the error left
+    after ``seconds``."""
     speed, omega, dt = 28.0, 0.3, 0.02
-    ahead = speed / omega
+    ahead = speed * (1.0 / omega if ahead_s is None else ahead_s)
     error, course, bank = 8.0, 0.0, 0.0  # error to the left; course from the formation's
     for _ in range(int(seconds / dt)):
         planned = math.atan2(error, ahead)
         turn = -speed * math.sin(planned) * ahead / (ahead**2 + error**2)
-        command = course_command_rad(
-            planned, turn, speed, GUIDED_P, ROLL_LIMIT_DEG, course if cut else None
-        )
+        if lead == "formation":
+            command = course_command_rad(planned, 0.0, speed, GUIDED_P, ROLL_LIMIT_DEG)
+        else:
+            now = course if lead == "cut" else None
+            command = course_command_rad(planned, turn, speed, GUIDED_P, ROLL_LIMIT_DEG, now)
         demand = p_controller_bank_rad(command - course, GUIDED_P, 8.4, ROLL_LIMIT_DEG)
         bank += (demand - bank) * dt / 0.25
         course += TURN_EFFICIENCY * G_M_S2 * math.tan(bank) / speed * dt
@@ -130,8 +135,19 @@ def test_a_wingman_beside_its_slot_closes_on_it_when_the_turn_back_is_not_led() 
     """Real ArduPlane: wingmen flew 7–8 m inside their slots for 30 s, the correction
     planned (4.4°) cancelled by the lead for the plan's turn back (5.4°).  The same in
     this closed loop: led as planned the error stays; cut, it is taken out."""
-    assert _pursuit_error_m(cut=False) > 6.0
-    assert abs(_pursuit_error_m(cut=True)) < 1.0
+    assert _pursuit_error_m("plan") > 6.0
+    assert abs(_pursuit_error_m("cut")) < 1.0
+
+
+def test_a_wingman_closes_on_its_slot_when_only_the_formations_turn_is_led() -> None:
+    """PPF's wingman turns back faster than one turn time: flown on the built-in SITL its
+    turn back at 0.5 s was led by 2.7× the correction (the loiter route, ×5), and the
+    wingmen flew 8 m inside their leader's slow turn, 13–16 m inside its turn onto the
+    circle.  In this closed loop, with the slot 1.5 s ahead, the cut leaves most of the
+    error; the formation's own turn led (here none), it is taken out."""
+    assert _pursuit_error_m("cut", ahead_s=1.5) > 5.0
+    assert abs(_pursuit_error_m("formation", ahead_s=1.5)) < 1.0
+    assert abs(_pursuit_error_m("formation")) < 1.0
 
 
 def test_no_lead_without_guided_p_and_the_bank_capped_at_the_roll_limit() -> None:
@@ -190,6 +206,19 @@ def _guidance(z: float, climb: float, resolving: bool = False) -> Guidance:
 
 
 ARDUPLANE = Airframe(climb_max_m_s=5.0, sink_max_m_s=5.0, roll_limit_deg=65.0, guided_p=5000.0)
+
+
+def test_a_wingman_in_formation_is_led_for_the_formations_turn_not_its_own() -> None:
+    """The lead is the formation's turn (the leader's, given), whatever the wingman's own
+    planned turn and course; without it, the plan's own turn as before."""
+    g = _guidance(100.0, 0.0)  # its own plan turns at 0.2 rad/s
+    own = slew_command(g, 0, ARDUPLANE, 100.0, 8.4, 3.0)
+    assert own.course_rad == pytest.approx(course_lead_rad(0.2, 22.0, 5000.0, 65.0))
+    for current in (None, 0.3, -0.3):
+        led = slew_command(g, 0, ARDUPLANE, 100.0, 8.4, 3.0, current, 0.0, -0.05)
+        assert led.course_rad == pytest.approx(course_lead_rad(-0.05, 22.0, 5000.0, 65.0))
+    straight = slew_command(g, 0, ARDUPLANE, 100.0, 8.4, 3.0, 0.3, 0.0, 0.0)
+    assert straight.course_rad == pytest.approx(0.0)  # the planned course, not led
 
 
 def test_an_arduplane_gets_param3_zero_and_a_shaped_demand() -> None:

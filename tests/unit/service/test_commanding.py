@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import asyncio
 import math
+import time
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -12,18 +14,21 @@ import pytest
 
 from gcs_ppf.guidance import assurance, vehicle_motion
 from gcs_ppf.guidance.airframe import Airframe
-from gcs_ppf.guidance.online import VehicleState, guidance, scene_now
-from gcs_ppf.mavlink import commands
-from gcs_ppf.mavlink.telemetry import VehicleTelemetry
+from gcs_ppf.guidance.online import Guidance, VehicleState, guidance, scene_now
+from gcs_ppf.guidance.slew import course_command_rad, course_lead_rad
+from gcs_ppf.mavlink import commands, enums
+from gcs_ppf.mavlink.telemetry import CommandAck, VehicleTelemetry
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.scene import Obstacles, scene_from_mission
 from gcs_ppf.service.commanding import (
     SIDE_MEMORY_S,
     Orders,
+    _send_speed,
     command_fleet,
     hold_plan,
     motion,
     override_event,
+    planned_commands,
     remember,
     stack_level,
 )
@@ -330,3 +335,88 @@ def test_an_override_event_names_the_teammate_given_way_to_by_its_id() -> None:
     })  # fmt: skip
     assert "gives_way_to" not in seen[1][2]
     assert seen[1][2]["turn"] == "left"
+
+
+def test_wingmen_are_led_for_their_leaders_turn_and_an_avoiding_one_for_its_own() -> None:
+    """At ArduPlane's scale a wingman's course is led for the turn its leader's plan makes
+    (the formation's), its own correction sent as planned; one avoiding is led for its own
+    planned turn (cut against its correction), as is the leader.  At the paper's scale
+    every vehicle is led for its own planned turn, uncut."""
+    arduplane = Mission.model_validate_json(
+        (EXAMPLES / "arduplane_route_loiter_3.json").read_text()
+    )
+    paper = Mission.model_validate_json((EXAMPLES / "paper_table2.json").read_text())
+    g = Guidance(
+        ids=[1, 2, 3],
+        guided_point_m=np.zeros((3, 3)),
+        speed_m_s=np.array([22.0, 22.0, 22.0]),
+        course_rad=np.array([0.0, 0.05, -0.05]),
+        turn_rate_rad_s=np.array([-0.03, 0.2, 0.25]),
+        climb_rate_m_s=np.zeros(3),
+        state=["s1", "s1", "s1"],
+        avoiding=[False, False, True],
+        formed=[True, False, False],
+        local_target_distance_m=[None, 8.0, 12.0],
+        leader_arrives_within_lookahead=False,
+    )
+    states = {vid: VehicleState((0.0, 0.0, 100.0), 0.0, 0.0, 22.0) for vid in (1, 2, 3)}
+    airframes = [Airframe(guided_p=5000.0, roll_limit_deg=65.0)] * 3
+    led = planned_commands(g, states, airframes, Orders(arduplane, "course", 3.0), 8.4, True)
+    lead = partial(course_lead_rad, speed_m_s=22.0, guided_p=5000.0, roll_limit_deg=65.0)
+    assert led[1].course_rad == pytest.approx(0.05 + lead(-0.03))  # the leader's turn
+    assert led[2].course_rad == pytest.approx(
+        course_command_rad(-0.05, 0.25, 22.0, 5000.0, 65.0, 0.0)
+    )
+    assert led[0].course_rad == pytest.approx(
+        course_command_rad(0.0, -0.03, 22.0, 5000.0, 65.0, 0.0)
+    )
+    own = planned_commands(g, states, airframes, Orders(paper, "course", 3.0), 8.4, False)
+    for i in range(3):
+        expected = float(g.course_rad[i]) + lead(float(g.turn_rate_rad_s[i]))
+        assert own[i].course_rad == pytest.approx(expected)
+
+
+def test_an_airspeed_not_acknowledged_is_sent_again_and_one_answered_is_not() -> None:
+    """Sent only when it changes, a DO_CHANGE_SPEED lost on the link was never sent again
+    while the plan's speed stayed within the deadband.  Unanswered past the wait, the same
+    airspeed goes again; answered (accepted or refused), or within the wait, it does not."""
+    g = Guidance(
+        ids=[1],
+        guided_point_m=np.zeros((1, 3)),
+        speed_m_s=np.array([22.0]),
+        course_rad=np.zeros(1),
+        turn_rate_rad_s=np.zeros(1),
+        climb_rate_m_s=np.zeros(1),
+        state=["s1"],
+        avoiding=[False],
+        formed=[True],
+        local_target_distance_m=[None],
+        leader_arrives_within_lookahead=False,
+    )
+
+    class Acking(Recorder):
+        def __init__(self) -> None:
+            super().__init__()
+            self.acks: tuple[CommandAck, ...] = ()
+
+        def telemetry(self, system_id: int) -> VehicleTelemetry | None:
+            return VehicleTelemetry(system_id=system_id, component_id=1, command_acks=self.acks)
+
+    def speeds(fleet: Recorder) -> list[float]:
+        return [m.param2 for m in fleet.sent if m.command == commands.MAV_CMD_DO_CHANGE_SPEED]
+
+    fleet, commanded, sent = Acking(), {}, {}  # type: ignore[var-annotated]
+    send = partial(_send_speed, fleet, 1, g, 0, Airframe(), commanded, True, None, sent)
+    asyncio.run(send(ack_wait_s=1e6))
+    asyncio.run(send(ack_wait_s=1e6))  # not answered yet, but within the wait
+    assert speeds(fleet) == [pytest.approx(22.0)]
+    asyncio.run(send(ack_wait_s=0.0))  # past it, unanswered: again
+    assert speeds(fleet) == [pytest.approx(22.0)] * 2
+    for result in (enums.MAV_RESULT_ACCEPTED, enums.MAV_RESULT_DENIED):
+        fleet.acks = (CommandAck(commands.MAV_CMD_DO_CHANGE_SPEED, result, time.monotonic()),)
+        asyncio.run(send(ack_wait_s=0.0))
+        assert len(speeds(fleet)) == 2
+    without, once = Recorder(), {}  # type: ignore[var-annotated]
+    for _ in range(3):  # no record of the sends: sent on a change only, as before
+        asyncio.run(_send_speed(without, 1, g, 0, Airframe(), once, True, None, None, 0.0))
+    assert speeds(without) == [pytest.approx(22.0)]
