@@ -18,7 +18,7 @@ from gcs_ppf.guidance.airframe import Airframe, guard_tuning, tick_envelope
 from gcs_ppf.guidance.online import Guidance, VehicleState, guidance, scene_now
 from gcs_ppf.guidance.speed_reference import follows_speed_plan
 from gcs_ppf.mission import Mission
-from gcs_ppf.planning.route import Leg, loiter_point
+from gcs_ppf.planning.route import Leg, leader_target
 from gcs_ppf.planning.scene import Obstacles
 
 
@@ -105,7 +105,7 @@ def plan(
 ) -> tuple[Guidance, list[Airframe]]:
     """The guidance for the ``active`` vehicles, and their airframes in its order, the
     leader flying the route's ``leg`` (None: straight to the target; a leg that ends in a
-    loiter, round its circle: ``route.loiter_point``; by its turn point, if it has one).
+    loiter, round its circle; by its turn point, if it has one: ``route.leader_target``).
 
     ``lagging_s`` (the telemetry interval and the measured lag, vehicle seconds) is what the
     planning margin and the guard's margins must cover (``gcs_ppf.guidance.airframe``)."""
@@ -133,11 +133,8 @@ def plan(
     )
     if leg is not None:
         leader = states.get(mission.leader.id)
-        if leg.loiter is not None and leader is not None:  # steered round the circle
-            target = loiter_point(leg, np.array(leader.pos_m, dtype=float))
-        else:
-            target = leg.aim_m  # its turn point first (``route.onto_target``)
-        scene = replace(scene, target=target)
+        position = None if leader is None else np.array(leader.pos_m, dtype=float)
+        scene = replace(scene, target=leader_target(leg, position))
     g = guidance(
         scene,
         lookahead_s=tuning.lookahead_s,

@@ -17,7 +17,7 @@ import numpy as np
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning.metrics import FlightContext, compute_metrics
 from gcs_ppf.planning.planner import Method, Trajectory, advance, initial_record
-from gcs_ppf.planning.route import Loitering, leg_flown, legs, loiter_point, onto_target
+from gcs_ppf.planning.route import Loitering, leader_target, leg_flown, legs, onto_target
 from gcs_ppf.planning.scene import FloatArray, Scene, scene_from_mission
 
 Progress = Callable[[float], None]  # called with the flight time planned so far
@@ -91,8 +91,7 @@ def plan_mission(
         previous = fleet.pos[0].copy()
         n = min((1 if loiter or turning else PROGRESS_CHUNKS) * chunk, total_steps - steps)
         # a loiter's leader steered a little ahead on the circle, one chunk at a time
-        target = leg.aim_m if loiter is None else loiter_point(leg, fleet.pos[0])
-        state = replace(state, target=target)
+        state = replace(state, target=leader_target(leg, fleet.pos[0]))
         start = time.perf_counter()
         result = advance(
             state,

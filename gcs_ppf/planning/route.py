@@ -198,6 +198,15 @@ def loiter_point(leg: Leg, position_m: FloatArray) -> FloatArray:
     return np.array([c[0] + r * math.cos(a), c[1] + r * math.sin(a), c[2]])
 
 
+def leader_target(leg: Leg, position_m: FloatArray | None) -> FloatArray:
+    """Where the leader at ``position_m`` (None: not known) is steered on ``leg``: round a
+    loiter's circle (``loiter_point``), else to its turn point while it has one
+    (``onto_target``), else to the leg's end."""
+    if leg.loiter is not None and position_m is not None:
+        return loiter_point(leg, position_m)
+    return leg.aim_m
+
+
 def on_circle(leg: Leg, position_m: FloatArray) -> bool:
     """Whether the leader is on ``leg``'s loiter circle (within ``ON_CIRCLE`` of its radius,
     horizontally)."""
