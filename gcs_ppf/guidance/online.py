@@ -20,7 +20,7 @@ from gcs_ppf.mission import Mission
 from gcs_ppf.planning.planner import STATE_NAMES, Trajectory, advance
 from gcs_ppf.planning.ppf.kernel import KernelLimits
 from gcs_ppf.planning.scene import FloatArray, Obstacles, Scene, scene_from_mission, with_margins
-from gcs_ppf.planning.turns import formation_turn_limits
+from gcs_ppf.planning.turns import formation_turn_limits, held_speed_range
 from gcs_ppf.planning.zones import Zones, zone_clearances
 
 
@@ -109,6 +109,7 @@ class Guidance:
     speed_plan_m_s: FloatArray | None = None  # [K,N] the planned speeds then (the start's first)
     climb_plan_m_s: FloatArray | None = None  # [K,N] the planned vertical speeds then (+: up)
     course_plan_rad: FloatArray | None = None  # [K,N] the planned courses then (ICS yaw)
+    leader_speed_range_m_s: tuple[float, float] | None = None  # every slot follows the turns
 
 
 def scene_now(
@@ -298,6 +299,7 @@ def guidance(
         speed_plan_m_s=np.concatenate([scene.fleet.speed[None], tr.speed]),
         climb_plan_m_s=climb_plan,
         course_plan_rad=np.concatenate([scene.fleet.yaw[None], tr.yaw]),
+        leader_speed_range_m_s=held_speed_range(scene.fleet.slot[1:], scene.limits),
     )
 
 

@@ -208,10 +208,13 @@ def formation_holds(g: Guidance, target_accuracy_m: float, held: bool) -> bool:
     return worst <= (HOLD_RELEASE if held else 1.0) * target_accuracy_m
 
 
-def leader_held(g: Guidance, v_max_m_s: float, v_min_m_s: float, decel_m_s2: float) -> Guidance:
+def leader_held(
+    g: Guidance, v_max_m_s: float, v_min_m_s: float, decel_m_s2: float, accel_m_s2: float
+) -> Guidance:
     """``g`` with the leader (index 0) keeping the speed it starts at, brought down at
     ``decel_m_s2`` to ``HOLD_RESERVE_M_S`` below ``v_max_m_s`` if above (never below
-    ``v_min_m_s``).
+    ``v_min_m_s``), and into ``g.leader_speed_range_m_s`` at ``accel_m_s2`` or
+    ``decel_m_s2`` if outside it.
 
     The paper's leader (Eq. 24) waits at v_min while any wingman is out of its slot and
     leads on at full acceleration once all are in.  Closed loop, wingmen cross the target
@@ -219,13 +222,24 @@ def leader_held(g: Guidance, v_max_m_s: float, v_min_m_s: float, decel_m_s2: flo
     every few seconds (real ArduPlane, formation takeoff of 5: formed / broken 11 times in
     the first 25 s), and TECS flies every change partly as a climb or a sink: the leader's
     flight path swung ±4°, the slots 200 m behind ±15–20 m.  Waiting does nothing for a
-    wingman beside or below its slot, and one behind has the reserve to catch up."""
+    wingman beside or below its slot, and one behind has the reserve to catch up.  But a
+    leader held at the speed it had slowed to while waiting can leave the slot inside the
+    formation's turns slower than v_min (``gcs_ppf.planning.turns.held_speed_range``): the
+    loiter route on a lossy link, held at 19 m/s round its circle, put the inner slot at
+    15.5 m/s, and its wingman, at 16, drew ahead of it for 100 s."""
     if g.speed_plan_t_s is None or g.speed_plan_m_s is None:
         return g
-    cap = max(v_max_m_s - HOLD_RESERVE_M_S, v_min_m_s)
+    low, high = g.leader_speed_range_m_s or (v_min_m_s, v_max_m_s)
+    floor = max(v_min_m_s, low)
+    cap = max(min(v_max_m_s - HOLD_RESERVE_M_S, high), floor)
     start = float(g.speed_plan_m_s[0, 0])
     t = g.speed_plan_t_s
-    held = np.full_like(t, start) if start <= cap else np.maximum(start - decel_m_s2 * t, cap)
+    if start > cap:
+        held = np.maximum(start - decel_m_s2 * t, cap)
+    elif start < floor:
+        held = np.minimum(start + accel_m_s2 * t, floor)
+    else:
+        held = np.full_like(t, start)
     plan = g.speed_plan_m_s.copy()
     plan[:, 0] = held
     speed = g.speed_m_s.copy()

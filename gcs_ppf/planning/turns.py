@@ -95,6 +95,19 @@ def turn_envelope(slots: FloatArray, lim: KernelLimits) -> TurnEnvelope:
     return TurnEnvelope(float(speeds[k]), float(rates[k]))
 
 
+def held_speed_range(slots: FloatArray, lim: KernelLimits) -> tuple[float, float] | None:
+    """The leader's speeds (m/s, low and high) at which every slot follows the formation's
+    turn, ``lim.leader_turn_rate`` (``slot_turn_rates``): a leader held below the low end
+    leaves the slot inside its turn slower than v_min.  None when the formation does not
+    hold turns; the best speeds when none follows that rate (the rate's floor)."""
+    if not math.isfinite(lim.leader_turn_rate):
+        return None
+    speeds = np.linspace(lim.v_min, lim.v_max, SPEED_SAMPLES)
+    rates = slot_turn_rates(speeds, slots, lim)
+    followed = np.flatnonzero(rates >= min(lim.leader_turn_rate, float(rates.max())) - 1e-9)
+    return float(speeds[followed[0]]), float(speeds[followed[-1]])
+
+
 def formation_turn_limits(lim: KernelLimits, slots: FloatArray) -> KernelLimits:
     """``lim`` with the leader's cruise speed and turn rate of ``turn_envelope`` (the turn
     rate no less than ``TURN_RATE_FLOOR_SHARE`` of ω_max)."""

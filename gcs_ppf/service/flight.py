@@ -704,7 +704,7 @@ async def plan_and_command(
         )
         run.formation_held = held
         if held:  # the leader keeps its speed (``speed_reference.leader_held``)
-            g = speed_reference.leader_held(g, lim.v_max, lim.v_min, lim.decel)
+            g = speed_reference.leader_held(g, lim.v_max, lim.v_min, lim.decel, lim.accel)
         run.speed_plan = speed_reference.SpeedPlan.of(g, run.mission_time_s)
         for kind, vehicle_id in changes(run, g):  # what changed since the last tick
             station.event(run, kind, vehicle_id)

@@ -24,6 +24,7 @@ from gcs_ppf.guidance.speed_reference import (
     reference_states,
     speed_to_command,
 )
+from gcs_ppf.planning.scene import FloatArray
 
 
 def _plan(start_m_s: float, accel: float, top_m_s: float, at_s: float) -> SpeedPlan:
@@ -176,7 +177,7 @@ def test_a_formation_is_held_once_formed_until_a_wingman_is_twice_the_accuracy_o
 
 
 def test_the_leader_of_a_held_formation_keeps_its_speed_below_v_max() -> None:
-    g = leader_held(_formation([3.0, 5.0], start_m_s=24.0), 28.0, 16.0, 0.8)
+    g = leader_held(_formation([3.0, 5.0], start_m_s=24.0), 28.0, 16.0, 0.8, 0.6)
     assert g.speed_plan_m_s is not None
     assert g.speed_ahead_m_s is not None
     assert np.all(g.speed_plan_m_s[:, 0] == 24.0)  # not sped up to v_max as planned
@@ -184,10 +185,29 @@ def test_the_leader_of_a_held_formation_keeps_its_speed_below_v_max() -> None:
     assert g.speed_ahead_m_s[0] == 24.0
     assert g.speed_plan_m_s[-1, 1] == pytest.approx(25.8)  # the wingmen's plans as they were
     assert speed_to_command(g, 0) == 24.0
-    fast = leader_held(_formation([3.0, 5.0], start_m_s=27.5), 28.0, 16.0, 0.8)
+    fast = leader_held(_formation([3.0, 5.0], start_m_s=27.5), 28.0, 16.0, 0.8, 0.6)
     assert fast.speed_plan_m_s is not None
     assert speed_to_command(fast, 0) == pytest.approx(27.5 - 0.8 * SPEED_COMMAND_LEAD_S)
     assert fast.speed_plan_m_s[-1, 0] == pytest.approx(28.0 - HOLD_RESERVE_M_S)
+
+
+def _held_leader(start_m_s: float, range_m_s: tuple[float, float]) -> FloatArray:
+    banded = replace(_formation([3.0, 5.0], start_m_s), leader_speed_range_m_s=range_m_s)
+    plan = leader_held(banded, 28.0, 16.0, 0.8, 0.6).speed_plan_m_s
+    assert plan is not None
+    return plan[:, 0]
+
+
+def test_a_held_leader_slower_than_its_inner_slot_can_follow_speeds_up_into_the_range() -> None:
+    """The loiter route on a lossy link: held at 19 m/s, the inner slot flew 15.5 < v_min."""
+    held = _held_leader(19.0, (19.5, 24.5))
+    assert held[0] == 19.0
+    assert held[-1] == pytest.approx(19.5)  # up to the range, no further
+    t = _formation([3.0, 5.0]).speed_plan_t_s
+    assert t is not None
+    assert np.all(np.diff(held) <= 0.6 * np.diff(t) + 1e-9)  # at accel
+    assert _held_leader(25.0, (19.5, 24.5))[-1] == pytest.approx(24.5)  # down to it
+    assert np.all(_held_leader(21.0, (19.5, 24.5)) == 21.0)  # within it: kept
 
 
 def test_only_missions_at_arduplanes_scale_are_flown_from_the_reference() -> None:

@@ -30,7 +30,12 @@ from gcs_ppf.planning.route import (
     turn_point,
 )
 from gcs_ppf.planning.scene import FloatArray, scene_from_mission
-from gcs_ppf.planning.turns import slot_turn_rates, turn_envelope
+from gcs_ppf.planning.turns import (
+    formation_turn_limits,
+    held_speed_range,
+    slot_turn_rates,
+    turn_envelope,
+)
 
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
 ARDUPLANE = KernelLimits(16.0, 28.0, 0.6, 0.8, 0.3, 0.3, 10.0, 50.0, 25.0, -math.inf)
@@ -143,6 +148,19 @@ def test_the_cruise_speed_is_where_the_formation_turns_fastest() -> None:
     speeds = np.linspace(16.0, 28.0, 97)
     assert env.turn_rate_rad_s >= slot_turn_rates(speeds, slots, ARDUPLANE).max() - 1e-9
     assert 16.0 < env.cruise_speed_m_s < 28.0
+
+
+def test_a_held_leader_within_its_speed_range_leaves_every_slot_its_turn() -> None:
+    slots = np.array([[-100.0, 100.0, 0.0], [-100.0, -100.0, 0.0]])
+    lim = formation_turn_limits(ARDUPLANE, slots)
+    held = held_speed_range(slots, lim)
+    assert held is not None
+    low, high = held
+    assert 16.0 < low <= lim.leader_cruise_speed <= high < 28.0
+    for v, follows in ((low, True), (high, True), (low - 0.1, False), (high + 0.1, False)):
+        omega = float(slot_turn_rates(np.array([v]), slots, lim)[0])
+        assert (omega >= lim.leader_turn_rate - 1e-9) is follows
+    assert held_speed_range(slots, ARDUPLANE) is None  # not turning in formation
 
 
 def yaw_rates(tr: Trajectory) -> FloatArray:
