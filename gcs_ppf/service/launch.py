@@ -31,6 +31,7 @@ import logging
 import math
 import time
 from collections.abc import Awaitable, Callable
+from dataclasses import replace
 
 from gcs_ppf.geodesy import enu_to_geodetic
 from gcs_ppf.mavlink import commands
@@ -64,6 +65,12 @@ ARM_RETRY_S = 2.0
 """Our seconds between arms refused for a reason that may clear."""
 RETRYABLE_ARM = frozenset({"FAILED", "TEMPORARILY_REJECTED"})
 """Refusals of an arm that pre-arm checks still settling give (ArduPilot: FAILED)."""
+STRAIGHT_ON_COPIES = 3
+"""Copies of each send that switches a vehicle up from its takeoff to GUIDED
+(``straight_on``): the same point again is harmless, and one lost leaves the vehicle in
+TAKEOFF, which at its altitude turns back to loiter over where it started, across the
+climb-out of any vehicle beside it (14.8 m from a wingman once, its switch lost twice at
+300 ms latency and 20 % loss)."""
 STRAIGHT_ON_M = 5000.0
 """How far ahead on its course the point lies that switches a vehicle that took off to
 GUIDED (``straight_on``)."""
@@ -204,16 +211,17 @@ async def straight_on(
     clear_ahead: ClearAhead = straight_ahead,
 ) -> None:
     """A vehicle switched to GUIDED by the point ``STRAIGHT_ON_M`` ahead on its course at
-    its altitude (DO_REPOSITION with its change-mode flag; confirmed by the HEARTBEAT's
-    mode), so that it flies on as it climbed out until the run commands it; ``clear_ahead``
-    may give another point (east, north metres from it) where that way is not clear, which
-    ArduPlane circles once there.
+    its altitude (DO_REPOSITION with its change-mode flag, ``STRAIGHT_ON_COPIES`` copies of
+    each send; confirmed by the HEARTBEAT's mode), so that it flies on as it climbed out
+    until the run commands it; ``clear_ahead`` may give another point (east, north metres
+    from it) where that way is not clear, which ArduPlane circles once there.
     Switched by DO_SET_MODE, ArduPlane circles the point where it entered GUIDED
     (WP_LOITER_RAD) until a target comes, and at 300 ms latency and 20 % loss that target
     came seconds late; sent 5 km on regardless, at ×10 on that link a wingman of the
     three-vehicle line abreast flew 1.5 km straight on while the last took off and the run
     began with it 9.6 m from the sphere on its way.  Without a position and a course,
     DO_SET_MODE."""
+    retry = replace(retry, copies=STRAIGHT_ON_COPIES)
     t = fleet.telemetry(vehicle_id)
     if (
         t is None
