@@ -311,3 +311,56 @@ def speed_trend(
         v_cmd = falling_back_speed(v0, -along, lim.accel, gain) / slant
     a_cmd = lim.accel if v_cmd >= vi else lim.decel
     return trend(v_cmd - vi, a_cmd, dt), state
+
+
+@njit(cache=True)
+def formation_turn_rate(
+    turn_rate: float,
+    heading_left: float,
+    pos: np.ndarray,
+    speed: np.ndarray,
+    active: np.ndarray,
+    local_target: np.ndarray,
+    formed: np.ndarray,
+    ux: float,
+    uy: float,
+    lim: KernelLimits,
+) -> float:
+    """The leader's ``turn_rate`` (rad/s, +: left) in a formation that turns
+    (``gcs_ppf.planning.turns``), eased in and out as its wingmen's speeds follow.
+
+    A slot y to the side of a leader turning at ω flies ω·y slower or faster than the
+    leader (``slot_point_speed``), and a wingman changes speed at a (the smaller of accel
+    and decel) only.  Started or stopped at once, the turn leaves it (ω·y)²/2a off its
+    slot (7.6 m for slots 100 m abreast at 2°/s), and the straight leg after the turn began
+    with the wingmen settling: the loiter route's plan 13.0 m off at worst right after its
+    first turn, its straight legs 3.4 m RMS.  So the turn is kept to where no formed
+    wingman's slot is more than √(a·ε) (ε the target accuracy: it falls ε/2 behind) or
+    its present mismatch, if larger, from the wingman's speed, and it is eased out as the
+    heading wanted comes near (``heading_left``, rad): no faster than √(2·a/|y|·|Δψ|),
+    |y| the widest slot's, so the slots' speeds come back to the leader's at a.  (u_x,
+    u_y) is the leader's direction; the wingmen's local target points are their slots."""
+    h = math.sqrt(ux * ux + uy * uy)
+    if h <= 0.0:
+        return turn_rate
+    hx, hy = ux / h, uy / h
+    a = min(lim.accel, lim.decel)
+    budget = math.sqrt(a * lim.target_accuracy)
+    low, high, widest = -math.inf, math.inf, 0.0
+    for i in range(1, pos.shape[0]):
+        if not active[i]:
+            continue
+        y = hx * (local_target[i, 1] - pos[0, 1]) - hy * (local_target[i, 0] - pos[0, 0])
+        widest = max(widest, abs(y))
+        if abs(y) < 1e-9 or not formed[i]:
+            continue
+        gap = speed[0] - speed[i]  # the slot's speed, straight, less the wingman's
+        room = max(budget, abs(gap))
+        ends_a, ends_b = (gap - room) / y, (gap + room) / y
+        low = max(low, min(ends_a, ends_b))
+        high = min(high, max(ends_a, ends_b))
+    rate = min(max(turn_rate, low), high)
+    if widest > 0.0:
+        settle = math.sqrt(2.0 * a / widest * abs(heading_left))
+        rate = min(max(rate, -settle), settle)
+    return rate

@@ -57,6 +57,7 @@ from gcs_ppf.planning.ppf.formation import (
     attraction,
     crossing_point,
     formation_targets,
+    formation_turn_rate,
     slot_point_speed,
     speed_trend,
 )
@@ -532,6 +533,23 @@ def fleet_step(
             own_lim,
             dt,
         )
+        if i == 0 and not repelled and lim.leader_turn_rate < math.inf:  # eased turns
+            heading_left = math.atan2(cy * fy - sy * fx, cy * fx + sy * fy)
+            f_yaw = (
+                formation_turn_rate(
+                    f_yaw * own_lim.max_yaw_rate,
+                    heading_left,
+                    pos,
+                    speed,
+                    active,
+                    local_target,
+                    formed,
+                    ux,
+                    uy,
+                    lim,
+                )
+                / own_lim.max_yaw_rate
+            )
         slot_speed = speed[0]
         if i > 0 and active[0] and lim.leader_turn_rate < math.inf:  # a held turn
             slot_speed = slot_point_speed(

@@ -649,6 +649,45 @@ def _kinematics(
     return new_pos, new_pitch, new_yaw, new_speed
 
 
+def _formation_turn_rate(
+    turn: float,
+    field: FloatArray,
+    pos: FloatArray,
+    speed: FloatArray,
+    active: BoolArray,
+    a: Attitude,
+    f: Formation,
+    lim: KernelLimits,
+) -> float:
+    """The leader's ``turn`` (rad/s) kept to what its wingmen follow (the kernel's
+    ``formation_turn_rate``): no formed wingman's slot speed taken more than the roll-in
+    budget (or its present mismatch) from the wingman's speed, and the turn eased out
+    towards the heading ``field`` (ICS) wants."""
+    u = a.u[0, :2] / max(float(np.hypot(a.u[0, 0], a.u[0, 1])), 1e-12)
+    rel = f.g[1:, :2] - pos[0, :2]
+    y = u[0] * rel[:, 1] - u[1] * rel[:, 0]
+    wingmen = active[1:]
+    if not wingmen.any():
+        return turn
+    accel = min(lim.accel, lim.decel)
+    held = wingmen & f.formed[1:] & (np.abs(y) >= 1e-9)
+    gap = speed[0] - speed[1:]
+    room = np.maximum(math.sqrt(accel * lim.target_accuracy), np.abs(gap))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ends = np.stack([(gap - room) / y, (gap + room) / y])
+    low = float(np.max(ends.min(0)[held], initial=-math.inf))
+    high = float(np.min(ends.max(0)[held], initial=math.inf))
+    turn = min(max(turn, low), high)
+    widest = float(np.max(np.abs(y[wingmen]), initial=0.0))
+    if widest > 0.0:
+        left = math.atan2(
+            a.cy[0] * field[1] - a.sy[0] * field[0], a.cy[0] * field[0] + a.sy[0] * field[1]
+        )
+        settle = math.sqrt(2.0 * accel / widest * abs(left))
+        turn = min(max(turn, -settle), settle)
+    return turn
+
+
 def reference_step(
     pos: FloatArray,
     pitch: FloatArray,
@@ -705,6 +744,11 @@ def reference_step(
         f_pitch, f_yaw = _turn_trends(
             fv, d, lowest, pitch, yaw, a, r, lim, dt, yaw_rate, pitch_rate
         )
+        if active[0] and not (r.rep[0] != 0).any() and lim.leader_turn_rate < math.inf:
+            turn = _formation_turn_rate(
+                float(f_yaw[0] * yaw_rate[0]), field[0], pos, speed, active, a, f, lim
+            )
+            f_yaw[0] = turn / yaw_rate[0]
         return r, along_field, f_pitch, f_yaw, yaw_rate, pitch_rate, state
 
     r, along_field, f_pitch, f_yaw, yaw_rate, pitch_rate, state = steered(0.0)

@@ -15,12 +15,13 @@ from hypothesis import strategies as st
 from gcs_ppf.mission import Mission, load_mission_file
 from gcs_ppf.planning.metrics import formation_share, formation_time, local_target_points
 from gcs_ppf.planning.planner import advance
+from gcs_ppf.planning.ppf.formation import formation_turn_rate
 from gcs_ppf.planning.ppf.kernel import (
     catching_up_speed,
     crossing_point,
     falling_back_speed,
 )
-from gcs_ppf.planning.ppf.primitives import LEADER_PATH_ANGLE_SHARE, leader_limits
+from gcs_ppf.planning.ppf.primitives import LEADER_PATH_ANGLE_SHARE, KernelLimits, leader_limits
 from gcs_ppf.planning.ppf.reference import _crossing
 from gcs_ppf.planning.ppf.repulsion import padding
 from gcs_ppf.planning.scene import Scene, scene_from_mission, with_margins
@@ -128,6 +129,67 @@ def test_catching_up_speed_is_eq22_with_the_closing_speed(v0: float, d: float) -
     dt_prime = (vi - v0) / a  # Eq. 21
     dd_prime = (vi - v0) * dt_prime - a * dt_prime**2 / 2  # Eq. 22, closing speed v_i − v_0
     assert dd_prime == pytest.approx(d, rel=1e-12)
+
+
+ARDUPLANE = KernelLimits(16.0, 28.0, 0.6, 0.8, 0.3, 0.3, 10.0, 50.0, 25.0, -math.inf)
+
+
+def eased(
+    turn: float, left: float, speeds: list[float], slots_y: list[float], formed: list[bool]
+) -> float:
+    """The leader (at the origin, heading east) turning at ``turn`` with wingmen 100 m
+    behind, ``slots_y`` to its left, ``left`` rad from the heading it wants."""
+    n = len(speeds)
+    pos = np.zeros((n, 3))
+    local_target = np.array([[-100.0 if i else 0.0, ([0.0, *slots_y])[i], 0.0] for i in range(n)])
+    pos[1:] = local_target[1:]
+    active, held = np.ones(n, dtype=np.bool_), np.array([False, *formed])
+    speed = np.array(speeds)
+    return formation_turn_rate(
+        turn, left, pos, speed, active, local_target, held, 1.0, 0.0, ARDUPLANE
+    )
+
+
+def test_a_formed_wingmans_slot_is_turned_no_faster_from_its_speed_than_it_follows() -> None:
+    """At the leader's speed, the slot 100 m inside a 0.035 rad/s turn would fly 3.5 m/s
+    slower at once; the turn starts at √(a·ε)/|y| = 0.0245 rad/s.  An unformed wingman
+    does not hold the leader, and neither does one already slower by more."""
+    budget = math.sqrt(0.6 * 10.0) / 100.0
+    assert eased(0.035, math.pi, [22.0, 22.0], [100.0], [True]) == pytest.approx(budget)
+    assert eased(0.035, math.pi, [22.0, 22.0], [100.0], [False]) == 0.035
+    assert eased(0.035, math.pi, [22.0, 18.5], [100.0], [True]) == 0.035
+    assert eased(-0.035, math.pi, [22.0, 22.0, 22.0], [100.0, -100.0], [True, True]) == (
+        pytest.approx(-budget)
+    )
+
+
+WINGMEN = st.tuples(st.floats(16.0, 28.0), st.floats(-300.0, 300.0), st.booleans())
+
+
+@given(
+    st.floats(-0.3, 0.3),
+    st.floats(-math.pi, math.pi),
+    st.lists(WINGMEN, min_size=1, max_size=6),
+    st.floats(16.0, 28.0),
+)
+def test_an_eased_turn_never_takes_a_formed_slot_further_from_its_wingman(
+    turn: float, left: float, wingmen: list[tuple[float, float, bool]], v0: float
+) -> None:
+    """Eased, the turn keeps its sense and is no faster; no formed wingman's slot speed
+    (v₀ − ω·y) is further from its speed than √(a·ε) or than it was; and the turn eases
+    out towards the heading wanted: no faster than √(2·a/|y|·|Δψ|)."""
+    speeds = [v0] + [w[0] for w in wingmen]
+    ys = [w[1] for w in wingmen]
+    rate = eased(turn, left, speeds, ys, [w[2] for w in wingmen])
+    assert rate * turn >= 0.0
+    assert abs(rate) <= abs(turn)
+    for v, y, formed in wingmen:
+        if formed:
+            gap = v0 - v
+            assert abs(gap - rate * y) <= max(math.sqrt(6.0), abs(gap)) + 1e-9
+    widest = max(abs(y) for y in ys)
+    if widest > 0.0:
+        assert abs(rate) <= math.sqrt(2 * 0.6 / widest * abs(left)) + 1e-12
 
 
 def test_near_the_slot_the_speed_laws_are_linear_and_meet_at_the_leaders_speed() -> None:
