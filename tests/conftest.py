@@ -10,9 +10,12 @@ from hypothesis import HealthCheck, settings
 
 from gcs_ppf.mission import Mission, load_mission_file
 from gcs_ppf.offline.plan import PlanRun, plan_mission
+from gcs_ppf.planning.ppf.primitives import KernelLimits
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = ROOT / "examples"
+ARDUPLANE = KernelLimits(16.0, 28.0, 0.6, 0.8, 0.3, 0.3, 10.0, 50.0, 25.0, -float("inf"))
+"""The ArduPlane-scale examples' limits as the kernel takes them."""
 
 settings.register_profile(
     "ci", max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow]

@@ -17,7 +17,7 @@ from gcs_ppf.mission import MissionError, load_mission, load_mission_file
 from gcs_ppf.offline.plan import plan_mission
 from gcs_ppf.planning.metrics import local_target_points
 from gcs_ppf.planning.planner import Trajectory
-from gcs_ppf.planning.ppf.primitives import KernelLimits, inside_turn
+from gcs_ppf.planning.ppf.primitives import inside_turn
 from gcs_ppf.planning.route import (
     TURN_POINT_WIDER,
     Leg,
@@ -36,9 +36,9 @@ from gcs_ppf.planning.turns import (
     slot_turn_rates,
     turn_envelope,
 )
+from tests.conftest import ARDUPLANE
 
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
-ARDUPLANE = KernelLimits(16.0, 28.0, 0.6, 0.8, 0.3, 0.3, 10.0, 50.0, 25.0, -math.inf)
 
 
 def route_doc(route: list[dict[str, Any]], target: list[float]) -> dict[str, Any]:

@@ -21,11 +21,11 @@ from gcs_ppf.planning.ppf.kernel import (
     crossing_point,
     falling_back_speed,
 )
-from gcs_ppf.planning.ppf.primitives import LEADER_PATH_ANGLE_SHARE, KernelLimits, leader_limits
+from gcs_ppf.planning.ppf.primitives import LEADER_PATH_ANGLE_SHARE, leader_limits
 from gcs_ppf.planning.ppf.reference import _crossing
 from gcs_ppf.planning.ppf.repulsion import padding
 from gcs_ppf.planning.scene import Scene, scene_from_mission, with_margins
-from tests.conftest import EXAMPLES
+from tests.conftest import ARDUPLANE, EXAMPLES
 
 EAST = (1.0, 0.0, 0.0)
 CLEARANCE = 127.0
@@ -131,19 +131,15 @@ def test_catching_up_speed_is_eq22_with_the_closing_speed(v0: float, d: float) -
     assert dd_prime == pytest.approx(d, rel=1e-12)
 
 
-ARDUPLANE = KernelLimits(16.0, 28.0, 0.6, 0.8, 0.3, 0.3, 10.0, 50.0, 25.0, -math.inf)
-
-
 def eased(
     turn: float, left: float, speeds: list[float], slots_y: list[float], formed: list[bool]
 ) -> float:
     """The leader (at the origin, heading east) turning at ``turn`` with wingmen 100 m
     behind, ``slots_y`` to its left, ``left`` rad from the heading it wants."""
-    n = len(speeds)
-    pos = np.zeros((n, 3))
-    local_target = np.array([[-100.0 if i else 0.0, ([0.0, *slots_y])[i], 0.0] for i in range(n)])
-    pos[1:] = local_target[1:]
-    active, held = np.ones(n, dtype=np.bool_), np.array([False, *formed])
+    ys = [0.0, *slots_y]
+    local_target = np.array([[0.0 if i == 0 else -100.0, y, 0.0] for i, y in enumerate(ys)])
+    pos = local_target.copy()  # the wingmen in their slots
+    active, held = np.ones(len(ys), dtype=np.bool_), np.array([False, *formed])
     speed = np.array(speeds)
     return formation_turn_rate(
         turn, left, pos, speed, active, local_target, held, 1.0, 0.0, ARDUPLANE
