@@ -67,6 +67,9 @@ SIDE_MEMORY_S = 3.0
 """The way a vehicle's last escape turned binds its next one for this long after it went
 back to its plan (mission seconds; ``assurance.SIDE_SWITCH_S``): a wingman flew its plan
 and escapes to either side by turns, each for a few ticks, and flew straight on."""
+STATION_KEEPING_REACH = 3.0
+"""Target accuracies: a wingman this near its slot keeps station on it and is led for its
+leader's turn (``planned_commands``); farther off it is joining, led for its own."""
 
 
 SPEED_ACK_VEHICLE_S = 1.0
@@ -146,17 +149,22 @@ def planned_commands(
 ) -> list[slew.SlewCommand]:
     """Each vehicle's course and altitude as the plan asks (in ``g``'s order); in point
     guidance the course is the bearing to the guided point.  In missions at ArduPlane's
-    scale (``cut``: ``speed_reference.follows_speed_plan``) a wingman not avoiding is led
-    for its leader's planned turn, the formation's (each slot's course turns with it), not
-    for its own: its own plan turns back from the correction it makes at once, faster than
+    scale (``cut``: ``speed_reference.follows_speed_plan``) a wingman keeping station (within
+    ``STATION_KEEPING_REACH`` target accuracies of its slot) and not avoiding is led for its
+    leader's planned turn, the formation's (each slot's course turns with it), not for its
+    own: its own plan turns back from the correction it makes at once, faster than
     ArduPlane's P-controller turns, and leading that turn back sent it the other way (the
-    loiter route: wingmen 8–16 m inside their leader's turns for 30–40 s).  The leader and
-    a wingman avoiding are led for their own turns, the lead ``cut`` against the correction
-    (``slew.opposing_lead_rad``).  At the paper's 100–300 m/s the P-controller's and the
-    pursuit's time constants are far apart and the lead is flown as before."""
+    loiter route: wingmen 8–16 m inside their leader's turns for 30–40 s).  The leader, a
+    wingman avoiding and one still joining are led for their own turns, the lead ``cut``
+    against the correction (``slew.opposing_lead_rad``): a wingman hundreds of metres from
+    its slot turns to join it, and led for its leader's turn instead it lagged its own (the
+    line abreast of five: its outer wingmen 250–450 m off their slots, formed at 178 s or
+    never where they had formed at 40 s).  At the paper's 100–300 m/s the P-controller's
+    and the pursuit's time constants are far apart and the lead is flown as before."""
     out = []
     leader_id = orders.mission.leader.id
     leader = g.ids.index(leader_id) if leader_id in g.ids else None
+    station_m = STATION_KEEPING_REACH * orders.mission.limits.target_accuracy
     for i, vid in enumerate(g.ids):
         if orders.guidance_mode == "point":  # the point's altitude led as the course mode's
             x, y, z = (float(c) for c in g.guided_point_m[i])
@@ -170,7 +178,10 @@ def planned_commands(
         trim = 0.0 if trims is None or vid not in trims else trims[vid].trim_m_s
         course = s.yaw_rad if cut else None
         formation_turn = None
-        if cut and i != leader and leader is not None and not (g.avoiding and g.avoiding[i]):
+        off_m = g.local_target_distance_m[i] if i < len(g.local_target_distance_m) else None
+        keeping_station = off_m is not None and off_m <= station_m
+        avoiding = bool(g.avoiding and g.avoiding[i])
+        if cut and i != leader and leader is not None and keeping_station and not avoiding:
             formation_turn = float(g.turn_rate_rad_s[leader])
         out.append(
             slew.slew_command(

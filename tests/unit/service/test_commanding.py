@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import math
 import time
+from dataclasses import replace
 from functools import partial
 from typing import Any
 
@@ -22,6 +23,7 @@ from gcs_ppf.mission import Mission
 from gcs_ppf.planning.scene import Obstacles, scene_from_mission
 from gcs_ppf.service.commanding import (
     SIDE_MEMORY_S,
+    STATION_KEEPING_REACH,
     Orders,
     _send_speed,
     command_fleet,
@@ -338,10 +340,12 @@ def test_an_override_event_names_the_teammate_given_way_to_by_its_id() -> None:
 
 
 def test_wingmen_are_led_for_their_leaders_turn_and_an_avoiding_one_for_its_own() -> None:
-    """At ArduPlane's scale a wingman's course is led for the turn its leader's plan makes
-    (the formation's), its own correction sent as planned; one avoiding is led for its own
-    planned turn (cut against its correction), as is the leader.  At the paper's scale
-    every vehicle is led for its own planned turn, uncut."""
+    """At ArduPlane's scale a wingman keeping station (within ``STATION_KEEPING_REACH``
+    target accuracies of its slot) is led for the turn its leader's plan makes (the
+    formation's), its own correction sent as planned; one avoiding, or one still joining
+    its slot from afar, is led for its own planned turn (cut against its correction), as is
+    the leader.  At the paper's scale every vehicle is led for its own planned turn,
+    uncut."""
     arduplane = Mission.model_validate_json(
         (EXAMPLES / "arduplane_route_loiter_3.json").read_text()
     )
@@ -369,6 +373,13 @@ def test_wingmen_are_led_for_their_leaders_turn_and_an_avoiding_one_for_its_own(
     )
     assert led[0].course_rad == pytest.approx(
         course_command_rad(0.0, -0.03, 22.0, 5000.0, 65.0, 0.0)
+    )
+    joining = replace(g, local_target_distance_m=[None, 30.1, 12.0])
+    orders = Orders(arduplane, "course", 3.0)
+    led = planned_commands(joining, states, airframes, orders, 8.4, True)
+    assert STATION_KEEPING_REACH * arduplane.limits.target_accuracy == pytest.approx(30.0)
+    assert led[1].course_rad == pytest.approx(
+        course_command_rad(0.05, 0.2, 22.0, 5000.0, 65.0, 0.0)
     )
     own = planned_commands(g, states, airframes, Orders(paper, "course", 3.0), 8.4, False)
     for i in range(3):
