@@ -178,7 +178,7 @@ def planned_commands(
         trim = 0.0 if trims is None or vid not in trims else trims[vid].trim_m_s
         course = s.yaw_rad if cut else None
         formation_turn = None
-        off_m = g.local_target_distance_m[i] if i < len(g.local_target_distance_m) else None
+        off_m = g.local_target_distance_m[i]  # None for the leader
         keeping_station = off_m is not None and off_m <= station_m
         avoiding = bool(g.avoiding and g.avoiding[i])
         if cut and i != leader and leader is not None and keeping_station and not avoiding:
