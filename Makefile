@@ -84,8 +84,18 @@ lint: install
 	$(VENV)/bin/ruff format --check .
 	$(VENV)/bin/mypy
 
+# pytest in two passes, together exactly the tests `.venv/bin/pytest` alone runs: first
+# those that only compute, spread over every core by pytest-xdist (PYTEST_WORKERS=0: in
+# this process); then, one at a time with the machine to themselves as before, those that
+# run against the wall clock (REALTIME: real processes, sockets, sleeps and deadlines).
+# Both passes run even if the first fails; make fails if either did.
+PYTEST_WORKERS ?= auto
+REALTIME := integration or realtime or arduplane or mavproxy or docker
 test: lint
-	$(VENV)/bin/pytest
+	rc=0; \
+	$(VENV)/bin/pytest -n $(PYTEST_WORKERS) -m "not campaign and not ($(REALTIME))" || rc=$$?; \
+	$(VENV)/bin/pytest -m "not campaign and ($(REALTIME))" || rc=$$?; \
+	exit $$rc
 
 bench: install
 	$(PY) -m gcs_ppf.offline.benchmark

@@ -158,6 +158,7 @@ def test_sim_cmd_ignore_at_run_time_and_back() -> None:
     assert param_set(sim, b"SIM_CMD_IGNORE", 2.0).reply[0].param_value == 0.0  # refused
 
 
+@pytest.mark.realtime  # a `python -m sitl` process
 def test_ignore_fault_by_command_line_over_tcp() -> None:
     """``python -m sitl … --fault 1:ignore=0``: over a real link the mode change is
     ACCEPTED and the HEARTBEAT still reports MANUAL."""

@@ -21,6 +21,8 @@ from mavsdk.asyncio.plugins.param import ParamAsync  # noqa: E402
 from mavsdk.asyncio.plugins.telemetry import TelemetryAsync  # noqa: E402
 from mavsdk.plugins.mission_raw import MissionItem  # noqa: E402
 
+pytestmark = pytest.mark.realtime  # `python -m sitl` and mavsdk_server, at x10
+
 T = TypeVar("T")
 ORIGIN = load_mission_file(SLOW).origin
 

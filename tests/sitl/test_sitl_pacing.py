@@ -6,8 +6,12 @@ from __future__ import annotations
 import asyncio
 import time
 
+import pytest
+
 from sitl.physics import DT_S
 from sitl.server import MAX_CATCH_UP_S, MAX_STEPS_UNREAD, pace
+
+pytestmark = pytest.mark.realtime  # what is flown in 50 ms of wall time
 
 
 class StalledSim:

@@ -20,6 +20,8 @@ from gcs_ppf.geodesy import enu_to_geodetic, geodetic_to_enu
 from gcs_ppf.mission import load_mission_file
 from tests.sitl.sitl_helpers import PAPER, REPO, TWO, Client, run_sitl
 
+pytestmark = pytest.mark.realtime  # `python -m sitl` processes over UDP, at x10-x25
+
 ORIGIN = load_mission_file(TWO).origin
 
 

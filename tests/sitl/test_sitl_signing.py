@@ -19,6 +19,8 @@ import pytest
 
 from tests.sitl.sitl_helpers import REPO, TWO, Client, run_sitl
 
+pytestmark = pytest.mark.realtime  # `python -m sitl` processes over UDP
+
 PASSPHRASE = "sitl signing test passphrase"
 KEY = hashlib.sha256(PASSPHRASE.encode()).digest()
 GUIDED, RTL = 15, 11

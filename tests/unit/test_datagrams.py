@@ -5,7 +5,11 @@ from __future__ import annotations
 import asyncio
 import socket
 
+import pytest
+
 from gcs_ppf.datagrams import DatagramSocket
+
+pytestmark = pytest.mark.realtime  # UDP on loopback, a port closed and bound again
 
 
 def test_a_backlog_is_read_at_one_wake_up_in_order() -> None:

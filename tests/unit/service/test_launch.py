@@ -23,6 +23,8 @@ from gcs_ppf.service.flight import clear_ahead
 from gcs_ppf.service.launch import CommandFailed, Retry
 from tests.conftest import EXAMPLES
 
+pytestmark = pytest.mark.realtime  # acks and retries in wall time (0.1 s)
+
 FAST = Retry(attempts=3, ack_timeout_s=0.1, state_timeout_s=0.1, climb_timeout_s=1.0,
              poll_s=0.002)  # fmt: skip
 ACCEPTED, DENIED, FAILED = 0, 2, 4

@@ -28,6 +28,8 @@ from gcs_ppf.service.fleet import LinkEntry
 from gcs_ppf.service.links import LinkKind, LinkUrl, MavlinkLink, parse_link_url
 from gcs_ppf.tools.observer import free_port
 
+pytestmark = pytest.mark.realtime  # sockets, pseudo-terminals, backoffs in wall time
+
 TEST_TIMEOUT_S = 8.0
 HEARTBEAT_PERIOD_S = 0.05
 

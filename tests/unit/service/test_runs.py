@@ -21,6 +21,8 @@ from gcs_ppf.service.settings import Settings
 from gcs_ppf.service.store import Store
 from tests.conftest import EXAMPLES
 
+pytestmark = pytest.mark.realtime  # the service's loops in wall time
+
 
 def test_start_answers_while_the_kernels_load_and_launch_waits_for_them(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch

@@ -16,6 +16,8 @@ from gcs_ppf.service.tick_phases import PHASES, TickPhases
 from gcs_ppf.service.tick_rate import KEPT_AFTER_TICKS, TickRate
 from tests.unit.service.test_flight_formation import Events, table3_run
 
+pytestmark = pytest.mark.realtime  # phases measured in wall time
+
 
 def test_ticks_within_their_period_raise_nothing_and_are_measured() -> None:
     rate = TickRate(10.0)

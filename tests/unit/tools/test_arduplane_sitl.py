@@ -213,6 +213,7 @@ while True:
 """
 
 
+@pytest.mark.realtime  # its processes, ready within 30 s of wall time
 def test_the_launcher_starts_one_process_per_vehicle_and_stops_them_all(tmp_path: Path) -> None:
     """A stand-in binary (it writes its argv and pid, prints the port lines, sleeps): the
     launcher prints a line per vehicle and a ready line; SIGTERM stops every instance."""

@@ -134,6 +134,7 @@ def test_how_long_the_formation_held_is_the_longest_time_all_were_in_their_slots
     assert held == pytest.approx(7.0, abs=0.3)
 
 
+@pytest.mark.realtime  # binds ports on loopback
 def test_a_port_block_is_free_at_every_instances_ports_below_the_ephemeral_range() -> None:
     """ArduPilot's SITL binds P + 10·i + 0, 2 and 3: a block checked at P + 10·i only, taken
     from the ephemeral range, collided with an outgoing connection's port."""
@@ -190,6 +191,7 @@ def test_the_vehicle_clock_at_a_wall_time_is_read_from_the_soonest_sample() -> N
     assert float(np.interp(wall, clock[:, 0], clock[:, 1])) < true_v - 0.25
 
 
+@pytest.mark.realtime  # binds ports on loopback
 def test_a_port_handed_out_is_never_handed_out_again_before_it_is_bound(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
