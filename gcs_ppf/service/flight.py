@@ -334,9 +334,10 @@ async def tick_loop(station: Station, run: Run) -> None:
                 sample(station, run)
         with phases.phase("events"):
             station.publish()
-        keep_rate(station, run, now_v, sum(phases.end_tick().values()))
-        if done:
+        work_s = sum(phases.end_tick().values())
+        if done:  # the run's last event is its end: the rate of the tick that ended it is moot
             return
+        keep_rate(station, run, now_v, work_s)
         spacing = run_spacing(station, run)  # once a tick: the loop wakes with every position
 
 

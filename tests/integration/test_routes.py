@@ -122,7 +122,29 @@ def test_a_mission_that_ends_in_rtl_brings_every_vehicle_home_over_every_keep_ou
     )
     lim = flight.mission.limits
     assert separation >= lim.safe_distance_uav
-    assert clearance >= lim.safe_distance_obstacle
+    where = closest_pass_to_obstacles(flight.mission, tracks)
+    assert clearance >= lim.safe_distance_obstacle, where
+
+
+def closest_pass_to_obstacles(mission: Mission, tracks: dict[int, np.ndarray]) -> str:
+    """Where each vehicle came nearest an obstacle's surface: the time (its clock), its
+    nearest at its own telemetry samples, and the gap between the two samples about that
+    moment (across a gap resampling draws a straight line) — said when the flight's
+    clearance fails, so that a failure names its moment."""
+    out = []
+    for vid, tr in sorted(tracks.items()):
+        t = np.arange(tr[0, 0], tr[-1, 0], 0.05)
+        pos = resample({vid: tr}, t)[:, 0]
+        depth = np.min([np.linalg.norm(pos - np.array(o.center), axis=-1) - o.radius
+                        for o in mission.obstacles], axis=0)  # fmt: skip
+        k = int(np.argmin(depth))
+        own = np.min([np.linalg.norm(tr[:, 1:4] - np.array(o.center), axis=-1) - o.radius
+                      for o in mission.obstacles], axis=0)  # fmt: skip
+        after = min(int(np.searchsorted(tr[:, 0], t[k], side="right")), len(tr) - 1)
+        gap = float(tr[after, 0] - tr[max(after - 1, 0), 0])
+        out.append(f"vehicle {vid}: {depth[k]:.1f} m at {t[k]:.1f} s (its samples: "
+                   f"{own.min():.1f} m; {gap:.2f} s between the samples about it)")  # fmt: skip
+    return "; ".join(out)
 
 
 @pytest.mark.integration
