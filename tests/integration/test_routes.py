@@ -135,15 +135,16 @@ def closest_pass_to_obstacles(mission: Mission, tracks: dict[int, np.ndarray]) -
     for vid, tr in sorted(tracks.items()):
         t = np.arange(tr[0, 0], tr[-1, 0], 0.05)
         pos = resample({vid: tr}, t)[:, 0]
-        depth = np.min([np.linalg.norm(pos - np.array(o.center), axis=-1) - o.radius
-                        for o in mission.obstacles], axis=0)  # fmt: skip
+        centres = [(np.array(o.center), o.radius) for o in mission.obstacles]
+        depth = np.min([np.linalg.norm(pos - c, axis=-1) - r for c, r in centres], axis=0)
         k = int(np.argmin(depth))
-        own = np.min([np.linalg.norm(tr[:, 1:4] - np.array(o.center), axis=-1) - o.radius
-                      for o in mission.obstacles], axis=0)  # fmt: skip
+        own = np.min([np.linalg.norm(tr[:, 1:4] - c, axis=-1) - r for c, r in centres], axis=0)
         after = min(int(np.searchsorted(tr[:, 0], t[k], side="right")), len(tr) - 1)
         gap = float(tr[after, 0] - tr[max(after - 1, 0), 0])
-        out.append(f"vehicle {vid}: {depth[k]:.1f} m at {t[k]:.1f} s (its samples: "
-                   f"{own.min():.1f} m; {gap:.2f} s between the samples about it)")  # fmt: skip
+        out.append(
+            f"vehicle {vid}: {depth[k]:.1f} m at {t[k]:.1f} s (its samples: "
+            f"{own.min():.1f} m; {gap:.2f} s between the samples about it)"
+        )
     return "; ".join(out)
 
 
