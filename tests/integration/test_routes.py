@@ -122,20 +122,19 @@ def test_a_mission_that_ends_in_rtl_brings_every_vehicle_home_over_every_keep_ou
     )
     lim = flight.mission.limits
     assert separation >= lim.safe_distance_uav
-    where = closest_pass_to_obstacles(flight.mission, tracks)
-    assert clearance >= lim.safe_distance_obstacle, where
+    assert clearance >= lim.safe_distance_obstacle, closest_pass(flight.mission, tracks)
 
 
-def closest_pass_to_obstacles(mission: Mission, tracks: dict[int, np.ndarray]) -> str:
+def closest_pass(mission: Mission, tracks: dict[int, np.ndarray]) -> str:
     """Where each vehicle came nearest an obstacle's surface: the time (its clock), its
     nearest at its own telemetry samples, and the gap between the two samples about that
     moment (across a gap resampling draws a straight line) — said when the flight's
     clearance fails, so that a failure names its moment."""
     out = []
+    centres = [(np.array(o.center), o.radius) for o in mission.obstacles]
     for vid, tr in sorted(tracks.items()):
         t = np.arange(tr[0, 0], tr[-1, 0], 0.05)
         pos = resample({vid: tr}, t)[:, 0]
-        centres = [(np.array(o.center), o.radius) for o in mission.obstacles]
         depth = np.min([np.linalg.norm(pos - c, axis=-1) - r for c, r in centres], axis=0)
         k = int(np.argmin(depth))
         own = np.min([np.linalg.norm(tr[:, 1:4] - c, axis=-1) - r for c, r in centres], axis=0)
