@@ -143,7 +143,7 @@ EXPERIMENTS: dict[str, Experiment] = {
     "09-heading-ramp": (
         60.0,
         lambda meta, d: fly_heading_ramp(meta, d),
-        lambda r, meta: ramp_metrics(r, 6.0, 40.0),
+        lambda r, meta: ramp_metrics(r),
         {
             "steady_lag_deg": Tolerance(3.0, 0.1),
             "steady_roll_deg": Tolerance(3.0),
@@ -183,11 +183,11 @@ def _course_step(name: str, delta_deg: float) -> Experiment:
     )
 
 
-def _ramp(name: str, rate_dps: float) -> Experiment:
+def _ramp(name: str) -> Experiment:
     return (
         60.0,
         lambda meta, d: fly_heading_ramp(meta, d, name),
-        lambda r, meta: ramp_metrics(r, rate_dps, 40.0),
+        lambda r, meta: ramp_metrics(r),
         EXPERIMENTS["09-heading-ramp"][3],
     )
 
@@ -197,7 +197,7 @@ for _step, _delta in COURSE_STEPS.items():
         _name = f"10-course-{_step}-as{_speed}"
         EXPERIMENTS[_name] = _course_step(_name, _delta)
 for _rate in (6, 12):
-    EXPERIMENTS[f"11-heading-ramp-{_rate}dps"] = _ramp(f"11-heading-ramp-{_rate}dps", _rate)
+    EXPERIMENTS[f"11-heading-ramp-{_rate}dps"] = _ramp(f"11-heading-ramp-{_rate}dps")
 
 
 @dataclass(frozen=True, slots=True)

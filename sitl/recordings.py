@@ -36,6 +36,33 @@ class Response:
     climb_m_s: FloatArray
     east_m: FloatArray
     north_m: FloatArray
+    commanded_course_deg: FloatArray | None = None
+    """The course last commanded at each sample (the ramps), unwrapped near ``course_deg``."""
+
+
+def commanded_at(schedule: tuple[FloatArray, FloatArray], t: FloatArray) -> FloatArray:
+    """The course last commanded at each of ``t``, from a schedule of (times, courses)."""
+    times, courses = schedule
+    k = np.searchsorted(times, t, side="right") - 1
+    out: FloatArray = courses[np.maximum(k, 0)]
+    return out
+
+
+def command_schedule(experiment: str, traces: Path = TRACES) -> tuple[FloatArray, FloatArray]:
+    """When a ramp's recorder sent each new course, and the course (deg, unwrapped): the
+    ramps' commands went out later than the ideal rate × t (the recorder, at speedup 4, fell
+    behind by up to 0.8 s at 12°/s), so a replay must send these, not the ideal ramp."""
+    with (traces / f"{experiment}.csv").open() as fh:
+        rows = [r for r in csv.DictReader(fh) if r.get("cmd_course_deg", "") not in ("", "nan")]
+    times: list[float] = []
+    courses: list[float] = []
+    for r in rows:
+        course = float(r["cmd_course_deg"])
+        if not courses or course != courses[-1]:
+            times.append(float(r["t_s"]))
+            courses.append(course)
+    unwrapped = np.degrees(np.unwrap(np.radians(courses)))
+    return np.array(times), unwrapped
 
 
 def _column(rows: list[dict[str, str]], msg: str, name: str) -> tuple[FloatArray, FloatArray]:
@@ -58,16 +85,28 @@ def load_recording(experiment: str, traces: Path = TRACES) -> Response:
     vn, ve = at("GLOBAL_POSITION_INT", "vn_m_s"), at("GLOBAL_POSITION_INT", "ve_m_s")
     lat, lon = at("GLOBAL_POSITION_INT", "lat_deg"), at("GLOBAL_POSITION_INT", "lon_deg")
     e, n, _ = pymap3d.geodetic2enu(lat, lon, 0.0, lat[0], lon[0], 0.0)
+    course = np.degrees(np.unwrap(np.arctan2(ve, vn)))
+    schedule = command_schedule(experiment, traces)
+    commanded = None
+    if schedule[0].size:
+        commanded = near(commanded_at(schedule, t), course)
     return Response(
         t=t,
-        course_deg=np.degrees(np.unwrap(np.arctan2(ve, vn))),
+        course_deg=course,
         roll_deg=at("ATTITUDE", "roll_deg"),
         rel_alt_m=at("GLOBAL_POSITION_INT", "rel_alt_m"),
         airspeed_m_s=at("VFR_HUD", "airspeed_m_s"),
         climb_m_s=at("VFR_HUD", "climb_m_s"),
         east_m=np.asarray(e, dtype=np.float64),
         north_m=np.asarray(n, dtype=np.float64),
+        commanded_course_deg=commanded,
     )
+
+
+def near(commanded: FloatArray, course: FloatArray) -> FloatArray:
+    """``commanded`` shifted by whole turns to the turn ``course`` is in (the lag < 180°)."""
+    out: FloatArray = commanded - 360.0 * np.round((commanded - course) / 360.0)
+    return out
 
 
 def load_meta(traces: Path = TRACES) -> dict[str, Any]:

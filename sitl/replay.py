@@ -4,6 +4,7 @@ parameters, the same commands, from the same state, sampled as the recordings ar
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -16,7 +17,7 @@ from gcs_ppf.mission import Limits, Mission, Origin, Vehicle
 from sitl.autopilot import Outbox
 from sitl.engine import Simulation
 from sitl.physics import DT_S
-from sitl.recordings import Response
+from sitl.recordings import Response, command_schedule, commanded_at, near
 
 _GCS = mavlink.MAVLink(None, srcSystem=GCS_SYSTEM_ID, srcComponent=GCS_COMPONENT_ID)
 _PARSER = mavlink.MAVLink(None)
@@ -145,27 +146,32 @@ def fly_guided(experiment: str, meta: dict[str, Any], duration_s: float) -> Resp
 def fly_heading_ramp(
     meta: dict[str, Any], duration_s: float, experiment: str = "09-heading-ramp"
 ) -> Response:
-    """The course ramp: level, then a course command every 0.1 s turning at rate_dps."""
+    """The course ramp: level, then each course command when the recording sent it."""
     e = meta["experiments"][experiment]
-    c0 = e["first_ramp_command_course_deg"]
+    times, courses = command_schedule(experiment)
     sim = _guided_at(e, meta)
     rows: list[tuple[float, ...]] = []
     _run(sim, SETTLE_S, SETTLE_S, rows)
-    for k in range(round(duration_s / 0.1)):
-        if k * 0.1 <= e["ramp_s"] + 1e-9:
-            course = (c0 + e["rate_dps"] * k * 0.1) % 360.0
+    every = round(0.1 / DT_S)
+    sent = 0
+    for k in range(round(duration_s / DT_S)):
+        while sent < times.size and times[sent] <= k * DT_S + 1e-9:
             heading = {
                 "type": "COMMAND_INT",
                 "command": 43002,
                 "frame": 0,
-                "params": [0, round(course, 2), 10.0],
+                "params": [0, round(float(courses[sent]) % 360.0, 2), 10.0],
                 "x": 0,
                 "y": 0,
                 "z": 0,
             }
             _command(sim, heading)
-        _run(sim, 0.1, SETTLE_S, rows)
-    return _response(rows)
+            sent += 1
+        sim.step(0.0)
+        if (k + 1) % every == 0:
+            _sample(sim, SETTLE_S, rows)
+    r = _response(rows)
+    return replace(r, commanded_course_deg=near(commanded_at((times, courses), r.t), r.course_deg))
 
 
 def _offset(e: dict[str, Any], sim: Simulation) -> tuple[float, float, float]:

@@ -88,11 +88,15 @@ def reposition_metrics(r: Response, east: float, north: float) -> dict[str, floa
     }
 
 
-def ramp_metrics(r: Response, rate_dps: float, ramp_s: float) -> dict[str, float]:
-    """How far the course lags a command turning at ``rate_dps`` (steady state: the last
-    half of the ramp), the bank that turn takes, and the settling after the ramp stops."""
-    commanded = r.course_deg[0] + rate_dps * np.minimum(r.t, ramp_s)
-    lag = commanded - r.course_deg
+def ramp_metrics(r: Response) -> dict[str, float]:
+    """How far the course lags a command that keeps turning (steady state: the last half of
+    the ramp), the bank that turn takes, and the settling after the last command. The lag
+    is against the courses as they were commanded (``r.commanded_course_deg``)."""
+    if r.commanded_course_deg is None:
+        raise ValueError("a ramp's response needs the courses commanded")
+    moving = np.flatnonzero(np.diff(r.commanded_course_deg) != 0.0)
+    ramp_s = float(r.t[moving[-1] + 1])
+    lag = r.commanded_course_deg - r.course_deg
     steady = (r.t >= ramp_s / 2) & (r.t <= ramp_s)
     after = r.t >= ramp_s
     return {
