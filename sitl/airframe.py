@@ -59,6 +59,7 @@ ARDUPLANE: dict[str, float] = {
     "SIM_SPEED_MAX": 35.0,
     "SIM_EAS2TAS": 1.068,
     "SIM_SPD_HGT": 0.5,
+    "SIM_ROLL_ZETA": 0.45,
 }
 
 #: Time constant of the scaled airframe's heading loop at its initial speed, s.
@@ -116,6 +117,7 @@ def mission_airframe(limits: Limits, cruise_m_s: float) -> dict[str, float]:
         "SIM_SPEED_MAX": limits.v_max,
         "SIM_EAS2TAS": 1.0,
         "SIM_SPD_HGT": 0.0,
+        "SIM_ROLL_ZETA": 0.0,
     }
 
 

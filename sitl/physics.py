@@ -15,8 +15,9 @@ Kinematics are the paper's Eq. 5 with the flight-path angle as pitch (no wind, s
     ẋ = v cos θ cos ψ     ẏ = v cos θ sin ψ     ż = v sin θ = climb rate
 
 The turn is what the bank gives, ψ̇ = −η g tan φ / v (η = ``TURN_EFFICIENCY``), within the
-airframe's SIM_YAW_RATE; the bank follows the autopilot's demand with a first-order lag
-(``roll_lag_s``) and a roll-rate limit.  The demand is ArduPlane's:
+airframe's SIM_YAW_RATE; the bank follows the autopilot's demand within a roll-rate limit,
+second-order and overshooting as ArduPlane's does (SIM_ROLL_ZETA), or with a first-order
+lag (``roll_lag_s``).  The demand is ArduPlane's:
 
 * GUIDED heading (MAV_CMD_GUIDED_CHANGE_HEADING, ArduPlane ``mode_guided.cpp``): a P-only
   controller, bank = GUIDED_P (centidegrees per radian) × course error, clipped to
@@ -68,6 +69,10 @@ DT_S = 0.02
 #: The vertical speed's lag in the takeoff climb, s (trace 01 climbed at 10 m/s 0.5 s
 #: after lift-off).
 TAU_TAKEOFF_CLIMB_S = 0.4
+#: The natural frequency of the bank's second-order response (``Envelope.roll_damping`` >
+#: 0), × the roll lag: fitted with ArduPlane's damping of 0.45 to the peak bank of its
+#: course steps (50° at a 45° limit, 20° on a demand of 17.5°).
+ROLL_OMEGA_TIMES_LAG = 1.2
 #: Lag of the airspeed behind its demand, s (within SIM_ACCEL_MAX / SIM_DECEL_MAX).
 TAU_SPEED_S = 1.0
 #: How often ArduPlane moves GUIDED's slewed altitude demand (``update_target_altitude``
@@ -122,6 +127,7 @@ class FleetState:
     yaw_rate_rad_s: FloatArray
     accel_m_s2: FloatArray
     landed: BoolArray
+    roll_rate_rad_s: FloatArray
 
     @property
     def n(self) -> int:
@@ -168,6 +174,9 @@ class Envelope:
     speed_height_coupling: FloatArray
     """Fraction of the kinetic energy of a speed change that TECS pays in height."""
     roll_lag_s: FloatArray
+    roll_damping: FloatArray
+    """Damping of the bank's second-order response to its demand (ArduPlane's overshoots);
+    0: a first-order lag of ``roll_lag_s``."""
     climb_lag_s: FloatArray
     height_gain_1_s: FloatArray
 
@@ -205,6 +214,7 @@ def default_envelope(
         rotate_speed_m_s=np.full(n, 19.0),
         speed_height_coupling=np.zeros(n),
         roll_lag_s=np.full(n, ROLL_LAG_PER_TCONST * 0.25),
+        roll_damping=np.zeros(n),
         climb_lag_s=np.full(n, CLIMB_LAG_PER_TECS_TCONST * 5.0),
         height_gain_1_s=np.full(n, HEIGHT_GAIN_TIMES_TECS_TCONST / 5.0),
     )
@@ -266,6 +276,7 @@ def initial_state(
         yaw_rate_rad_s=zeros.copy(),
         accel_m_s2=zeros.copy(),
         landed=on_ground,
+        roll_rate_rad_s=zeros.copy(),
     )
 
 
@@ -409,11 +420,17 @@ def step(state: FleetState, env: Envelope, guid: Guidance, dt: float) -> FleetSt
     airborne = ~state.landed
 
     # Lateral: bank follows the demand, the turn is what the bank gives.
-    bank_rate = np.clip(
-        (bank_demand_rad(state, env, guid) - state.roll_rad) / env.roll_lag_s,
-        -ROLL_RATE_MAX_RAD_S,
-        ROLL_RATE_MAX_RAD_S,
+    demand = bank_demand_rad(state, env, guid)
+    omega = ROLL_OMEGA_TIMES_LAG / env.roll_lag_s
+    zeta = env.roll_damping
+    second_order = state.roll_rate_rad_s + dt * (
+        omega * omega * (demand - state.roll_rad) - 2.0 * zeta * omega * state.roll_rate_rad_s
     )
+    first_order = (demand - state.roll_rad) / env.roll_lag_s
+    bank_rate = np.clip(
+        np.where(zeta > 0.0, second_order, first_order), -ROLL_RATE_MAX_RAD_S, ROLL_RATE_MAX_RAD_S
+    )
+    bank_rate = np.where(airborne, bank_rate, 0.0)
     roll = np.where(airborne, state.roll_rad + bank_rate * dt, 0.0)
     yaw_rate = -TURN_EFFICIENCY * GRAVITY_M_S2 * np.tan(roll) / np.maximum(v, MIN_TURN_SPEED_M_S)
     yaw_rate = np.where(
@@ -476,6 +493,7 @@ def step(state: FleetState, env: Envelope, guid: Guidance, dt: float) -> FleetSt
         yaw_rate_rad_s=yaw_rate,
         accel_m_s2=accel,
         landed=landed,
+        roll_rate_rad_s=np.where(hit, 0.0, bank_rate),
     )
 
 

@@ -20,6 +20,7 @@ ENVELOPE_PARAMS = frozenset(
         "SIM_YAW_RATE",
         "SIM_PTCH_RATE",
         "SIM_SPD_HGT",
+        "SIM_ROLL_ZETA",
         "SIM_EAS2TAS",
         "PTCH_LIM_MAX_DEG",
         "PTCH_LIM_MIN_DEG",

@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as hs
 
 from gcs_ppf.mavlink.ardupilot import TURN_EFFICIENCY
+from sitl.airframe import ARDUPLANE
 from sitl.physics import (
     DT_S,
     GRAVITY_M_S2,
@@ -44,7 +45,8 @@ def envelope(n: int, v_min: float = 100.0, v_max: float = 300.0) -> Envelope:
 
 
 def arduplane_envelope(n: int = 1) -> Envelope:
-    """ArduPlane's plane.parm airframe (sitl.airframe.ARDUPLANE)."""
+    """ArduPlane's plane.parm airframe (sitl.airframe.ARDUPLANE), its bank first-order
+    (SIM_ROLL_ZETA 0), so that the autopilot's demand shows in it directly."""
     env = default_envelope(
         n, v_min=9.0, v_max=35.0, accel=0.65, decel=0.85, max_pitch_rate=math.radians(60),
         max_yaw_rate=math.radians(120), ground_z_m=np.zeros(n),
@@ -103,6 +105,27 @@ def test_turn_is_what_the_bank_gives() -> None:
     assert s.yaw_rate_rad_s[0] == pytest.approx(
         -TURN_EFFICIENCY * GRAVITY_M_S2 * math.tan(bank) / 22.0, rel=1e-6
     )
+
+
+def test_arduplane_bank_overshoots_a_saturated_demand_and_settles_on_it() -> None:
+    """ArduPlane's roll overshoots a step of its demand: a course step at a 45° bank limit
+    peaked at 50.0–50.3° in every recording of 90° or more; then the bank is the demand."""
+    s = fleet(speed=22.0)  # east
+    env = arduplane_envelope()
+    env.roll_damping[:] = ARDUPLANE["SIM_ROLL_ZETA"]
+    g = hold_guidance(s)
+    g.kind[:] = GuidanceKind.COURSE
+    g.course_rad[:] = math.pi / 2  # north: a left turn (negative bank)
+    g.lateral_accel_m_s2[:] = 10.0  # the recordings' param3: bank ≤ 45.5°
+    limit = math.degrees(math.atan(10.0 / GRAVITY_M_S2))
+    banks = []
+    for _ in range(int(30 / DT_S)):
+        s = step(s, env, g, DT_S)
+        banks.append(-math.degrees(float(s.roll_rad[0])))
+    assert limit + 2.0 <= max(banks) <= limit + 8.0
+    assert banks[int(2 / DT_S)] == pytest.approx(limit, abs=1.0)  # saturated, settled
+    error = math.remainder(math.pi / 2 - float(s.yaw_rad[0]), math.tau)
+    assert -banks[-1] == pytest.approx(-math.degrees(env.heading_gain[0] * error), abs=0.5)
 
 
 def test_orbit_settles_near_the_effective_radius_clockwise() -> None:
