@@ -31,8 +31,11 @@ AIRFRAMES: tuple[AirframeName, ...] = ("auto", "arduplane", "mission")
 #: the ground speed 6.8 % above the airspeed that the traces show at 680–740 m AMSL, no wind
 #: (ArduPlane's airspeed is equivalent airspeed, EAS; it flies at the true airspeed, TAS),
 #: and TECS paying half a speed change's kinetic energy in height (22 → 28 m/s lost ~5 m,
-#: 28 → 18 gained ~3 m). The scaled airframe trades nothing: the paper's vehicles change
-#: speed at up to 40 m/s², which would balloon them by hundreds of metres.
+#: 28 → 18 gained ~3 m); the bank's overshoot of its demand (the course steps' peak bank)
+#: and the airspeed's lag behind a ramped demand and overshoot after it (traces 12: 1.0 m/s
+#: behind a 0.6 m/s² ramp, 0.7 m/s over 5.5 s after it). The scaled airframe trades
+#: nothing: the paper's vehicles change speed at up to 40 m/s², which would balloon them
+#: by hundreds of metres; its bank and airspeed are first-order.
 ARDUPLANE: dict[str, float] = {
     "AIRSPEED_MIN": 10.0,
     "AIRSPEED_CRUISE": 22.0,
@@ -60,6 +63,8 @@ ARDUPLANE: dict[str, float] = {
     "SIM_EAS2TAS": 1.068,
     "SIM_SPD_HGT": 0.5,
     "SIM_ROLL_ZETA": 0.45,
+    "SIM_SPD_OMEGA": 0.6,
+    "SIM_SPD_ZETA": 0.45,
 }
 
 #: Time constant of the scaled airframe's heading loop at its initial speed, s.
@@ -118,6 +123,8 @@ def mission_airframe(limits: Limits, cruise_m_s: float) -> dict[str, float]:
         "SIM_EAS2TAS": 1.0,
         "SIM_SPD_HGT": 0.0,
         "SIM_ROLL_ZETA": 0.0,
+        "SIM_SPD_OMEGA": 1.0,
+        "SIM_SPD_ZETA": 0.0,
     }
 
 

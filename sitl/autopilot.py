@@ -360,6 +360,8 @@ class Autopilot:
         env.speed_height_coupling[i] = p["SIM_SPD_HGT"]
         env.roll_lag_s[i] = ROLL_LAG_PER_TCONST * p["RLL2SRV_TCONST"]
         env.roll_damping[i] = p["SIM_ROLL_ZETA"]
+        env.speed_omega_rad_s[i] = p["SIM_SPD_OMEGA"]
+        env.speed_damping[i] = p["SIM_SPD_ZETA"]
         env.climb_lag_s[i] = CLIMB_LAG_PER_TECS_TCONST * p["TECS_TIME_CONST"]
         env.height_gain_1_s[i] = HEIGHT_GAIN_TIMES_TECS_TCONST / p["TECS_TIME_CONST"]
         env.rotate_speed_m_s[i] = 0.9 * p["AIRSPEED_CRUISE"] * p["SIM_EAS2TAS"]

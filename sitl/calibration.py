@@ -18,13 +18,14 @@ from typing import Any
 import pymap3d
 
 from sitl.recordings import TRACES, Response, load_meta, load_recording
-from sitl.replay import fly_guided, fly_heading_ramp, fly_takeoff
+from sitl.replay import fly_guided, fly_heading_ramp, fly_speed_ramp, fly_takeoff
 from sitl.step_metrics import (
     airspeed_metrics,
     altitude_metrics,
     heading_metrics,
     ramp_metrics,
     reposition_metrics,
+    speed_ramp_metrics,
     takeoff_metrics,
 )
 
@@ -198,6 +199,29 @@ for _step, _delta in COURSE_STEPS.items():
         EXPERIMENTS[_name] = _course_step(_name, _delta)
 for _rate in (6, 12):
     EXPERIMENTS[f"11-heading-ramp-{_rate}dps"] = _ramp(f"11-heading-ramp-{_rate}dps")
+
+#: The airspeed ramps (22 → 16 → 22 m/s at 0.6 m/s², level and in a 60 m climb).
+SPEED_RAMP_TOLERANCES = {
+    "lag_slowing_m_s": Tolerance(0.5),
+    "lag_speeding_m_s": Tolerance(0.5),
+    "t_within_0_5_after_slowing_s": Tolerance(3.0 * S, 0.25),
+    "overshoot_m_s": Tolerance(0.5),
+    "t_overshoot_s": Tolerance(3.0 * S, 0.25),
+    "alt_excursion_m": Tolerance(3.0 * M),
+}
+
+
+def _speed_ramp(name: str) -> Experiment:
+    return (
+        62.0,
+        lambda meta, d: fly_speed_ramp(meta, d, name),
+        lambda r, meta: speed_ramp_metrics(r),
+        SPEED_RAMP_TOLERANCES,
+    )
+
+
+for _kind in ("level", "climb"):
+    EXPERIMENTS[f"12-speed-ramp-{_kind}"] = _speed_ramp(f"12-speed-ramp-{_kind}")
 
 
 @dataclass(frozen=True, slots=True)

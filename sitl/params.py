@@ -86,6 +86,8 @@ def vehicle_param_specs(
         ParamSpec("SIM_SPEED_MAX", a["SIM_SPEED_MAX"], f, 0.1, 1000, "top speed, m/s"),
         ParamSpec("SIM_SPD_HGT", a["SIM_SPD_HGT"], f, 0, 1, "speed change paid in height"),
         ParamSpec("SIM_ROLL_ZETA", a["SIM_ROLL_ZETA"], f, 0, 2, "bank damping (0: first-order)"),
+        ParamSpec("SIM_SPD_OMEGA", a["SIM_SPD_OMEGA"], f, 0.05, 10, "airspeed loop, rad/s"),
+        ParamSpec("SIM_SPD_ZETA", a["SIM_SPD_ZETA"], f, 0, 2, "airspeed damping (0: first-order)"),
         ParamSpec("SIM_EAS2TAS", a["SIM_EAS2TAS"], f, 0.5, 2, "true / indicated airspeed"),
         ParamSpec("SIM_GPS_NOISE", 0, f, 0, 1000, "position noise (1σ), m"),
         ParamSpec("SIM_LINK_LOSS", 0, f, 0, 100, "link packet loss, % each way"),

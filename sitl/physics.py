@@ -33,7 +33,8 @@ TECS_CLMB_MAX / TECS_SINK_MAX, the climb-rate demand is ``height_gain_1_s`` × t
 why a slewed GUIDED altitude barely climbs), and the climb rate follows it with a lag
 (``climb_lag_s``).  Speeding up costs height and slowing down gains it (TECS trades energy:
 the envelope's ``speed_height_coupling``).  Speed follows its demand within SIM_ACCEL_MAX /
-SIM_DECEL_MAX.  A vehicle on the ground stays there unless it is taking off (ArduPlane's
+SIM_DECEL_MAX, second-order as ArduPlane's TECS (SIM_SPD_OMEGA, SIM_SPD_ZETA) or with a
+first-order lag.  A vehicle on the ground stays there unless it is taking off (ArduPlane's
 TAKEOFF mode): it rolls along its heading at ``GROUND_ACCEL_M_S2`` and lifts off at its
 rotation speed, then climbs at the takeoff climb rate.
 """
@@ -73,7 +74,8 @@ TAU_TAKEOFF_CLIMB_S = 0.4
 #: 0), × the roll lag: fitted with ArduPlane's damping of 0.45 to the peak bank of its
 #: course steps (50° at a 45° limit, 20° on a demand of 17.5°).
 ROLL_OMEGA_TIMES_LAG = 1.2
-#: Lag of the airspeed behind its demand, s (within SIM_ACCEL_MAX / SIM_DECEL_MAX).
+#: Lag of the airspeed behind its demand where it is first-order (``Envelope.speed_damping``
+#: 0), s (within SIM_ACCEL_MAX / SIM_DECEL_MAX).
 TAU_SPEED_S = 1.0
 #: How often ArduPlane moves GUIDED's slewed altitude demand (``update_target_altitude``
 #: clamps it to the current altitude ± param3 × this), s.
@@ -177,6 +179,11 @@ class Envelope:
     roll_damping: FloatArray
     """Damping of the bank's second-order response to its demand (ArduPlane's overshoots);
     0: a first-order lag of ``roll_lag_s``."""
+    speed_omega_rad_s: FloatArray
+    speed_damping: FloatArray
+    """The airspeed's second-order response to its demand (TECS's, which lags a ramp and
+    overshoots after it): natural frequency and damping; damping 0: a first-order lag of
+    ``TAU_SPEED_S``."""
     climb_lag_s: FloatArray
     height_gain_1_s: FloatArray
 
@@ -215,6 +222,8 @@ def default_envelope(
         speed_height_coupling=np.zeros(n),
         roll_lag_s=np.full(n, ROLL_LAG_PER_TCONST * 0.25),
         roll_damping=np.zeros(n),
+        speed_omega_rad_s=np.ones(n),
+        speed_damping=np.zeros(n),
         climb_lag_s=np.full(n, CLIMB_LAG_PER_TECS_TCONST * 5.0),
         height_gain_1_s=np.full(n, HEIGHT_GAIN_TIMES_TECS_TCONST / 5.0),
     )
@@ -441,7 +450,12 @@ def step(state: FleetState, env: Envelope, guid: Guidance, dt: float) -> FleetSt
     v_cmd = np.where(guid.thrust, guid.speed_cmd_m_s, env.v_min_m_s)
     v_cmd = np.where(guid.takeoff, TAKEOFF_SPEED_FACTOR * env.rotate_speed_m_s, v_cmd)
     v_cmd = np.clip(v_cmd, env.v_min_m_s, env.v_max_m_s)
-    accel = np.clip((v_cmd - v) / TAU_SPEED_S, -env.decel_m_s2, env.accel_m_s2)
+    omega_v, zeta_v = env.speed_omega_rad_s, env.speed_damping
+    second = state.accel_m_s2 + dt * (
+        omega_v * omega_v * (v_cmd - v) - 2.0 * zeta_v * omega_v * state.accel_m_s2
+    )
+    first = (v_cmd - v) / TAU_SPEED_S
+    accel = np.clip(np.where(zeta_v > 0.0, second, first), -env.decel_m_s2, env.accel_m_s2)
     rolling = state.landed & guid.takeoff & guid.thrust
     accel = np.where(rolling, GROUND_ACCEL_M_S2, np.where(airborne, accel, 0.0))
     speed = v + accel * dt

@@ -14,12 +14,21 @@ course. Time is the vehicle's (time_boot_ms), t = 0 at the first ramp command.
 for 25 s, then MAV_CMD_GUIDED_CHANGE_ALTITUDE +50 m with param3 = 0 for 60 s: how TECS
 shares its energy between speed and height when the speed asked is high. t = 0 at the
 altitude command.
+
+``speed-ramp``: the same takeoff and settling, then an airspeed that ramps down from
+AIRSPEED_CRUISE to ``--airspeed`` at ``--rate-mss`` (a MAV_CMD_DO_CHANGE_SPEED every 0.1 s
+of the vehicle's time, each for the time it is sent at), 20 s there, back up at the same
+rate, 20 s more; with ``--climb-m`` a MAV_CMD_GUIDED_CHANGE_ALTITUDE that far up (param3
+0) at t = 0: how far ArduPlane's airspeed lags a slowing it is asked for, level and in a
+climb (a formation's wingmen are asked for such ramps in every turn). The airspeed last
+commanded is the column ``cmd_airspeed_m_s``. t = 0 at the first ramp command.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
 import sys
 import time
@@ -50,6 +59,7 @@ COLUMNS = [
     "throttle_pct",
     "mode",
     "cmd_course_deg",
+    "cmd_airspeed_m_s",
 ]
 TAKEOFF, GUIDED = 13, 15
 STREAMS = (33, 30, 74)  # GLOBAL_POSITION_INT, ATTITUDE, VFR_HUD
@@ -71,6 +81,10 @@ class Recorder:
         self.rows: list[dict[str, Any]] = []
         self.t0_ms: int | None = None
         self.cmd_course = math.nan
+        self.cmd_airspeed = math.nan
+        self.sent: list[dict[str, Any]] = []
+        self.state: dict[str, float] = {}
+        self.at_start: dict[str, Any] = {}
         for msg_id in STREAMS:
             self.command(511, msg_id, 100_000)
 
@@ -81,6 +95,10 @@ class Recorder:
     def command_int(self, cmd: int, frame: int, p: tuple[float, ...], z: float = 0.0) -> None:
         params = [*p, *([0.0] * (4 - len(p)))]
         self.conn.mav.command_int_send(self.target, 1, frame, cmd, 0, 0, *params, 0, 0, z)
+        self.sent.append(
+            {"type": "COMMAND_INT", "command": cmd, "frame": frame, "params": params,
+             "x": 0, "y": 0, "z": z, "sent_time_boot_ms": self.boot_ms}
+        )  # fmt: skip
 
     def set_mode(self, mode: int) -> None:
         self.command(176, 1, mode)
@@ -105,10 +123,17 @@ class Recorder:
             self.mode = int(msg.custom_mode)
         if hasattr(msg, "time_boot_ms"):
             self.boot_ms = int(msg.time_boot_ms)
-        row: dict[str, Any] = {"msg": kind, "mode": self.mode, "cmd_course_deg": self.cmd_course}
+        row: dict[str, Any] = {
+            "msg": kind,
+            "mode": self.mode,
+            "cmd_course_deg": self.cmd_course,
+            "cmd_airspeed_m_s": self.cmd_airspeed,
+        }
         if kind == "GLOBAL_POSITION_INT":
             self.rel_alt = msg.relative_alt / 1000.0
             self.course = math.degrees(math.atan2(msg.vy, msg.vx)) % 360.0
+            self.state.update(lat_deg=msg.lat / 1e7, lon_deg=msg.lon / 1e7)
+            self.state.update(rel_alt_m=self.rel_alt, course_deg=self.course)
             row.update(
                 lat_deg=msg.lat / 1e7,
                 lon_deg=msg.lon / 1e7,
@@ -126,6 +151,7 @@ class Recorder:
                 yaw_deg=math.degrees(msg.yaw),
             )
         elif kind == "VFR_HUD":
+            self.state["airspeed_m_s"] = msg.airspeed
             row.update(
                 airspeed_m_s=msg.airspeed,
                 groundspeed_m_s=msg.groundspeed,
@@ -198,20 +224,56 @@ def climb_at_speed(rec: Recorder, airspeed_m_s: float) -> int:
     return t0
 
 
+def speed_ramp(rec: Recorder, low_m_s: float, rate_m_s2: float, climb_m: float) -> int:
+    """The speed-ramp experiment; the vehicle time of its first ramp command, ms. Each
+    command is the ramp's airspeed at the vehicle time it is sent at, so a late send is
+    late, not behind."""
+    settle(rec)
+    cruise = 22.0
+    down_s = (cruise - low_m_s) / rate_m_s2
+    t0 = rec.boot_ms
+    rec.at_start = {"state_at_command": dict(rec.state), "level_commands": list(rec.sent)}
+    if climb_m:
+        rec.command_int(43001, 3, (0, 0, 0.0), z=round(rec.rel_alt + climb_m, 1))
+    next_ms = 0
+    while rec.boot_ms - t0 < (2 * down_s + 40.0) * 1000:
+        t = (rec.boot_ms - t0) / 1000.0
+        if rec.boot_ms - t0 >= next_ms:
+            up_t = t - down_s - 20.0
+            speed = max(low_m_s, cruise - rate_m_s2 * t)
+            if up_t > 0.0:
+                speed = min(cruise, low_m_s + rate_m_s2 * up_t)
+            rec.cmd_airspeed = round(speed, 2)
+            rec.command(178, 0, rec.cmd_airspeed, -1)  # DO_CHANGE_SPEED: airspeed
+            next_ms = rec.boot_ms - t0 + 100
+        rec.pump(0.02)
+    return t0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m sitl.record_trace", description=__doc__)
     p.add_argument("url", help="pymavlink connection string of the vehicle")
-    p.add_argument("experiment", choices=["heading-ramp", "climb-at-speed"])
+    p.add_argument("experiment", choices=["heading-ramp", "climb-at-speed", "speed-ramp"])
     p.add_argument("out", type=Path)
     p.add_argument("--rate-dps", type=float, default=6.0)
     p.add_argument("--airspeed", type=float, default=28.0)
+    p.add_argument("--rate-mss", type=float, default=0.6)
+    p.add_argument("--climb-m", type=float, default=0.0)
     a = p.parse_args(argv)
     rec = Recorder(a.url)
     if a.experiment == "heading-ramp":
         t0 = heading_ramp(rec, a.rate_dps)
+    elif a.experiment == "speed-ramp":
+        t0 = speed_ramp(rec, a.airspeed, a.rate_mss, a.climb_m)
     else:
         t0 = climb_at_speed(rec, a.airspeed)
     rec.write(a.out, t0)
+    if rec.at_start:  # what a replay needs: the state at t = 0 and the commands before it
+        sidecar = {
+            **rec.at_start,
+            "commands_from_t0": [c for c in rec.sent if c["sent_time_boot_ms"] >= t0],
+        }
+        a.out.with_suffix(".json").write_text(json.dumps(sidecar, indent=1))
     print(f"wrote {a.out}: {len(rec.rows)} messages, t0 = {t0} ms")
     return 0
 

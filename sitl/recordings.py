@@ -38,31 +38,38 @@ class Response:
     north_m: FloatArray
     commanded_course_deg: FloatArray | None = None
     """The course last commanded at each sample (the ramps), unwrapped near ``course_deg``."""
+    commanded_airspeed_m_s: FloatArray | None = None
+    """The airspeed last commanded at each sample (the speed ramps)."""
 
 
 def commanded_at(schedule: tuple[FloatArray, FloatArray], t: FloatArray) -> FloatArray:
-    """The course last commanded at each of ``t``, from a schedule of (times, courses)."""
-    times, courses = schedule
+    """The value last commanded at each of ``t``, from a schedule of (times, values)."""
+    times, values = schedule
     k = np.searchsorted(times, t, side="right") - 1
-    out: FloatArray = courses[np.maximum(k, 0)]
+    out: FloatArray = values[np.maximum(k, 0)]
     return out
 
 
-def command_schedule(experiment: str, traces: Path = TRACES) -> tuple[FloatArray, FloatArray]:
-    """When a ramp's recorder sent each new course, and the course (deg, unwrapped): the
-    ramps' commands went out later than the ideal rate × t (the recorder, at speedup 4, fell
-    behind by up to 0.8 s at 12°/s), so a replay must send these, not the ideal ramp."""
+def command_schedule(
+    experiment: str, traces: Path = TRACES, column: str = "cmd_course_deg"
+) -> tuple[FloatArray, FloatArray]:
+    """When a ramp's recorder sent each new command, and its value (courses in deg,
+    unwrapped; airspeeds in m/s). The course ramps' commands went out later than the ideal
+    rate × t (the recorder, at speedup 4, fell behind by up to 0.8 s at 12°/s), so a replay
+    must send these, not the ideal ramp."""
     with (traces / f"{experiment}.csv").open() as fh:
-        rows = [r for r in csv.DictReader(fh) if r.get("cmd_course_deg", "") not in ("", "nan")]
+        rows = [r for r in csv.DictReader(fh) if r.get(column, "") not in ("", "nan")]
     times: list[float] = []
-    courses: list[float] = []
+    values: list[float] = []
     for r in rows:
-        course = float(r["cmd_course_deg"])
-        if not courses or course != courses[-1]:
+        value = float(r[column])
+        if not values or value != values[-1]:
             times.append(float(r["t_s"]))
-            courses.append(course)
-    unwrapped = np.degrees(np.unwrap(np.radians(courses)))
-    return np.array(times), unwrapped
+            values.append(value)
+    out = np.array(values)
+    if column == "cmd_course_deg":
+        out = np.degrees(np.unwrap(np.radians(out)))
+    return np.array(times), out
 
 
 def _column(rows: list[dict[str, str]], msg: str, name: str) -> tuple[FloatArray, FloatArray]:
@@ -90,6 +97,8 @@ def load_recording(experiment: str, traces: Path = TRACES) -> Response:
     commanded = None
     if schedule[0].size:
         commanded = near(commanded_at(schedule, t), course)
+    speeds = command_schedule(experiment, traces, "cmd_airspeed_m_s")
+    commanded_airspeed = commanded_at(speeds, t) if speeds[0].size else None
     return Response(
         t=t,
         course_deg=course,
@@ -100,6 +109,7 @@ def load_recording(experiment: str, traces: Path = TRACES) -> Response:
         east_m=np.asarray(e, dtype=np.float64),
         north_m=np.asarray(n, dtype=np.float64),
         commanded_course_deg=commanded,
+        commanded_airspeed_m_s=commanded_airspeed,
     )
 
 

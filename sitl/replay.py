@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 import pymap3d
+from numpy.typing import NDArray
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from gcs_ppf.geodesy import enu_to_geodetic
@@ -147,31 +148,56 @@ def fly_heading_ramp(
     meta: dict[str, Any], duration_s: float, experiment: str = "09-heading-ramp"
 ) -> Response:
     """The course ramp: level, then each course command when the recording sent it."""
-    e = meta["experiments"][experiment]
     times, courses = command_schedule(experiment)
-    sim = _guided_at(e, meta)
+
+    def heading(course: float) -> dict[str, Any]:
+        params = [0, round(course % 360.0, 2), 10.0]
+        return {"type": "COMMAND_INT", "command": 43002, "frame": 0, "params": params}
+
+    r = _fly_schedule(meta, experiment, duration_s, times, [heading(c) for c in courses])
+    return replace(r, commanded_course_deg=near(commanded_at((times, courses), r.t), r.course_deg))
+
+
+def fly_speed_ramp(meta: dict[str, Any], duration_s: float, experiment: str) -> Response:
+    """The airspeed ramp: level, then (the climb's altitude and) each airspeed command when
+    the recording sent it."""
+    e = meta["experiments"][experiment]
+    times, speeds = command_schedule(experiment, column="cmd_airspeed_m_s")
+    first = [(0.0, dict(c, x=0, y=0)) for c in e["commands_from_t0"]]
+    speed = [
+        (float(t), {"type": "COMMAND_LONG", "command": 178, "params": [0, float(v), -1]})
+        for t, v in zip(times, speeds, strict=True)
+    ]
+    sends = sorted(first + speed, key=lambda ts: ts[0])
+    r = _fly_schedule(
+        meta, experiment, duration_s, np.array([t for t, _ in sends]), [c for _, c in sends]
+    )
+    return replace(r, commanded_airspeed_m_s=commanded_at((times, speeds), r.t))
+
+
+def _fly_schedule(
+    meta: dict[str, Any],
+    experiment: str,
+    duration_s: float,
+    times: NDArray[np.float64],
+    commands: list[dict[str, Any]],
+) -> Response:
+    """Level at the experiment's state, then each command at its time (s from t = 0)."""
+    sim = _guided_at(meta["experiments"][experiment], meta)
     rows: list[tuple[float, ...]] = []
     _run(sim, SETTLE_S, SETTLE_S, rows)
     every = round(0.1 / DT_S)
     sent = 0
     for k in range(round(duration_s / DT_S)):
         while sent < times.size and times[sent] <= k * DT_S + 1e-9:
-            heading = {
-                "type": "COMMAND_INT",
-                "command": 43002,
-                "frame": 0,
-                "params": [0, round(float(courses[sent]) % 360.0, 2), 10.0],
-                "x": 0,
-                "y": 0,
-                "z": 0,
-            }
-            _command(sim, heading)
+            spec = {"x": 0, "y": 0, "z": 0, **commands[sent]}
+            if _command(sim, spec) != 0:
+                raise RuntimeError(f"{experiment}: the built-in SITL refused {spec}")
             sent += 1
         sim.step(0.0)
         if (k + 1) % every == 0:
             _sample(sim, SETTLE_S, rows)
-    r = _response(rows)
-    return replace(r, commanded_course_deg=near(commanded_at((times, courses), r.t), r.course_deg))
+    return _response(rows)
 
 
 def _offset(e: dict[str, Any], sim: Simulation) -> tuple[float, float, float]:

@@ -107,6 +107,35 @@ def ramp_metrics(r: Response) -> dict[str, float]:
     }
 
 
+def speed_ramp_metrics(r: Response) -> dict[str, float]:
+    """How far the airspeed lags a commanded slowing and speeding up (the mean over each
+    ramp's second half, m/s, positive: behind), how long after the slowing it comes within
+    0.5 m/s of the command, and how far and when it overshoots after speeding up (ArduPlane
+    overshoots by more than 0.5 m/s, so a settling time in that band would only say
+    whether the overshoot crosses it)."""
+    cmd = r.commanded_airspeed_m_s
+    if cmd is None:
+        raise ValueError("a speed ramp's response needs the airspeeds commanded")
+    changing = np.flatnonzero(np.diff(cmd) != 0.0) + 1
+    low = cmd.min()
+    down_end = float(r.t[np.flatnonzero(cmd <= low)[0]])
+    up_start = float(r.t[np.flatnonzero((r.t > down_end) & (cmd > low))[0]])
+    up_end = float(r.t[changing[-1]])
+    behind = (r.airspeed_m_s - cmd) * np.where(r.t < up_start, 1.0, -1.0)
+    down = (r.t >= down_end / 2) & (r.t <= down_end)
+    up = (r.t >= (up_start + up_end) / 2) & (r.t <= up_end)
+    close = np.abs(r.airspeed_m_s - cmd) <= 0.5
+    held, after = (r.t >= down_end) & (r.t < up_start), r.t >= up_end
+    return {
+        "lag_slowing_m_s": float(np.mean(behind[down])),
+        "lag_speeding_m_s": float(np.mean(behind[up])),
+        "t_within_0_5_after_slowing_s": _settled(r.t[held], close[held]) - down_end,
+        "overshoot_m_s": float(np.max(r.airspeed_m_s[after] - cmd[after])),
+        "t_overshoot_s": float(r.t[after][np.argmax(r.airspeed_m_s[after])]) - up_end,
+        "alt_excursion_m": float(np.max(np.abs(r.rel_alt_m - r.rel_alt_m[0]))),
+    }
+
+
 def takeoff_metrics(r: Response) -> dict[str, float]:
     return {
         "t_liftoff_s": _first(r.t, r.rel_alt_m > 1.0),

@@ -21,6 +21,8 @@ ENVELOPE_PARAMS = frozenset(
         "SIM_PTCH_RATE",
         "SIM_SPD_HGT",
         "SIM_ROLL_ZETA",
+        "SIM_SPD_OMEGA",
+        "SIM_SPD_ZETA",
         "SIM_EAS2TAS",
         "PTCH_LIM_MAX_DEG",
         "PTCH_LIM_MIN_DEG",

@@ -128,6 +128,27 @@ def test_arduplane_bank_overshoots_a_saturated_demand_and_settles_on_it() -> Non
     assert -banks[-1] == pytest.approx(-math.degrees(env.heading_gain[0] * error), abs=0.5)
 
 
+def test_arduplane_airspeed_lags_a_ramp_and_overshoots_after_it() -> None:
+    """ArduPlane's TECS flies a slowing asked at 0.6 m/s² about 1 m/s behind it and, sped up
+    again, overshoots by ~0.7 m/s some 5 s after the ramp (traces 12-speed-ramp-*)."""
+    s = fleet(speed=22.0)
+    env = arduplane_envelope()
+    env.speed_omega_rad_s[:] = ARDUPLANE["SIM_SPD_OMEGA"]
+    env.speed_damping[:] = ARDUPLANE["SIM_SPD_ZETA"]
+    g = hold_guidance(s)
+    behind, after = [], []
+    for k in range(int(40 / DT_S)):
+        t = k * DT_S
+        g.speed_cmd_m_s[:] = max(16.0, 22.0 - 0.6 * t) if t < 20 else min(22.0, 16 + 0.6 * (t - 20))
+        s = step(s, env, g, DT_S)
+        if 5.0 <= t <= 10.0:
+            behind.append(float(s.speed_m_s[0]) - float(g.speed_cmd_m_s[0]))
+        if t > 30.0:
+            after.append(float(s.speed_m_s[0]) - 22.0)
+    assert 0.6 <= np.mean(behind) <= 1.5
+    assert 0.2 <= max(after) <= 1.0
+
+
 def test_orbit_settles_near_the_effective_radius_clockwise() -> None:
     s = fleet()
     env = envelope(1)
