@@ -48,7 +48,7 @@ class Leg:
     ``loiter_radius_m`` (its radius, or the tightest turn the formation holds if wider).
     ``turn_rate_rad_s`` is the fastest the leader turns (its formation's; ∞: as it can),
     and ``turn_point_m`` the point it flies straight on to first (``onto_target``), across
-    the plane square to ``turn_heading`` there."""
+    the plane square to ``turn_heading`` there; ``turned_point``, that it has passed one."""
 
     index: int
     start_m: FloatArray
@@ -60,6 +60,7 @@ class Leg:
     turn_rate_rad_s: float = math.inf
     turn_point_m: FloatArray | None = None
     turn_heading: FloatArray | None = None
+    turned_point: bool = False
 
     @property
     def final(self) -> bool:
@@ -141,16 +142,24 @@ def onto_target(leg: Leg, position_m: FloatArray, yaw_rad: float, speed_m_s: flo
     step instead, the leader came out of its straight run with the target on the turn's
     edge, where flying straight and turning both keep it, and circled it for ever.
 
+    A leg has one turn point at most: past it, the turn's radius is the leader's speed over
+    its turn rate, and a leader faster than when the point was laid out (more than the
+    point's 10 % of radius) found its waypoint inside the turn again and flew out to a new
+    point, and again: ArduPlane's airspeed, 1 m/s behind its demand and overshooting after
+    it, set four in turn on the loiter route's last leg, which ran out of time 79 m short.
+    Past its point the leader turns onto its waypoint; inside its turn still, at the
+    airframe's rate.
+
     Only a route's legs have turn points (``legs``): a mission without one flies to its
     target as it can once an obstacle has turned it away (the line abreast of five, whose
     formation turns on 1.27 km, took more than 400 s round to a target 1.3 km off where it
     takes 179 s)."""
-    if leg.loiter is not None or not 0.0 < leg.turn_rate_rad_s < math.inf:
+    if leg.loiter is not None or not 0.0 < leg.turn_rate_rad_s < math.inf or leg.turned_point:
         return leg
     if leg.turn_point_m is not None and leg.turn_heading is not None:
         if float((position_m - leg.turn_point_m) @ leg.turn_heading) < 0.0:
             return leg  # not there yet
-        return replace(leg, turn_point_m=None, turn_heading=None)
+        return replace(leg, turn_point_m=None, turn_heading=None, turned_point=True)
     point = turn_point(leg.end_m, position_m, yaw_rad, speed_m_s / leg.turn_rate_rad_s)
     if point is None:
         return leg

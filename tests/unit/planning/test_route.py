@@ -361,6 +361,11 @@ def test_the_turn_point_is_kept_until_passed_and_only_where_turns_are_held() -> 
     passed = onto_target(leg, np.array([along + 1.0, 0.0, 0.0]), 0.0, 20.0)
     assert passed.turn_point_m is None
     assert np.array_equal(passed.aim_m, held.end_m)
+    # Past its point, a leader 20 % faster (its turn 20 % wider: the waypoint inside it
+    # again) turns onto the waypoint: no second point on the leg.
+    past = np.array([along + 1.0, 0.0, 0.0])
+    assert turn_point(held.end_m, past, 0.0, 480.0) is not None  # a fresh leg: out again
+    assert onto_target(passed, past, 0.0, 24.0).turn_point_m is None
     free = Leg(0, np.zeros(3), np.array([100.0, 300.0, 0.0]), 10.0, np.zeros(3))
     assert onto_target(free, np.zeros(3), 0.0, 20.0) is free  # turns as it can
     assert all(leg.turn_rate_rad_s == math.inf for leg in legs(load_mission_file(
