@@ -58,10 +58,15 @@ def command_schedule(
     rate × t (the recorder, at speedup 4, fell behind by up to 0.8 s at 12°/s), so a replay
     must send these, not the ideal ramp."""
     with (traces / f"{experiment}.csv").open() as fh:
-        rows = [r for r in csv.DictReader(fh) if r.get(column, "") not in ("", "nan")]
+        return _schedule(list(csv.DictReader(fh)), column)
+
+
+def _schedule(rows: list[dict[str, str]], column: str) -> tuple[FloatArray, FloatArray]:
     times: list[float] = []
     values: list[float] = []
     for r in rows:
+        if r.get(column, "") in ("", "nan"):
+            continue
         value = float(r[column])
         if not values or value != values[-1]:
             times.append(float(r["t_s"]))
@@ -93,11 +98,11 @@ def load_recording(experiment: str, traces: Path = TRACES) -> Response:
     lat, lon = at("GLOBAL_POSITION_INT", "lat_deg"), at("GLOBAL_POSITION_INT", "lon_deg")
     e, n, _ = pymap3d.geodetic2enu(lat, lon, 0.0, lat[0], lon[0], 0.0)
     course = np.degrees(np.unwrap(np.arctan2(ve, vn)))
-    schedule = command_schedule(experiment, traces)
+    schedule = _schedule(rows, "cmd_course_deg")
     commanded = None
     if schedule[0].size:
         commanded = near(commanded_at(schedule, t), course)
-    speeds = command_schedule(experiment, traces, "cmd_airspeed_m_s")
+    speeds = _schedule(rows, "cmd_airspeed_m_s")
     commanded_airspeed = commanded_at(speeds, t) if speeds[0].size else None
     return Response(
         t=t,

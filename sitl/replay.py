@@ -163,7 +163,7 @@ def fly_speed_ramp(meta: dict[str, Any], duration_s: float, experiment: str) -> 
     the recording sent it."""
     e = meta["experiments"][experiment]
     times, speeds = command_schedule(experiment, column="cmd_airspeed_m_s")
-    first = [(0.0, dict(c, x=0, y=0)) for c in e["commands_from_t0"]]
+    first = [(0.0, c) for c in e["commands_from_t0"]]
     speed = [
         (float(t), {"type": "COMMAND_LONG", "command": 178, "params": [0, float(v), -1]})
         for t, v in zip(times, speeds, strict=True)
