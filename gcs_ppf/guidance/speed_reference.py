@@ -25,6 +25,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gcs_ppf.guidance.online import Guidance, VehicleState
+from gcs_ppf.planning.ppf.primitives import FOLLOWED_ACCEL_M_S2
 from gcs_ppf.planning.scene import FloatArray
 
 REFERENCE_BOUND_M_S = 2.0
@@ -44,14 +45,22 @@ m from the course flown); round the circle, 3.4–5.9 m (1.6–2.6 m with 2°, 7
 
 
 SPEED_COMMAND_LEAD_S = 0.25
-"""The airspeed commanded is the plan's this far on: ArduPlane's TECS answers a speed demand
-within ~0.25 s (measured: a 0.6 m/s step flown at ~2.4 m/s²).  With the plan started from
-the reference a longer lead buys nothing, and each turn of the leader's wait law (Eq. 24,
-waiting at 0.8 m/s² of deceleration or leading on at 0.6 m/s² of acceleration, which
-flips as a wingman crosses the target accuracy) jumped the command by 1.4 m/s per second
-of lead: with 1 s, on real ArduPlane, the leader's command flipped between 25.8 and
-27.4 m/s every second or two, its throttle between 34 and 100 %, its vertical speed
+"""The leader's airspeed commanded is its plan's this far on: ArduPlane's TECS answers a
+speed demand within ~0.25 s (measured: a 0.6 m/s step flown at ~2.4 m/s²).  With the plan
+started from the reference a longer lead buys the leader nothing, and each turn of its
+wait law (Eq. 24, waiting at 0.8 m/s² of deceleration or leading on at 0.6 m/s² of
+acceleration, which flips as a wingman crosses the target accuracy) jumped the command by
+1.4 m/s per second of lead: with 1 s, on real ArduPlane, the leader's command flipped
+between 25.8 and 27.4 m/s every second or two, its throttle between 34 and 100 %, its vertical speed
 between −3 and +4 m/s."""
+WINGMAN_SPEED_COMMAND_LEAD_S = 1.25
+"""A wingman's airspeed commanded is its plan's this far on (the leader's,
+``SPEED_COMMAND_LEAD_S``): ArduPlane's airspeed follows a demand ramped at the mission's
+0.8 m/s² 1.1–1.3 m/s behind (about 1.4 s; the built-in SITL's loiter route at ×10), so a
+wingman commanded its plan's speed a quarter second on flew its speed corrections late,
+and through its slot: 15.9 m/s where its plan, started from the reference, had it at 18
+and its leader flew 22.  A wingman's plan changes speed only as its place asks, not as
+the leader's wait law flips."""
 SPEED_DEADBAND_M_S = 0.2
 """An airspeed is sent again when it has changed by this much (m/s): each send is a step
 TECS answers with a throttle pulse (0.5 m/s steps every ~0.8 s on a 0.6 m/s² ramp)."""
@@ -66,9 +75,6 @@ def speed_to_command(g: Guidance, i: int, lead_s: float = SPEED_COMMAND_LEAD_S) 
     return float(ahead[i])
 
 
-FOLLOWED_ACCEL_M_S2 = 2.0
-"""The fastest planned speed change (m/s², the mission's accel and decel) an autopilot is
-taken to follow: ArduPlane's TECS flew 1.9–2.4 m/s² when asked for more."""
 LEGACY_COMMAND_LEAD_S = 1.0
 LEGACY_DEADBAND_M_S = 0.5
 
@@ -226,10 +232,15 @@ def leader_held(
     leader held at the speed it had slowed to while waiting can leave the slot inside the
     formation's turns slower than v_min (``gcs_ppf.planning.turns.held_speed_range``): the
     loiter route on a lossy link, held at 19 m/s round its circle, put the inner slot at
-    15.5 m/s, and its wingman, at 16, drew ahead of it for 100 s."""
+    15.5 m/s, and its wingman, at 16, drew ahead of it for 100 s.  So the range is kept
+    ``HOLD_RESERVE_M_S`` inside at each end (its middle if narrower): a leader held at the
+    top of the U-turn route's range (24.5 m/s) put its outer slot at v_max through the turn
+    and its wingman, with nothing left to catch up with, fell 18 m behind it."""
     if g.speed_plan_t_s is None or g.speed_plan_m_s is None:
         return g
     low, high = g.leader_speed_range_m_s or (v_min_m_s, v_max_m_s)
+    middle = 0.5 * (low + high)
+    low, high = min(low + HOLD_RESERVE_M_S, middle), max(high - HOLD_RESERVE_M_S, middle)
     floor = max(v_min_m_s, low)
     cap = max(min(v_max_m_s - HOLD_RESERVE_M_S, high), floor)
     start = float(g.speed_plan_m_s[0, 0])

@@ -390,6 +390,8 @@ async def _send_speed(
     if t is None:
         return
     lead, deadband = speed_reference.SPEED_COMMAND_LEAD_S, speed_reference.SPEED_DEADBAND_M_S
+    if i > 0:
+        lead = speed_reference.WINGMAN_SPEED_COMMAND_LEAD_S
     if not follows:
         lead, deadband = speed_reference.LEGACY_COMMAND_LEAD_S, speed_reference.LEGACY_DEADBAND_M_S
     planned = speed_reference.speed_to_command(g, i, lead) if slowest_m_s is None else slowest_m_s

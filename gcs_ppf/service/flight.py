@@ -42,6 +42,7 @@ from gcs_ppf.mavlink.enums import MAV_CMD_DO_REPOSITION, MAV_CMD_GUIDED_CHANGE_H
 from gcs_ppf.mavlink.telemetry import VehicleTelemetry
 from gcs_ppf.mission import Mission
 from gcs_ppf.planning import succession
+from gcs_ppf.planning.ppf.primitives import LEADER_SPEED_CHANGE_SHARE
 from gcs_ppf.planning.route import Loitering, leg_flown, onto_target
 from gcs_ppf.planning.scene import FloatArray, Obstacles, obstacles_from_mission
 from gcs_ppf.planning.zones import zones_from_mission
@@ -705,7 +706,10 @@ async def plan_and_command(
         )
         run.formation_held = held
         if held:  # the leader keeps its speed (``speed_reference.leader_held``)
-            g = speed_reference.leader_held(g, lim.v_max, lim.v_min, lim.decel, lim.accel)
+            share = LEADER_SPEED_CHANGE_SHARE
+            g = speed_reference.leader_held(
+                g, lim.v_max, lim.v_min, lim.decel * share, lim.accel * share
+            )
         run.speed_plan = speed_reference.SpeedPlan.of(g, run.mission_time_s)
         for kind, vehicle_id in changes(run, g):  # what changed since the last tick
             station.event(run, kind, vehicle_id)

@@ -112,6 +112,12 @@ def airframe_limited(lim: KernelLimits) -> bool:
 LEADER_PATH_ANGLE_SHARE = 0.75
 """Share of the airframe's flight-path limits the leader climbs and dives at while it
 follows its target (``leader_limits``)."""
+LEADER_SPEED_CHANGE_SHARE = 0.5
+"""Share of the airframe's accel and decel the leader changes speed at while it follows its
+target, where the vehicles fly the plan's speed changes (``leader_speed_share``)."""
+FOLLOWED_ACCEL_M_S2 = 2.0
+"""The fastest planned speed change (m/s², the mission's accel and decel) an autopilot is
+taken to follow: ArduPlane's TECS flew 1.9–2.4 m/s² when asked for more."""
 
 
 @njit(cache=True)
@@ -162,9 +168,27 @@ def with_turn_limits(
 
 
 @njit(cache=True)
+def leader_speed_share(lim: KernelLimits) -> float:
+    """The share of accel and decel the leader changes speed at while it follows its target:
+    ``LEADER_SPEED_CHANGE_SHARE`` where the vehicles fly the plan's speed changes, 1 (the
+    paper's leader) where they cannot (``FOLLOWED_ACCEL_M_S2``).
+
+    A wingman keeps its slot by changing speed relative to it, at its own accel and decel;
+    a leader changing speed as fast leaves it nothing to close or give back ground with.
+    At ArduPlane's scale (0.6 / 0.8 m/s²) the leader slowed from 25.6 m/s after its
+    takeoff as its formation turned onto the loiter route's first leg, and its wingmen,
+    matching it, ran 20–30 m through their slots (the straight legs after the takeoff 6.3
+    m RMS; with the share, 4.5 m)."""
+    if max(lim.accel, lim.decel) <= FOLLOWED_ACCEL_M_S2:
+        return LEADER_SPEED_CHANGE_SHARE
+    return 1.0
+
+
+@njit(cache=True)
 def leader_limits(lim: KernelLimits, target_inside_turn: bool = False) -> KernelLimits:
     """The limits the leader follows its target with: its climb and dive angles kept to
-    ``LEADER_PATH_ANGLE_SHARE`` of the airframe's where those bind (``airframe_limited``).
+    ``LEADER_PATH_ANGLE_SHARE`` of the airframe's where those bind (``airframe_limited``),
+    its accel and decel to ``leader_speed_share`` of them.
 
     The slots lie in the leader's climbing frame (Eq. 6): climbing at θ₀, a slot 300 m
     behind it is 300 sin θ₀ below it.  A wingman below its slot while the leader climbs at
@@ -184,7 +208,26 @@ def leader_limits(lim: KernelLimits, target_inside_turn: bool = False) -> Kernel
     yaw_rate = lim.max_yaw_rate
     if not target_inside_turn:
         yaw_rate = min(lim.max_yaw_rate, lim.leader_turn_rate)
-    return with_turn_limits(lim, lim.max_pitch_rate, yaw_rate, climb, dive)
+    turned = with_turn_limits(lim, lim.max_pitch_rate, yaw_rate, climb, dive)
+    share = leader_speed_share(lim)
+    return KernelLimits(
+        turned.v_min,
+        turned.v_max,
+        turned.accel * share,
+        turned.decel * share,
+        turned.max_pitch_rate,
+        turned.max_yaw_rate,
+        turned.target_accuracy,
+        turned.safe_distance_uav,
+        turned.safe_distance_obstacle,
+        turned.ground,
+        turned.max_climb_angle,
+        turned.max_dive_angle,
+        turned.leader_cruise_speed,
+        turned.leader_turn_rate,
+        turned.course_frame,
+        turned.leader_keep_out_pad,
+    )
 
 
 @njit(cache=True)
@@ -271,33 +314,53 @@ def braking_speed(leader_speed: float, distance: float, accel: float) -> float:
 
 
 @njit(cache=True)
+def closing_speed_excess(distance: float, accel: float, gain: float) -> float:
+    """The speed (m/s) a wingman ``distance`` metres from its local target point keeps over
+    the point's, to arrive on it at the point's speed changing speed at ``accel`` at most:
+    ``gain``·d near the point, √(2·a·d − a²/gain²) beyond a/gain² (Eq. 21–22 from there).
+
+    Both pieces ask at most ``accel``: the relative speed g·d closes at g²·d, a at d = a/g²,
+    where the two meet in value and slope (ArduPilot's ``sqrt_controller`` shape).  The
+    smaller of g·d and √(2·a·d) asked 2a where they met (d = 2a/g²): at ArduPlane's scale
+    (a = 0.6 m/s², g = 0.3 /s) the wingman was asked 1.2 m/s² 13 m from its slot, lagged the
+    law and came through its slot 3–5 m/s off the leader's speed (the loiter route's first
+    straight leg, wingmen overshooting 18 m, 12 m, 8 m).
+    """
+    d = max(distance, 0.0)
+    if not gain < math.inf:
+        return math.sqrt(2.0 * accel * d)
+    linear_m = accel / (gain * gain)
+    if d <= linear_m:
+        return gain * d
+    return math.sqrt(2.0 * accel * d - accel * linear_m)
+
+
+@njit(cache=True)
 def catching_up_speed(leader_speed: float, distance: float, decel: float, gain: float) -> float:
     """Speed from which a wingman ``distance`` metres from its local target point (the
     point not behind it) can just match the leader's speed there: Eq. 21–23 relative to
-    the moving point.
+    the moving point (``closing_speed_excess``).
 
     The point moves at v_0, so the wingman closes on it at v_i − v_0, and Eq. 22 with that
     closing speed, Δd' = (v_i − v_0)Δt' − a_iΔt'²/2 with Δt' = (v_i − v_0)/a_i (Eq. 21), is
     (v_i − v_0)²/2a_i: Eq. 23 brakes once d_i ≤ Δd', so v_i ≤ v_0 + √(2·a_i·d_i).  Near
-    the point the excess is at most ``gain``·d_i (the wingman's other corrections settle
-    in 1/ω too), so that the speed does not jump by √(2·a·d) over the last metres.  As
+    the point the excess is ``gain``·d_i (the wingman's other corrections settle in 1/ω
+    too), so that the speed does not jump by √(2·a·d) over the last metres.  As
     printed (``braking_speed``), Eq. 22 counts the wingman's own distance in the ICS and
     brakes from v_i² − v_0² = 2a_iΔd': 20 m behind at ArduPlane's 16 m/s and 0.8 m/s² it
     closed at 1 m/s, 15 s for the last 10 m.
     """
-    d = max(distance, 0.0)
-    return leader_speed + min(math.sqrt(2.0 * decel * d), gain * d)
+    return leader_speed + closing_speed_excess(distance, decel, gain)
 
 
 @njit(cache=True)
 def falling_back_speed(leader_speed: float, distance: float, accel: float, gain: float) -> float:
     """Speed at which a wingman ``distance`` metres ahead of its local target point gives
     the ground back and just matches the leader's speed there (where the paper is silent):
-    ``catching_up_speed`` the other way, v_0 − min(√(2·a·d), ``gain``·d), with the
+    ``catching_up_speed`` the other way, v_0 less ``closing_speed_excess`` with the
     acceleration a that restores its speed.
     """
-    d = max(distance, 0.0)
-    return max(leader_speed - min(math.sqrt(2.0 * accel * d), gain * d), 0.0)
+    return max(leader_speed - closing_speed_excess(distance, accel, gain), 0.0)
 
 
 @njit(cache=True)

@@ -32,6 +32,7 @@ from gcs_ppf.planning.ppf.kernel import (
     airframe_limited,
     inside_turn,
     leader_limits,
+    leader_speed_share,
     limit_climb,
     passing_limits,
 )
@@ -138,7 +139,7 @@ def _formation(
     straight_ahead = (to_g**2).sum(1) <= 2.0 * along**2  # within 45° of ahead of the slot
     ahead = -along[out & ~waits & straight_ahead]  # flying the leader's way
     gain = min(lim.max_pitch_rate, lim.max_yaw_rate)
-    give_back = np.minimum(np.sqrt(2.0 * lim.accel * ahead), gain * ahead)
+    give_back = _closing_excess(ahead, lim.accel, gain)
     wait_speed = min(lim.v_min + float(give_back.max(initial=0.0)), lim.v_max)
     return Formation(g, to_g, wingman, formed, along, wait_speed if waits.any() else 0.0)
 
@@ -596,9 +597,9 @@ def _speed_trend(
     )
     v_slot = np.sqrt((slot_vel**2).sum(1))
     behind = np.maximum(along, 0.0)
-    v_ahead = v_slot + np.minimum(np.sqrt(2 * lim.decel * behind), gain * behind)  # Eq. 21–23
+    v_ahead = v_slot + _closing_excess(behind, lim.decel, gain)  # Eq. 21–23
     ahead = np.maximum(-along, 0.0)
-    v_behind = np.maximum(v_slot - np.minimum(np.sqrt(2 * lim.accel * ahead), gain * ahead), 0)
+    v_behind = np.maximum(v_slot - _closing_excess(ahead, lim.accel, gain), 0)
     slant = np.maximum(a.u @ a.u[0], 0.5)  # the angle flown to the leader's track
     v_cmd = np.where(along >= 0, v_ahead, v_behind) / slant
     brake = follow & (along >= 0) & ~f.formed & (speed >= v_cmd)
@@ -606,6 +607,15 @@ def _speed_trend(
     a_cmd = np.where(v_cmd >= speed, lim.accel, lim.decel)
     braked: FloatArray = np.where(follow, np.clip((v_cmd - speed) / (a_cmd * dt), -1, 1), f_speed)
     return braked
+
+
+def _closing_excess(distance: FloatArray, accel: float, gain: float) -> FloatArray:
+    """The kernel's ``closing_speed_excess`` for every distance at once."""
+    d = np.maximum(distance, 0.0)
+    linear_m = accel / (gain * gain)
+    root = np.sqrt(np.maximum(2.0 * accel * d - accel * linear_m, 0.0))
+    out: FloatArray = np.where(d <= linear_m, gain * d, root)
+    return out
 
 
 def _kinematics(
@@ -621,11 +631,12 @@ def _kinematics(
     dt: float,
     yaw_rate: FloatArray,
     pitch_rate: FloatArray,
+    speed_share: FloatArray,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Eq. 3–5: the new speed, pitch and yaw within their limits (``yaw_rate`` and
-    ``pitch_rate`` [N] each vehicle's ω_ψ and ω_θ), and one step of flight; inactive
-    vehicles keep theirs."""
-    a_l = np.where(f_speed > 0, lim.accel, lim.decel)
+    ``pitch_rate`` [N] each vehicle's ω_ψ and ω_θ, ``speed_share`` [N] the share of accel
+    and decel it changes speed at), and one step of flight; inactive vehicles keep theirs."""
+    a_l = np.where(f_speed > 0, lim.accel, lim.decel) * speed_share
     new_speed = np.clip(speed + f_speed * a_l * dt, lim.v_min, lim.v_max)
     new_pitch = np.clip(pitch + f_pitch * pitch_rate * dt, -math.pi / 2, math.pi / 2)
     new_yaw = yaw + f_yaw * yaw_rate * dt
@@ -757,7 +768,22 @@ def reference_step(
     if leader_turn != 0.0:  # the leader decides first; its wingmen lead its turn
         r, along_field, f_pitch, f_yaw, yaw_rate, pitch_rate, state = steered(leader_turn)
     f_speed = _speed_trend(along_field, pos, aim, speed, a, f, r, state, lim, dt, leader_turn)
+    speed_share = np.ones(pos.shape[0])
+    if not (r.rep[0] != 0).any() or _whole(r, lim):  # the leader (``leader_limits``)
+        speed_share[0] = leader_speed_share(lim)
     new = _kinematics(
-        pos, pitch, yaw, speed, active, f_speed, f_pitch, f_yaw, lim, dt, yaw_rate, pitch_rate
+        pos,
+        pitch,
+        yaw,
+        speed,
+        active,
+        f_speed,
+        f_pitch,
+        f_yaw,
+        lim,
+        dt,
+        yaw_rate,
+        pitch_rate,
+        speed_share,
     )
     return (*new, state)

@@ -199,15 +199,19 @@ def _held_leader(start_m_s: float, range_m_s: tuple[float, float]) -> FloatArray
 
 
 def test_a_held_leader_slower_than_its_inner_slot_can_follow_speeds_up_into_the_range() -> None:
-    """The loiter route on a lossy link: held at 19 m/s, the inner slot flew 15.5 < v_min."""
+    """The loiter route on a lossy link: held at 19 m/s, the inner slot flew 15.5 < v_min.
+    The range is kept ``HOLD_RESERVE_M_S`` inside at each end: held at 24.5 m/s, the top of
+    the U-turn route's range, the outer slot flew at v_max and its wingman fell 18 m behind."""
     held = _held_leader(19.0, (19.5, 24.5))
-    assert held[0] == 19.0
-    assert held[-1] == pytest.approx(19.5)  # up to the range, no further
     t = _formation([3.0, 5.0]).speed_plan_t_s
     assert t is not None
+    assert held[0] == 19.0
+    assert held[-1] == pytest.approx(min(19.0 + 0.6 * t[-1], 19.5 + HOLD_RESERVE_M_S))
+    assert _held_leader(21.0, (19.5, 24.5))[-1] == pytest.approx(19.5 + HOLD_RESERVE_M_S)
     assert np.all(np.diff(held) <= 0.6 * np.diff(t) + 1e-9)  # at accel
-    assert _held_leader(25.0, (19.5, 24.5))[-1] == pytest.approx(24.5)  # down to it
-    assert np.all(_held_leader(21.0, (19.5, 24.5)) == 21.0)  # within it: kept
+    assert _held_leader(23.0, (19.5, 24.5))[-1] == pytest.approx(24.5 - HOLD_RESERVE_M_S)
+    assert np.all(_held_leader(22.0, (19.5, 24.5)) == 22.0)  # within it: kept
+    assert _held_leader(19.0, (20.0, 21.0))[-1] == pytest.approx(20.5)  # narrow: its middle
 
 
 def test_only_missions_at_arduplanes_scale_are_flown_from_the_reference() -> None:

@@ -194,8 +194,26 @@ def test_near_the_slot_the_speed_laws_are_linear_and_meet_at_the_leaders_speed()
     assert falling_back_speed(100.0, 0.0, 10.0, gain) == 100.0
     assert catching_up_speed(100.0, 2.0, 40.0, gain) == pytest.approx(100.0 + 2.0 * gain)
     assert falling_back_speed(100.0, 2.0, 10.0, gain) == pytest.approx(100.0 - 2.0 * gain)
-    # Far from it, the ground given back is what the acceleration can take back.
-    assert falling_back_speed(100.0, 500.0, 10.0, gain) == pytest.approx(100.0 - 100.0)
+    # Far from it, the ground given back is what the acceleration can take back from the
+    # end of the linear piece (a/g² out, at a/g): v² = (a/g)² + 2·a·(d − a/g²).
+    linear_m = 10.0 / gain**2
+    far = math.sqrt((10.0 / gain) ** 2 + 2 * 10.0 * (500.0 - linear_m))
+    assert falling_back_speed(100.0, 500.0, 10.0, gain) == pytest.approx(100.0 - far)
+
+
+@given(st.floats(0.1, 50.0), st.floats(0.01, 1.0), st.floats(0.0, 5000.0))
+def test_the_speed_laws_never_ask_more_than_the_acceleration(
+    accel: float, gain: float, d: float
+) -> None:
+    """Followed exactly, a wingman closing on its slot by the law's excess speed e(d) changes
+    speed at e·de/dd: never more than a, on the linear piece, the root and where they meet
+    (ArduPlane's 0.6 m/s² at 0.3 /s: min(g·d, √(2·a·d)) asked 1.2 m/s² 13 m out)."""
+    step = 1e-4 * max(d, 1.0)
+    e0 = catching_up_speed(0.0, d, accel, gain)
+    e1 = catching_up_speed(0.0, d + step, accel, gain)
+    assert e0 * (e1 - e0) / step <= accel * (1 + 1e-3)
+    v0 = 1e4  # the same excess given back ahead of the slot
+    assert v0 - falling_back_speed(v0, d, accel, gain) == pytest.approx(e0, rel=1e-9, abs=1e-9)
 
 
 def _climbing_pair(climb_angle: float) -> Scene:
