@@ -144,14 +144,16 @@ def with_turn_limits(
     max_yaw_rate: float,
     max_climb_angle: float,
     max_dive_angle: float,
+    accel: float,
+    decel: float,
 ) -> KernelLimits:
-    """``lim`` with these rates and flight-path limits (NamedTuple's ``_replace`` does not
-    compile)."""
+    """``lim`` with these rates, flight-path limits and speed changes (NamedTuple's
+    ``_replace`` does not compile)."""
     return KernelLimits(
         lim.v_min,
         lim.v_max,
-        lim.accel,
-        lim.decel,
+        accel,
+        decel,
         max_pitch_rate,
         max_yaw_rate,
         lim.target_accuracy,
@@ -208,25 +210,9 @@ def leader_limits(lim: KernelLimits, target_inside_turn: bool = False) -> Kernel
     yaw_rate = lim.max_yaw_rate
     if not target_inside_turn:
         yaw_rate = min(lim.max_yaw_rate, lim.leader_turn_rate)
-    turned = with_turn_limits(lim, lim.max_pitch_rate, yaw_rate, climb, dive)
     share = leader_speed_share(lim)
-    return KernelLimits(
-        turned.v_min,
-        turned.v_max,
-        turned.accel * share,
-        turned.decel * share,
-        turned.max_pitch_rate,
-        turned.max_yaw_rate,
-        turned.target_accuracy,
-        turned.safe_distance_uav,
-        turned.safe_distance_obstacle,
-        turned.ground,
-        turned.max_climb_angle,
-        turned.max_dive_angle,
-        turned.leader_cruise_speed,
-        turned.leader_turn_rate,
-        turned.course_frame,
-        turned.leader_keep_out_pad,
+    return with_turn_limits(
+        lim, lim.max_pitch_rate, yaw_rate, climb, dive, lim.accel * share, lim.decel * share
     )
 
 
@@ -240,7 +226,13 @@ def passing_limits(leader_lim: KernelLimits) -> KernelLimits:
     lim = leader_lim
     pitch_rate = min(lim.max_pitch_rate, lim.leader_turn_rate)
     return with_turn_limits(
-        lim, pitch_rate, lim.max_yaw_rate, lim.max_climb_angle, lim.max_dive_angle
+        lim,
+        pitch_rate,
+        lim.max_yaw_rate,
+        lim.max_climb_angle,
+        lim.max_dive_angle,
+        lim.accel,
+        lim.decel,
     )
 
 
