@@ -85,16 +85,20 @@ from gcs_ppf.planning.ppf.primitives import (
     follow_direction,
     from_vcs,
     influence_radius,
-    inside_turn,
     leader_limits,
     leader_speed_share,
     limit_climb,
     lowest_climb,
     obstacles_first,
     passing_limits,
+    reaching_turn_rate,
+    roll_in_lead,
     slot_to_ics,
     to_vcs,
     trend,
+    turn_missed_ahead,
+    turning_speed,
+    way_clear,
 )
 from gcs_ppf.planning.ppf.repulsion import (
     obstacle_repulsion,
@@ -145,7 +149,6 @@ __all__ = [
     "formation_targets",
     "from_vcs",
     "influence_radius",
-    "inside_turn",
     "kinematics",
     "leader_limits",
     "leader_speed_share",
@@ -156,6 +159,8 @@ __all__ = [
     "obstacle_repulsion",
     "obstacles_first",
     "passing_limits",
+    "reaching_turn_rate",
+    "roll_in_lead",
     "slide_along_obstacles",
     "slot_to_ics",
     "speed_trend",
@@ -166,7 +171,10 @@ __all__ = [
     "to_vcs",
     "trend",
     "trend_matrix",
+    "turn_missed_ahead",
+    "turning_speed",
     "unit_velocities",
+    "way_clear",
     "yielding_back",
 ]
 
@@ -407,13 +415,13 @@ def fleet_step(
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     leader_lim = leader_limits(
         lim,
-        inside_turn(
+        reaching_turn_rate(
             pos[0, 0],
             pos[0, 1],
             trig[0, 2],
             trig[0, 3],
             speed[0],
-            lim.leader_turn_rate,
+            lim,
             target[0],
             target[1],
         ),

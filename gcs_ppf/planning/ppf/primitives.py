@@ -137,6 +137,53 @@ def inside_turn(
     return ex * ex + ey * ey < r * r
 
 
+REACH_TIGHTER = 0.1
+"""The leader turns onto a target inside its formation's turn this fraction faster than the
+turn that just reaches it (``reaching_turn_rate``)."""
+
+
+@njit(cache=True)
+def turning_speed(speed: float, lim: KernelLimits) -> float:
+    """The speed the leader at ``speed`` turns at: its own, or the cruise speed it makes for
+    (``leader_cruise_speed``, at most v_max) if faster."""
+    return max(speed, min(lim.leader_cruise_speed, lim.v_max))
+
+
+@njit(cache=True)
+def reaching_turn_rate(
+    px: float,
+    py: float,
+    cy: float,
+    sy: float,
+    speed: float,
+    lim: KernelLimits,
+    tx: float,
+    ty: float,
+) -> float:
+    """The turn rate the leader at (px, py) heading (cos ψ, sin ψ) = (cy, sy) at ``speed``
+    turns towards the point (tx, ty) at: its formation's (``leader_turn_rate``) where that
+    turn reaches it, else the turn that does, ``REACH_TIGHTER`` faster, at its
+    ``turning_speed`` (0 where its turns are not held).
+
+    The circle tangent to its heading through a point ``a`` ahead and ``b`` to the side has
+    radius (a² + b²) / 2|b|, less than v/ω wherever ``inside_turn``.  Turned at the full
+    rate instead, the line abreast of five, pushed aside by the sphere it passes as a
+    formation, turned onto its target at 4–6°/s where its formation follows 1°/s, and its
+    outer wingman fell 115 m off its slot (flown on real ArduPlane).  At its own speed
+    rather than the one it makes for, the paper-scale leader of Table 3's route, speeding
+    up from 107 to 200 m/s in that turn, missed the target and flew a 100 s loop."""
+    rate = lim.leader_turn_rate
+    if not 0.0 < rate < math.inf:
+        return 0.0
+    v = turning_speed(speed, lim)
+    if not inside_turn(px, py, cy, sy, v, rate, tx, ty):
+        return rate
+    dx, dy = tx - px, ty - py
+    side = abs(cy * dy - sy * dx)
+    radius = (dx * dx + dy * dy) / (2.0 * side)  # side > 0 inside the turn
+    return (1.0 + REACH_TIGHTER) * v / radius
+
+
 @njit(cache=True)
 def with_turn_limits(
     lim: KernelLimits,
@@ -187,7 +234,7 @@ def leader_speed_share(lim: KernelLimits) -> float:
 
 
 @njit(cache=True)
-def leader_limits(lim: KernelLimits, target_inside_turn: bool = False) -> KernelLimits:
+def leader_limits(lim: KernelLimits, turn_rate: float = 0.0) -> KernelLimits:
     """The limits the leader follows its target with: its climb and dive angles kept to
     ``LEADER_PATH_ANGLE_SHARE`` of the airframe's where those bind (``airframe_limited``),
     its accel and decel to ``leader_speed_share`` of them.
@@ -200,16 +247,14 @@ def leader_limits(lim: KernelLimits, target_inside_turn: bool = False) -> Kernel
     ArduPlane's +20°/−25°, neither Table 2 nor Table 3 formed offline (a wingman stayed
     ~100 m below its slot through the climb).  Avoiding an obstacle, it keeps the whole
     envelope (``fleet_step``).  Its yaw rate is kept to ``leader_turn_rate``, the turn its
-    formation can follow (``gcs_ppf.planning.turns``), unless its target lies inside that
-    turn (``inside_turn``): a waypoint 500 m off a leader whose formation turns on 633 m
-    was circled for ever."""
+    formation can follow (``gcs_ppf.planning.turns``), or to ``turn_rate`` where that is
+    faster: the turn that reaches a target inside it (``reaching_turn_rate``; a waypoint
+    500 m off a leader whose formation turns on 633 m was circled for ever)."""
     climb, dive = lim.max_climb_angle, lim.max_dive_angle
     if airframe_limited(lim):
         climb = min(lim.max_climb_angle, MAX_AVOID_PITCH) * LEADER_PATH_ANGLE_SHARE
         dive = min(lim.max_dive_angle, MAX_AVOID_PITCH) * LEADER_PATH_ANGLE_SHARE
-    yaw_rate = lim.max_yaw_rate
-    if not target_inside_turn:
-        yaw_rate = min(lim.max_yaw_rate, lim.leader_turn_rate)
+    yaw_rate = min(lim.max_yaw_rate, max(lim.leader_turn_rate, turn_rate))
     share = leader_speed_share(lim)
     return with_turn_limits(
         lim, lim.max_pitch_rate, yaw_rate, climb, dive, lim.accel * share, lim.decel * share
@@ -572,3 +617,105 @@ def room_to_turn_away(
     lateral = math.sqrt(max(d2 - s * s, 0.0))
     after2 = d2 + 2.0 * travel * s + travel * travel
     return after2 + 2.0 * rho * lateral >= keep_out * (keep_out + 2.0 * rho)
+
+
+@njit(cache=True)
+def way_clear(
+    px: float,
+    py: float,
+    hx: float,
+    hy: float,
+    radius: float,
+    tx: float,
+    ty: float,
+    ox: float,
+    oy: float,
+    keep_out: float,
+) -> bool:
+    """Whether a vehicle at (px, py) heading along the horizontal unit (hx, hy), turning
+    towards the point (tx, ty) on a circle of ``radius`` until it heads at it and flying
+    straight on to it, keeps more than ``keep_out`` (plan view) from (ox, oy): the way
+    the leader flies to its target once an obstacle lets it go (``leader_limits`` gives
+    the turn).  False where that turn never heads at the point (it lies inside it).
+
+    The turn's centre C lies ``radius`` to the side of the point; it heads at the point
+    from Q, where the line from the point touches the circle (at acos(r/|T − C|) round
+    from the point's bearing from C, back against the turn).  The way is the arc from the
+    vehicle to Q and the segment from Q to the point."""
+    dx, dy = tx - px, ty - py
+    left = hx * dy - hy * dx >= 0.0
+    nx, ny = (-hy, hx) if left else (hy, -hx)
+    cx, cy = px + radius * nx, py + radius * ny
+    ux, uy = tx - cx, ty - cy
+    d = math.sqrt(ux * ux + uy * uy)
+    if d <= radius:
+        return False
+    back = math.acos(radius / d) * (-1.0 if left else 1.0)
+    bearing = math.atan2(uy, ux) + back
+    qx, qy = cx + radius * math.cos(bearing), cy + radius * math.sin(bearing)
+    # the arc: from the vehicle's bearing round C to Q's, in the turn's direction
+    start = math.atan2(py - cy, px - cx)
+    sweep = (bearing - start) if left else (start - bearing)
+    sweep = sweep % (2.0 * math.pi)
+    at = math.atan2(oy - cy, ox - cx)
+    into = ((at - start) if left else (start - at)) % (2.0 * math.pi)
+    if into <= sweep:
+        near = abs(math.sqrt((ox - cx) ** 2 + (oy - cy) ** 2) - radius)
+    else:
+        near = min(math.hypot(ox - px, oy - py), math.hypot(ox - qx, oy - qy))
+    # the segment from Q to the point
+    sx, sy = tx - qx, ty - qy
+    length2 = sx * sx + sy * sy
+    f = 0.0 if length2 == 0.0 else ((ox - qx) * sx + (oy - qy) * sy) / length2
+    f = min(max(f, 0.0), 1.0)
+    near = min(near, math.hypot(ox - qx - f * sx, oy - qy - f * sy))
+    return near > keep_out
+
+
+@njit(cache=True)
+def turn_missed_ahead(
+    px: float,
+    py: float,
+    pz: float,
+    ux: float,
+    uy: float,
+    uz: float,
+    ox: float,
+    oy: float,
+    oz: float,
+    radius: float,
+    lead: float,
+    speed: float,
+    rate: float,
+    tx: float,
+    ty: float,
+) -> bool:
+    """Whether a vehicle at (px, py, pz) flying straight along the unit (ux, uy, uz) until
+    it leaves the sphere of ``radius`` round (ox, oy, oz), and ``lead`` metres on, would
+    find the point (tx, ty) inside its turn at ``rate`` there (``inside_turn``, at
+    ``speed``): held on its course by an obstacle's influence to its edge, the leader
+    would then have to turn faster than its formation follows.  The lead is the way it
+    flies while its turn is eased in (``roll_in_lead``)."""
+    dx, dy, dz = px - ox, py - oy, pz - oz
+    along = dx * ux + dy * uy + dz * uz
+    rest = along * along - (dx * dx + dy * dy + dz * dz - radius * radius)
+    s = max(-along + math.sqrt(rest), 0.0) if rest > 0.0 else 0.0
+    s += lead
+    h = math.sqrt(ux * ux + uy * uy)
+    if h <= 0.0:
+        return False
+    return inside_turn(px + s * ux, py + s * uy, ux / h, uy / h, speed, rate, tx, ty)
+
+
+@njit(cache=True)
+def roll_in_lead(speed: float, lim: KernelLimits) -> float:
+    """The way (m) a leader at ``speed`` flies while its formation's turn is eased in: its
+    wingmen's speeds change by up to √(2aε) (the roll-in limit of
+    ``gcs_ppf.planning.turns``) at a, in √(2ε/a).  Let go just where holding on to the
+    edge of the obstacle's influence would leave its target inside the formation's turn,
+    the V of five turned in slower than that turn while it eased in, its target fell
+    inside it, and it came round on a 110° arc with a wingman 12–16 m off (real
+    ArduPlane, formation takeoff of five: in formation 63–69 % of the flight after
+    forming)."""
+    a = min(lim.accel, lim.decel)
+    return speed * math.sqrt(2.0 * lim.target_accuracy / a)

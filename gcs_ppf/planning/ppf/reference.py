@@ -30,11 +30,15 @@ from gcs_ppf.planning.ppf.kernel import (
     YIELD_BACK_TURNS,
     KernelLimits,
     airframe_limited,
-    inside_turn,
     leader_limits,
     leader_speed_share,
     limit_climb,
     passing_limits,
+    reaching_turn_rate,
+    roll_in_lead,
+    turn_missed_ahead,
+    turning_speed,
+    way_clear,
 )
 from gcs_ppf.planning.scene import BoolArray, FloatArray, IntArray
 
@@ -177,6 +181,7 @@ def _obstacle_repulsion(
     lateral = np.sqrt(np.maximum(dist**2 - s**2, 0.0))
     pad = lim.leader_keep_out_pad
     slow_refused = np.zeros(len(obs_radius), dtype=bool)  # static, a slow turn not clearing
+    released = np.zeros(len(obs_radius), dtype=bool)  # the leader's way to its target clear
     if pad > 0.0:  # the leader's whole formation keeps out, the leader turning as it follows
         slow = speed[0] / min(omega, lim.leader_turn_rate)
         steps = INFLUENCE_STEPS * speed[0] * dt
@@ -187,6 +192,17 @@ def _obstacle_repulsion(
         reach = reach + (rho[0, 0] if airframe_limited(lim) else 0.0)
         far = np.linalg.norm(target - obs_center, axis=-1) > reach
         keep[0] = np.where(far, padded, keep[0])
+        # … and lets it go where its way to the target clears the padded keep-out by a pad,
+        # if holding its course to the edge of the influence would miss the target
+        clear_by = padded + steps + pad
+        edge = np.sqrt((padded + slow) ** 2 - slow**2) + steps
+        edge = edge + (rho[0, 0] if airframe_limited(lim) else 0.0)
+        released = (
+            (u_obs == 0)
+            & far
+            & _missed_ahead(pos[0], u[0], speed[0], target, obs_center, edge, lim)
+            & _way_clear(pos[0], u[0], speed[0], target, obs_center, clear_by, lim)
+        )
         after = dist[0] ** 2 + 2.0 * steps * s[0] + steps**2
         clears = (s[0] >= 0) | (after + 2.0 * slow * lateral[0] >= own_keep * (own_keep + 2 * slow))
         turn[0] = np.where((u_obs == 0) & clears & far, slow, turn[0])
@@ -196,6 +212,7 @@ def _obstacle_repulsion(
     if airframe_limited(lim):
         radius = radius + rho  # room for a half turn (the kernel's half_turn)
     inside = (dist <= radius) & (dist > 0)
+    inside[0] &= ~released
     rep = EPSILON_1 * (_unit(d_obs) * inside[..., None]).sum(1)
     moving = (inside & (u_obs[None] > 0)).any(1)
     hand_back = HAND_BACK_TURNS * AVOIDANCE_TURN_ANGLE * rho  # (the kernel's ``hand_back``)
@@ -223,6 +240,60 @@ def _obstacle_repulsion(
         rep[0], moving[0], room[0] = paper[0][0], paper[1][0], paper[2][0]
         return rep, moving, room, False
     return rep, moving, room, True
+
+
+def _missed_ahead(
+    p: FloatArray,
+    u: FloatArray,
+    speed: float,
+    target: FloatArray,
+    obs_center: FloatArray,
+    edge: FloatArray,
+    lim: KernelLimits,
+) -> BoolArray:
+    """[M] whether the leader held on its course to ``edge`` from each obstacle's centre
+    would find its target inside its formation's turn there (the kernel's
+    ``turn_missed_ahead``)."""
+    v = turning_speed(speed, lim)
+    lead = roll_in_lead(v, lim)
+    return np.array(
+        [
+            turn_missed_ahead(
+                *map(float, p), *map(float, u), *map(float, c), float(r), lead, v,
+                lim.leader_turn_rate, float(target[0]), float(target[1]),
+            )
+            for c, r in zip(obs_center, edge, strict=True)
+        ],
+        dtype=bool,
+    )  # fmt: skip
+
+
+def _way_clear(
+    p: FloatArray,
+    u: FloatArray,
+    speed: float,
+    target: FloatArray,
+    obs_center: FloatArray,
+    keep_out: FloatArray,
+    lim: KernelLimits,
+) -> BoolArray:
+    """[M] whether the leader at ``p`` flying along ``u`` keeps more than ``keep_out`` from
+    each obstacle's centre on its way to ``target`` (the kernel's ``way_clear``, turning as
+    ``leader_limits`` lets it: ``reaching_turn_rate``)."""
+    h = math.hypot(float(u[0]), float(u[1]))
+    if h <= 0.0:
+        return np.zeros(len(obs_center), dtype=bool)
+    hx, hy = float(u[0]) / h, float(u[1]) / h
+    px, py, tx, ty = float(p[0]), float(p[1]), float(target[0]), float(target[1])
+    reach = reaching_turn_rate(px, py, hx, hy, speed, lim, tx, ty)
+    radius = turning_speed(speed, lim) / min(lim.max_yaw_rate, max(lim.leader_turn_rate, reach))
+    return np.array(
+        [
+            way_clear(px, py, hx, hy, radius, tx, ty, float(c[0]), float(c[1]), float(k))
+            for c, k in zip(obs_center, keep_out, strict=True)
+        ],
+        dtype=bool,
+    )
 
 
 def _conflicts(
@@ -741,17 +812,17 @@ def reference_step(
         state = np.where(s2, S2_LOCAL_MINIMUM, S1_FOLLOW).astype(np.int64)
         yaw_rate = np.full(pos.shape[0], lim.max_yaw_rate)
         if not (r.rep[0] != 0).any() or _whole(r, lim):  # the leader (``leader_limits``)
-            inside = inside_turn(
+            reaching = reaching_turn_rate(
                 float(pos[0, 0]),
                 float(pos[0, 1]),
                 float(a.cy[0]),
                 float(a.sy[0]),
                 float(speed[0]),
-                lim.leader_turn_rate,
+                lim,
                 float(target[0]),
                 float(target[1]),
             )
-            yaw_rate[0] = leader_limits(lim, inside).max_yaw_rate
+            yaw_rate[0] = leader_limits(lim, reaching).max_yaw_rate
         f_pitch, f_yaw = _turn_trends(
             fv, d, lowest, pitch, yaw, a, r, lim, dt, yaw_rate, pitch_rate
         )

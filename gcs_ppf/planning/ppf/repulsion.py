@@ -28,7 +28,12 @@ from gcs_ppf.planning.ppf.primitives import (
     influence_radius,
     lowest_climb,
     obstacles_first,
+    reaching_turn_rate,
+    roll_in_lead,
     room_to_turn_away,
+    turn_missed_ahead,
+    turning_speed,
+    way_clear,
 )
 
 NO_CONFLICT = 0  # a teammate that does not repel
@@ -156,8 +161,13 @@ def obstacles_repelling(
     begun a few steps on still clears the obstacle's own keep-out (``room_to_turn_away``);
     elsewhere as the paper's leader.  Started inside that grown radius and closing, a
     paper-scale leader turning at its formation's 2.4°/s flew 210 m into a sphere (sweep
-    scene 98867, seed 2).  The last value returned: whether every repelling obstacle lets
-    it turn at its formation's rate (``fleet_step``'s ``whole``).
+    scene 98867, seed 2).  Where holding its course to the edge of a static obstacle's
+    influence would leave its target inside its formation's turn (``turn_missed_ahead``,
+    with the roll-in's way, ``roll_in_lead``), it lets go of the obstacle as soon as its
+    way to the target (``way_clear``: the turn onto it, ``reaching_turn_rate``, and the
+    line on) clears the padded keep-out by a pad more.  The last value returned: whether
+    every repelling obstacle lets it turn at its formation's rate (``fleet_step``'s
+    ``whole``).
     """
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     vi = speed[i]
@@ -173,6 +183,12 @@ def obstacles_repelling(
     ux, uy, uz = direction[i, 0], direction[i, 1], direction[i, 2]
     # What a vehicle giving way to a teammate first keeps in hand (``HAND_BACK_TURNS``).
     hand_back = steps + HAND_BACK_TURNS * AVOIDANCE_TURN_ANGLE * rho
+    way_radius = 0.0  # the turn the padded leader flies to its target once let go
+    h = math.sqrt(ux * ux + uy * uy)
+    if pad > 0.0 and h > 0.0:
+        onto = reaching_turn_rate(px, py, ux / h, uy / h, vi, lim, target[0], target[1])
+        rate = min(lim.max_yaw_rate, max(lim.leader_turn_rate, onto))  # (``leader_limits``)
+        way_radius = turning_speed(vi, lim) / rate
     for c in range(near_start[i], near_start[i + 1]):
         j = near_obstacles[c]
         dx = px - obs_center[j, 0]
@@ -191,6 +207,42 @@ def obstacles_repelling(
                 slow = vi / min(omega, lim.leader_turn_rate)
             padded = padding(target, obs_center, j, keep_out, pad, slow, steps + half_turn)
             keep_out += padded
+            if (  # its way to the target clear of the padded keep-out by a pad more,
+                # where holding its course to the edge of the influence would miss it
+                padded > 0.0
+                and u_max == 0.0
+                and way_radius > 0.0
+                and turn_missed_ahead(
+                    px,
+                    py,
+                    pz,
+                    ux,
+                    uy,
+                    uz,
+                    obs_center[j, 0],
+                    obs_center[j, 1],
+                    obs_center[j, 2],
+                    influence_radius(vi, vi / slow, keep_out) + steps + half_turn,
+                    roll_in_lead(turning_speed(vi, lim), lim),
+                    turning_speed(vi, lim),
+                    lim.leader_turn_rate,
+                    target[0],
+                    target[1],
+                )
+                and way_clear(
+                    px,
+                    py,
+                    ux / h,
+                    uy / h,
+                    way_radius,
+                    target[0],
+                    target[1],
+                    obs_center[j, 0],
+                    obs_center[j, 1],
+                    keep_out + steps + padded,
+                )
+            ):
+                continue
             # the leader turns as its formation can follow, where that still clears it
             if (
                 padded > 0.0

@@ -21,7 +21,14 @@ from gcs_ppf.planning.ppf.kernel import (
     crossing_point,
     falling_back_speed,
 )
-from gcs_ppf.planning.ppf.primitives import LEADER_PATH_ANGLE_SHARE, leader_limits
+from gcs_ppf.planning.ppf.primitives import (
+    LEADER_PATH_ANGLE_SHARE,
+    inside_turn,
+    leader_limits,
+    reaching_turn_rate,
+    turn_missed_ahead,
+    way_clear,
+)
 from gcs_ppf.planning.ppf.reference import _crossing
 from gcs_ppf.planning.ppf.repulsion import padding
 from gcs_ppf.planning.scene import Scene, scene_from_mission, with_margins
@@ -392,3 +399,78 @@ def test_passed_as_a_formation_the_leader_pitches_no_faster_than_its_formation_t
     pitch_rate = np.abs(np.diff(tr.pitch[:, 0])) / np.diff(tr.t)
     assert pitch_rate[passing].max() <= scene.limits.leader_turn_rate * (1 + 1e-6)
     assert pitch_rate[passing].max() > 0.5 * scene.limits.leader_turn_rate  # it does pitch
+
+
+def test_a_target_inside_the_formations_turn_is_turned_onto_just_faster_than_reaches_it() -> None:
+    """The V of five turns on 1,265 m (1°/s at 21.9 m/s); a target 300 m ahead and 800 m to
+    the side lies inside that turn.  The leader turns onto it 10 % faster than the circle
+    through it (radius (a² + b²) / 2|b| = 456 m), not at the airframe's 17°/s; a target
+    outside keeps the formation's rate, and a leader whose turns are not held gets none."""
+    mission = load_mission_file(EXAMPLES / "arduplane_5.json")
+    lim = scene_from_mission(mission).limits
+    v, held = lim.leader_cruise_speed, lim.leader_turn_rate
+    rate = reaching_turn_rate(0.0, 0.0, 1.0, 0.0, v, lim, 300.0, 800.0)
+    assert rate == pytest.approx(1.1 * v / ((300.0**2 + 800.0**2) / 1600.0))
+    assert held < rate < lim.max_yaw_rate
+    assert not inside_turn(0.0, 0.0, 1.0, 0.0, v, rate, 300.0, 800.0)  # it reaches it
+    assert inside_turn(0.0, 0.0, 1.0, 0.0, v, rate / 1.2, 300.0, 800.0)  # slower does not
+    assert reaching_turn_rate(0.0, 0.0, 1.0, 0.0, v, lim, 3000.0, 800.0) == held
+    free = lim._replace(leader_turn_rate=math.inf)
+    assert reaching_turn_rate(0.0, 0.0, 1.0, 0.0, v, free, 300.0, 800.0) == 0.0
+    # at the cruise speed it makes for, if it is slower now
+    assert reaching_turn_rate(0.0, 0.0, 1.0, 0.0, v - 5.0, lim, 300.0, 800.0) == rate
+
+
+def test_the_way_to_a_target_is_the_turn_onto_it_then_the_line() -> None:
+    """``way_clear``: heading north from the origin, a turn of 500 m onto a target 2 km
+    east keeps 500 m from the turn's centre (500, 0) and leaves the circle where the line
+    to the target touches it, at (667, 471) (acos(1/3) round from the target's bearing);
+    a point on the arc, or on that line, is not clear; one behind the vehicle is; a
+    target inside the turn is never headed at."""
+    assert way_clear(0.0, 0.0, 0.0, 1.0, 500.0, 2000.0, 0.0, 500.0, 0.0, 400.0)
+    assert not way_clear(0.0, 0.0, 0.0, 1.0, 500.0, 2000.0, 0.0, 500.0, 450.0, 100.0)
+    assert not way_clear(0.0, 0.0, 0.0, 1.0, 500.0, 2000.0, 0.0, 1333.0, 236.0, 10.0)
+    assert way_clear(0.0, 0.0, 0.0, 1.0, 500.0, 2000.0, 0.0, 1333.0, 336.0, 90.0)
+    assert way_clear(0.0, 0.0, 0.0, 1.0, 500.0, 2000.0, 0.0, -300.0, 0.0, 250.0)
+    assert not way_clear(0.0, 0.0, 0.0, 1.0, 500.0, 200.0, 100.0, 0.0, -5000.0, 10.0)
+    # straight on to a target ahead: clear by the point's distance from the line
+    assert way_clear(0.0, 0.0, 0.0, 1.0, 500.0, 0.0, 1000.0, 200.0, 500.0, 150.0)
+    assert not way_clear(0.0, 0.0, 0.0, 1.0, 500.0, 0.0, 1000.0, 100.0, 500.0, 150.0)
+
+
+def test_held_to_the_edge_of_an_influence_a_target_can_fall_inside_the_turn() -> None:
+    """``turn_missed_ahead``: heading north from the origin inside a sphere of 1 km round
+    (0, 500, 0), the vehicle leaves it at (0, 1500); a target 300 m east of that point
+    lies inside a 1 km turn there, one 2.5 km east does not, nor one 2 km beyond it
+    unless the vehicle looks 1.5 km further on; outside the sphere the point is the
+    vehicle's own."""
+    args = (0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 500.0, 0.0, 1000.0, 0.0, 20.0, 0.02)
+    assert turn_missed_ahead(*args, 300.0, 1500.0)
+    assert not turn_missed_ahead(*args, 2500.0, 1500.0)
+    assert not turn_missed_ahead(*args, 300.0, 3500.0)  # far ahead: reached
+    led = (0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 500.0, 0.0, 1000.0, 1500.0, 20.0, 0.02)
+    assert turn_missed_ahead(*led, 300.0, 3000.0)  # 1.5 km further on, it would be
+    outside = (0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, -5000.0, 0.0, 1000.0, 0.0, 20.0, 0.02)
+    assert turn_missed_ahead(*outside, 300.0, 0.0)
+    assert not turn_missed_ahead(*outside, 300.0, 1500.0)
+
+
+@pytest.mark.parametrize(
+    ("name", "share_min", "gap_before"),
+    [("arduplane_5", 0.85, 93.5), ("arduplane_formation_takeoff_5", 0.82, 98.0),
+     ("arduplane_3", 0.96, 133.9), ("arduplane_formation_takeoff_3", 0.94, 133.9)],
+)  # fmt: skip
+def test_passed_as_a_formation_the_leader_turns_back_once_its_way_is_clear(
+    name: str, share_min: float, gap_before: float
+) -> None:
+    """Repelled until it left the padded keep-out's influence radius (1.17 km at the V of
+    five's turn), the leader flew 1.2 km aside and its target then lay inside its
+    formation's turn.  Let go once its way to the target clears the padded keep-out by a
+    pad more, where holding on would miss the target, the V of five is in formation 0.86
+    and 0.83 of the flight after forming (planned the same way before: 0.67 and 0.67); the
+    three-vehicle formations, whose target lies outside their turn at the edge, hold on
+    as before and keep their 0.97 and 0.95; no two vehicles come nearer than before
+    (``gap_before``, m)."""
+    share, gap = _planned_share(json.loads((EXAMPLES / f"{name}.json").read_text()), "leader")
+    assert share >= share_min
+    assert gap >= gap_before
