@@ -256,16 +256,19 @@ def _missed_ahead(
     ``turn_missed_ahead``)."""
     v = turning_speed(speed, lim)
     lead = roll_in_lead(v, lim)
-    return np.array(
-        [
+    px, py, pz = (float(x) for x in p)
+    ux, uy, uz = (float(x) for x in u)
+    tx, ty = float(target[0]), float(target[1])
+    missed = [
+        bool(
             turn_missed_ahead(
-                *map(float, p), *map(float, u), *map(float, c), float(r), lead, v,
-                lim.leader_turn_rate, float(target[0]), float(target[1]),
+                px, py, pz, ux, uy, uz, float(c[0]), float(c[1]), float(c[2]), float(r),
+                lead, v, lim.leader_turn_rate, tx, ty,
             )
-            for c, r in zip(obs_center, edge, strict=True)
-        ],
-        dtype=bool,
-    )  # fmt: skip
+        )
+        for c, r in zip(obs_center, edge, strict=True)
+    ]  # fmt: skip
+    return np.array(missed, dtype=np.bool_)
 
 
 def _way_clear(
