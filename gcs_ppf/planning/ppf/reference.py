@@ -289,7 +289,7 @@ def _way_clear(
     hx, hy = float(u[0]) / h, float(u[1]) / h
     px, py, tx, ty = float(p[0]), float(p[1]), float(target[0]), float(target[1])
     reach = reaching_turn_rate(px, py, hx, hy, speed, lim, tx, ty)
-    radius = turning_speed(speed, lim) / min(lim.max_yaw_rate, max(lim.leader_turn_rate, reach))
+    radius = turning_speed(speed, lim) / leader_limits(lim, reach).max_yaw_rate
     return np.array(
         [
             way_clear(px, py, hx, hy, radius, tx, ty, float(c[0]), float(c[1]), float(k))

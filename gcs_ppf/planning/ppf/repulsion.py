@@ -26,6 +26,7 @@ from gcs_ppf.planning.ppf.primitives import (
     airframe_limited,
     closing_speed,
     influence_radius,
+    leader_limits,
     lowest_climb,
     obstacles_first,
     reaching_turn_rate,
@@ -124,6 +125,46 @@ def obstacle_repulsion(
 
 
 @njit(cache=True, inline="always")
+def lets_go(
+    p: np.ndarray,
+    u: np.ndarray,
+    center: np.ndarray,
+    keep_out: float,
+    pad: float,
+    slow: float,
+    steps: float,
+    half_turn: float,
+    speed: float,
+    lim: KernelLimits,
+    target: np.ndarray,
+) -> bool:
+    """Whether the padded leader at ``p`` flying along ``u`` lets go of the static obstacle
+    at ``center`` (``keep_out`` its keep-out with the ``pad``): where holding its course to
+    the edge of the obstacle's influence (at its formation's turn radius ``slow``, a few
+    ``steps`` and a ``half_turn`` more) would leave its target inside its formation's turn
+    (``turn_missed_ahead``, with the roll-in's way, ``roll_in_lead``), once its way to the
+    target (``way_clear``: the turn onto it ``leader_limits`` gives, the line on) clears the
+    padded keep-out by a pad more."""
+    h = math.sqrt(u[0] * u[0] + u[1] * u[1])
+    if h <= 0.0:
+        return False
+    v = turning_speed(speed, lim)
+    edge = influence_radius(speed, speed / slow, keep_out) + steps + half_turn
+    if not turn_missed_ahead(
+        p[0], p[1], p[2], u[0], u[1], u[2], center[0], center[1], center[2], edge,
+        roll_in_lead(v, lim), v, lim.leader_turn_rate, target[0], target[1],
+    ):  # fmt: skip
+        return False
+    hx, hy = u[0] / h, u[1] / h
+    onto = reaching_turn_rate(p[0], p[1], hx, hy, speed, lim, target[0], target[1])
+    radius = v / leader_limits(lim, onto).max_yaw_rate
+    return way_clear(
+        p[0], p[1], hx, hy, radius, target[0], target[1], center[0], center[1],
+        keep_out + steps + pad,
+    )  # fmt: skip
+
+
+@njit(cache=True, inline="always")
 def obstacles_repelling(
     i: int,
     pos: np.ndarray,
@@ -162,12 +203,10 @@ def obstacles_repelling(
     elsewhere as the paper's leader.  Started inside that grown radius and closing, a
     paper-scale leader turning at its formation's 2.4°/s flew 210 m into a sphere (sweep
     scene 98867, seed 2).  Where holding its course to the edge of a static obstacle's
-    influence would leave its target inside its formation's turn (``turn_missed_ahead``,
-    with the roll-in's way, ``roll_in_lead``), it lets go of the obstacle as soon as its
-    way to the target (``way_clear``: the turn onto it, ``reaching_turn_rate``, and the
-    line on) clears the padded keep-out by a pad more.  The last value returned: whether
-    every repelling obstacle lets it turn at its formation's rate (``fleet_step``'s
-    ``whole``).
+    influence would leave its target inside its formation's turn, it lets go of the
+    obstacle as soon as its way to the target clears the padded keep-out by a pad more
+    (``lets_go``).  The last value returned: whether every repelling obstacle lets it turn
+    at its formation's rate (``fleet_step``'s ``whole``).
     """
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     vi = speed[i]
@@ -183,12 +222,6 @@ def obstacles_repelling(
     ux, uy, uz = direction[i, 0], direction[i, 1], direction[i, 2]
     # What a vehicle giving way to a teammate first keeps in hand (``HAND_BACK_TURNS``).
     hand_back = steps + HAND_BACK_TURNS * AVOIDANCE_TURN_ANGLE * rho
-    way_radius = 0.0  # the turn the padded leader flies to its target once let go
-    h = math.sqrt(ux * ux + uy * uy)
-    if pad > 0.0 and h > 0.0:
-        onto = reaching_turn_rate(px, py, ux / h, uy / h, vi, lim, target[0], target[1])
-        rate = min(lim.max_yaw_rate, max(lim.leader_turn_rate, onto))  # (``leader_limits``)
-        way_radius = turning_speed(vi, lim) / rate
     for c in range(near_start[i], near_start[i + 1]):
         j = near_obstacles[c]
         dx = px - obs_center[j, 0]
@@ -202,47 +235,12 @@ def obstacles_repelling(
         )
         turn = rho
         slow = rho
+        padded = 0.0
         if pad > 0.0:  # the leader's whole formation keeps out, where its target is not
             if u_max == 0.0:
                 slow = vi / min(omega, lim.leader_turn_rate)
             padded = padding(target, obs_center, j, keep_out, pad, slow, steps + half_turn)
             keep_out += padded
-            if (  # its way to the target clear of the padded keep-out by a pad more,
-                # where holding its course to the edge of the influence would miss it
-                padded > 0.0
-                and u_max == 0.0
-                and way_radius > 0.0
-                and turn_missed_ahead(
-                    px,
-                    py,
-                    pz,
-                    ux,
-                    uy,
-                    uz,
-                    obs_center[j, 0],
-                    obs_center[j, 1],
-                    obs_center[j, 2],
-                    influence_radius(vi, vi / slow, keep_out) + steps + half_turn,
-                    roll_in_lead(turning_speed(vi, lim), lim),
-                    turning_speed(vi, lim),
-                    lim.leader_turn_rate,
-                    target[0],
-                    target[1],
-                )
-                and way_clear(
-                    px,
-                    py,
-                    ux / h,
-                    uy / h,
-                    way_radius,
-                    target[0],
-                    target[1],
-                    obs_center[j, 0],
-                    obs_center[j, 1],
-                    keep_out + steps + padded,
-                )
-            ):
-                continue
             # the leader turns as its formation can follow, where that still clears it
             if (
                 padded > 0.0
@@ -259,7 +257,16 @@ def obstacles_repelling(
         )
         radius = influence_radius(vi, vi / turn, keep_out) + steps
         radius += closing * AVOIDANCE_TURN_ANGLE / omega + half_turn
-        if d <= radius and d > 0.0:
+        if (
+            d <= radius
+            and d > 0.0
+            and not (  # the padded leader let go (``lets_go``)
+                padded > 0.0
+                and u_max == 0.0
+                and lets_go(pos[i], direction[i], obs_center[j], keep_out, padded, slow,
+                            steps, half_turn, vi, lim, target)
+            )
+        ):  # fmt: skip
             formation_turn = formation_turn and turn == slow
             rx += EPSILON_1 * dx / d
             ry += EPSILON_1 * dy / d
