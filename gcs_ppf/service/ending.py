@@ -105,19 +105,24 @@ async def hold(station: Station, run: Run, states: dict[int, VehicleState], stac
 
 
 def _plan(
-    station: Station, run: Run, states: dict[int, VehicleState], stacked: bool, heard: set[int]
+    station: Station,
+    run: Run,
+    states: dict[int, VehicleState],
+    stacked: bool,
+    heard: set[int],
+    floor_z_m: float = -math.inf,
 ) -> commanding.HoldPlan:
-    """``commanding.hold_plan`` for the run's vehicles as the fleet reports them; after a
-    completion whose mission ends in RTL, its stack over every keep-out
-    (``failsafe.return_floor_m``)."""
+    """``commanding.hold_plan`` for the run's vehicles as the fleet reports them, the stack
+    from ``floor_z_m`` up; after a completion whose mission ends in RTL, over every
+    keep-out (``failsafe.return_floor_m``)."""
     airframes = {
         vid: Airframe.from_telemetry(v.telemetry) for vid, v in station.fleet.by_id.items()
     }
-    floor = -math.inf
+    floor = floor_z_m
     if stacked and run.mission.at_end == "rtl":  # levels to fly home at
         homes = returning.home_heights(station, run)
         if homes:
-            floor = failsafe.return_floor_m(run.mission, homes, run.mission_time_s)
+            floor = max(floor, failsafe.return_floor_m(run.mission, homes, run.mission_time_s))
     return commanding.hold_plan(
         run.orders,
         states,
@@ -164,9 +169,12 @@ async def send_once(station: Station, run: Run, orders: list[confirmation.Order]
                 await station.fleet.send(o.vehicle_id, o.make())
 
 
-async def hold_during_launch(station: Station, run: Run, states: dict[int, VehicleState]) -> None:
+async def hold_during_launch(
+    station: Station, run: Run, states: dict[int, VehicleState], floor_z_m: float = -math.inf
+) -> None:
     """While some vehicles take off, the ones already flying (``states``) hold on circles
-    (``commanding.hold_plan``: clear of every obstacle, stacked above the highest), flown
+    (``commanding.hold_plan``: clear of every obstacle, stacked above the highest and from
+    ``floor_z_m`` up), flown
     by the service under run-time assurance with the vehicles taking off as traffic
     (``fly``, launching) until the launch is done and this is cancelled; then the circles
     are sent once (the run commands the vehicles at its first tick).  Sent to the
@@ -174,6 +182,6 @@ async def hold_during_launch(station: Station, run: Run, states: dict[int, Vehic
     each other on their way to them while wingman 2 took off (×5, 300 ms, 20 % loss, a CPU
     burner per core; 1 of 20 runs).  If flying them fails, the circles are handed over and
     confirmed at once."""
-    plan = _plan(station, run, states, False, set(states))
+    plan = _plan(station, run, states, False, set(states), floor_z_m)
     if not await fly(station, run, plan, launching=True):
         await _confirm(station, run, plan.orders)

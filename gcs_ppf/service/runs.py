@@ -53,6 +53,7 @@ class FormationService:
         self._runs: dict[int, Run] = {}  # mission id → its current or last run
         self._subscribers: set[asyncio.Queue[dict[str, Any]]] = set()
         self._tasks: asyncio.TaskGroup | None = None
+        self._spawned: set[asyncio.Task[Any]] = set()  # ``_spawn``'s, until done
         self._kernels: asyncio.Task[None] | None = None  # loading them (``running``)
         self._station = Station(
             settings,
@@ -109,6 +110,10 @@ class FormationService:
                     self.fleet.forwarding.close()
                 for task in background:
                     task.cancel()
+                # The links closed, nothing still being sent arrives: waiting for a
+                # parameter's retries to run out held a stop 5 s.
+                for task in list(self._spawned):
+                    task.cancel()
                 self._tasks = None
 
     async def _hand_over_holds(self) -> None:
@@ -147,7 +152,10 @@ class FormationService:
     def _spawn(self, coro: Any) -> asyncio.Task[Any]:
         if self._tasks is None:
             raise ServiceError("the service is not running")
-        return self._tasks.create_task(coro)
+        task = self._tasks.create_task(coro)
+        self._spawned.add(task)
+        task.add_done_callback(self._spawned.discard)
+        return task
 
     # Links -----------------------------------------------------------------------------
     async def add_link(self, url: str, *, allow_unsigned: bool | None = None) -> dict[str, Any]:

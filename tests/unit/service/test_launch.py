@@ -19,8 +19,8 @@ from gcs_ppf.mavlink.telemetry import ArmingReason, CommandAck, ParamValue, Vehi
 from gcs_ppf.mission import Mission, Origin, load_mission_file
 from gcs_ppf.planning.scene import Obstacles, obstacles_from_mission
 from gcs_ppf.service import launch
-from gcs_ppf.service.flight import clear_ahead
 from gcs_ppf.service.launch import CommandFailed, Retry
+from gcs_ppf.service.launch_wait import clear_ahead
 from tests.conftest import EXAMPLES
 
 pytestmark = pytest.mark.realtime  # acks and retries in wall time (0.1 s)
