@@ -102,10 +102,10 @@ bench: install
 
 # The reduced closed-loop campaign (Table 3 at x10 and on a lossy link, observer-checked),
 # the service killed mid-run, the vehicles' fences, a radio unplugged, five vehicles on one
-# UDP port: nine flights, too slow for `make test`.
+# UDP port, a loiter at a waypoint flown in formation: too slow for `make test`.
 campaign-check: install
 	$(VENV)/bin/pytest -m campaign tests/integration/test_campaign.py tests/integration/test_crash_recovery.py tests/integration/test_fences.py tests/integration/test_serial.py \
-		tests/integration/test_service_sitl.py
+		tests/integration/test_service_sitl.py tests/integration/test_routes.py
 
 # MAVProxy beside the service (tests/integration/test_mavproxy.py), from PyPI into a venv of
 # its own: it pulls OpenCV, matplotlib and more, too heavy for the project's.
