@@ -133,7 +133,7 @@ class LaunchWait:
         """The lowest a hold may be: a stack level (``commanding.stack_spacing_m``) over the
         takeoff altitude of every vehicle not held (its home and the TKOFF_ALT set), which
         climbs out and flies on level there: held at its own height, the leader came to
-        49.3 m of a wingman climbing out late below it on a lossy link."""
+        42.1 m of a wingman climbing out late below it on a lossy link."""
         takeoff_m = self.station.settings.takeoff_alt_m
         homes = home_heights(self.station, self.run)
         climbs = [z + takeoff_m for vid, z in homes.items() if vid not in held]
