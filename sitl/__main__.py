@@ -75,11 +75,23 @@ def build_parser() -> argparse.ArgumentParser:
         help="parameter defaults: ArduPlane's plane.parm (arduplane), scaled to the mission's "
         "limits (mission), or arduplane when the mission's v_max is within it (auto)",
     )
-    p.add_argument(
+    start = p.add_mutually_exclusive_group()
+    start.add_argument(
         "--ground-start",
-        action="store_true",
-        help="vehicles start on the ground at their start positions, disarmed (take off in "
-        "TAKEOFF mode), instead of in the air at their start state",
+        dest="ground_start",
+        action="store_const",
+        const=True,
+        help="every vehicle starts on the ground at its start position, disarmed (takes off "
+        "in TAKEOFF mode); by default only the ArduPlane airframe's vehicles whose start is "
+        "on the ground (z <= 0) do, as ArduPlane does, the others in the air",
+    )
+    start.add_argument(
+        "--air-start",
+        dest="ground_start",
+        action="store_const",
+        const=False,
+        help="every vehicle starts in the air at its start state (position, attitude, "
+        "v_init), armed, as in the paper",
     )
     p.add_argument(
         "--serial",

@@ -19,7 +19,7 @@ from gcs_ppf.mission import Mission
 from sitl import handlers
 from sitl import messages as mb
 from sitl import streams as st
-from sitl.airframe import AirframeName
+from sitl.airframe import AirframeName, resolve
 from sitl.autopilot import Autopilot, Clock, Kinematics, Outbox
 from sitl.faults import FaultSpec, FaultState
 from sitl.mission_protocol import Transfer
@@ -65,10 +65,14 @@ def parse_param_override(text: str) -> ParamOverride:
 class Simulation:
     """A mission's vehicles flying in simulated time (starts at 0 s, steps of DT_S).
 
-    By default every vehicle spawns in the air at its start state (the paper's initial
-    state), armed, in MANUAL. With ``ground_start`` each one sits on the ground at its start
-    position instead, disarmed, in MANUAL, heading along its yaw, as an ArduPlane does after
-    boot: it flies once armed in TAKEOFF mode.
+    A vehicle spawns in the air at its start state (the paper's initial state), armed, in
+    MANUAL; or, where ``ground_start`` says so, it sits on the ground at its start position,
+    disarmed, in MANUAL, heading along its yaw, as an ArduPlane does after boot: it flies
+    once armed in TAKEOFF mode.  ``ground_start`` None (default): on the ground where the
+    airframe is ArduPlane's (``sitl.airframe.resolve``) and the start lies on the ground
+    (ICS z ≤ 0), in the air elsewhere.  Started in the air at the ground's height, an
+    ArduPlane-scale vehicle skimmed the ground at its start speed until its TAKEOFF got
+    through (700 m on a lossy link): ArduPlane never does.
     """
 
     def __init__(
@@ -80,7 +84,7 @@ class Simulation:
         faults: list[FaultSpec] | None = None,
         boot_unix_us: int = 0,
         airframe: AirframeName = "auto",
-        ground_start: bool = False,
+        ground_start: bool | None = None,
     ) -> None:
         self.mission = mission
         self.origin = mission.origin
@@ -91,15 +95,21 @@ class Simulation:
         vehicles = mission.vehicles
         n = len(vehicles)
         speeds = np.array([v.speed if v.speed is not None else lim.v_init for v in vehicles])
+        start = np.array([v.position for v in vehicles], dtype=np.float64)
+        if ground_start is None:
+            on_ground = resolve(airframe, lim) == "arduplane"
+            landed = (start[:, 2] <= 0.0) & on_ground
+        else:
+            landed = np.full(n, ground_start)
         self.state: FleetState = initial_state(
-            np.array([v.position for v in vehicles], dtype=np.float64),
+            start,
             np.array([v.pitch for v in vehicles]),
             np.array([v.yaw for v in vehicles]),
             speeds,
-            landed=np.full(n, ground_start),
+            landed=landed,
         )
         z = self.state.pos_enu_m[:, 2]
-        ground = z.copy() if ground_start else np.minimum(0.0, z)
+        ground = np.where(landed, z, np.minimum(0.0, z))
         self.env = default_envelope(
             n,
             v_min=lim.v_min,
@@ -128,8 +138,8 @@ class Simulation:
                     f.apply(fault)
             fault.noise_m = max(fault.noise_m, table["SIM_GPS_NOISE"])
             home = (float(v.position[0]), float(v.position[1]), float(ground[i]))
-            speed = 0.0 if ground_start else float(speeds[i])
-            ap = Autopilot(i, v.id, self.origin, home, table, fault, speed, not ground_start)
+            speed = 0.0 if landed[i] else float(speeds[i])
+            ap = Autopilot(i, v.id, self.origin, home, table, fault, speed, not bool(landed[i]))
             mode = mode_from_number(table["INITIAL_MODE"]) or PlaneMode.MANUAL
             ap.set_mode(mode, self.kinematics(i), self.clock(0.0), Outbox())
             self.autopilots.append(ap)

@@ -9,8 +9,9 @@ Climbed out of the formation takeoff of five, the five points lie 100 m apart ab
 0.86–1.27 km on (the sphere cuts them short), so their circles overlap; on a link losing
 20 % of its messages at 300 ms, the launch took 65 s, the others reached their points
 meanwhile, and the leader and wingman 5 came to 47.2 m of each other (safe 50 m) before the
-run began (the built-in SITL without ``--ground-start``).  A launch as quick as usual (9 s
-idle) ends before any of them gets there, and the formation takeoff keeps its shape.
+run began (the built-in SITL starting them in the air at the ground's height, as it then
+did).  A launch as quick as usual (9 s idle) ends before any of them gets there, and the
+formation takeoff keeps its shape.
 """
 
 from __future__ import annotations

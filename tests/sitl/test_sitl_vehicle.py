@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 from typing import Any
 
@@ -12,10 +13,12 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from gcs_ppf.geodesy import enu_to_geodetic
 from gcs_ppf.mavlink.ardupilot import PlaneMode
 from gcs_ppf.mavlink.enums import HEADING_TYPE_DEFAULT
-from gcs_ppf.mission import load_mission_file
+from gcs_ppf.mission import Mission, load_mission_file
+from sitl.__main__ import build_parser
 from sitl.autopilot import Outbox
 from sitl.engine import ParamOverride, Simulation
 from sitl.faults import parse_fault
+from tests.conftest import EXAMPLES
 from tests.sitl.sitl_helpers import PAPER, SLOW, TWO
 
 GCS = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
@@ -77,6 +80,34 @@ def test_spawns_armed_in_manual_at_mission_start_state() -> None:
     assert tuple(sim.state.pos_enu_m[0]) == (1500.0, 2000.0, 300.0)
     run(sim, 1.0)
     assert sim.state.pos_enu_m[0, 0] == pytest.approx(1600.0)  # straight on at 100 m/s
+
+
+def test_an_arduplane_starting_on_the_ground_sits_there_as_arduplane_does() -> None:
+    """ArduPlane-scale vehicles whose start lies on the ground start landed, disarmed, at
+    rest (ArduPlane never boots flying); one starting higher, and the paper's airframe at
+    any height, start flying as the paper's initial state; the flags choose for all."""
+    mission = load_mission_file(EXAMPLES / "arduplane_3.json")
+    sim = Simulation(mission)
+    assert sim.state.landed.all()
+    assert not any(ap.armed for ap in sim.autopilots)
+    run(sim, 2.0)
+    assert np.allclose(sim.state.pos_enu_m, [v.position for v in mission.vehicles])
+    doc = json.loads((EXAMPLES / "arduplane_3.json").read_text())
+    doc["vehicles"][1]["position"][2] = 120.0
+    mixed = Simulation(Mission.model_validate(doc))
+    assert mixed.state.landed.tolist() == [True, False, True]
+    assert mixed.autopilots[1].armed
+    assert not Simulation(mission, ground_start=False).state.landed.any()
+    paper = load_mission_file(EXAMPLES / "paper_table3.json")
+    assert 0.0 in [v.position[2] for v in paper.vehicles]
+    assert not Simulation(paper).state.landed.any()
+    assert Simulation(paper, ground_start=True).state.landed.all()
+    parser = build_parser()
+    assert parser.parse_args(["m.json"]).ground_start is None
+    assert parser.parse_args(["m.json", "--ground-start"]).ground_start is True
+    assert parser.parse_args(["m.json", "--air-start"]).ground_start is False
+    with pytest.raises(SystemExit):
+        parser.parse_args(["m.json", "--air-start", "--ground-start"])
 
 
 def test_reposition_needs_command_int_and_change_mode_flag() -> None:
