@@ -16,6 +16,7 @@ from numba import njit
 
 from gcs_ppf.planning.ppf.primitives import (
     AVOIDANCE_TURN_ANGLE,
+    REACH_TIGHTER,
     S3_FORMATION,
     KernelLimits,
     catching_up_speed,
@@ -27,6 +28,9 @@ from gcs_ppf.planning.ppf.primitives import (
 
 CROSSING_CLEARANCE = 2.5  # safe distances (+ 2 steps): a wingman passes a teammate this far
 CROSSING_REACH = 3.0  # safe distances: teammates this near are passed at CROSSING_CLEARANCE
+TURN_KEEPING_REACH = 3.0
+"""Target accuracies: a wingman this near its slot, level, keeps station and the leader's
+turn keeps to what it follows (``formation_turn_rate``)."""
 
 
 @njit(cache=True, inline="always")
@@ -314,6 +318,36 @@ def speed_trend(
 
 
 @njit(cache=True)
+def slot_speed_room(behind: float, accel: float, target_accuracy: float) -> tuple[float, float]:
+    """How much faster and how much slower (m/s) than a wingman keeping station its slot may fly,
+    the wingman ``behind`` m behind it along the leader's track (< 0: ahead), if it is to
+    stay within ε/2 of it (ε the target accuracy) making the difference good at ``accel``:
+    a slot faster by g leaves it g²/2a further behind, so g ≤ √(2a(ε/2 − behind)), and
+    slower, √(2a(ε/2 + behind)).
+
+    A fixed √(a·ε) either way (the room of a wingman in its slot) let the leader roll into
+    its turn as fast as its wingmen's speeds followed, a slot's speed running √(a·ε) ahead
+    of its wingman's all the way: planned on the formation takeoff of five, the outer
+    wingman fell 19 m behind its slot as its leader turned onto the target at 1.5°/s."""
+    half = 0.5 * target_accuracy
+    faster = math.sqrt(2.0 * accel * max(half - behind, 0.0))
+    slower = math.sqrt(2.0 * accel * max(half + behind, 0.0))
+    return faster, slower
+
+
+@njit(cache=True)
+def just_reaching(reaching: float, lim: KernelLimits) -> float:
+    """The turn rate (rad/s) that just reaches the leader's target where it lies inside its
+    formation's turn (``reaching_turn_rate`` less its ``REACH_TIGHTER``); 0 elsewhere.
+    Eased below it (``formation_turn_rate``), the turn that reaches the target only
+    tightens: the line abreast of five, passing its sphere whole, eased onto its target
+    as its outer wingman fell behind, missed it by 124 m and circled away."""
+    if reaching > lim.leader_turn_rate:
+        return reaching / (1.0 + REACH_TIGHTER)
+    return 0.0
+
+
+@njit(cache=True)
 def formation_turn_rate(
     turn_rate: float,
     heading_left: float,
@@ -321,22 +355,27 @@ def formation_turn_rate(
     speed: np.ndarray,
     active: np.ndarray,
     local_target: np.ndarray,
-    formed: np.ndarray,
     ux: float,
     uy: float,
     lim: KernelLimits,
+    reach_floor: float = 0.0,
 ) -> float:
     """The leader's ``turn_rate`` (rad/s, +: left) in a formation that turns
-    (``gcs_ppf.planning.turns``), eased in and out as its wingmen's speeds follow.
+    (``gcs_ppf.planning.turns``), eased in and out as its wingmen's speeds follow, never
+    below ``reach_floor`` (``just_reaching``) where it asks that much.
 
     A slot y to the side of a leader turning at ω flies ω·y slower or faster than the
     leader (``slot_point_speed``), and a wingman changes speed at a (the smaller of accel
     and decel) only.  Started or stopped at once, the turn leaves it (ω·y)²/2a off its
     slot (7.6 m for slots 100 m abreast at 2°/s), and the straight leg after the turn began
     with the wingmen settling: the loiter route's plan 13.0 m off at worst right after its
-    first turn, its straight legs 3.4 m RMS.  So the turn is kept to where no formed
-    wingman's slot is more than √(a·ε) (ε the target accuracy: it falls ε/2 behind) or
-    its present mismatch, if larger, from the wingman's speed, and it is eased out as the
+    first turn, its straight legs 3.4 m RMS.  So the turn is kept to where no wingman
+    keeping station (level with its slot within ``TURN_KEEPING_REACH``: a wingman climbing
+    into its slot as the leader levels off still follows its turn; held to the formed
+    alone, the formation takeoff's leader rolled into a 1.5°/s turn at once as its wingmen
+    fell 13 m above their slots, and the outer one fell 16 m behind) sees its slot run away
+    from it by more than ``slot_speed_room`` (or its present mismatch, if larger: flying
+    straight is always allowed), and it is eased out as the
     heading wanted comes near (``heading_left``, rad): no faster than √(2·a/|y|·|Δψ|),
     |y| the widest slot's, so the slots' speeds come back to the leader's at a.  (u_x,
     u_y) is the leader's direction; the wingmen's local target points are their slots."""
@@ -345,21 +384,25 @@ def formation_turn_rate(
         return turn_rate
     hx, hy = ux / h, uy / h
     a = min(lim.accel, lim.decel)
-    budget = math.sqrt(a * lim.target_accuracy)
     low, high, widest = -math.inf, math.inf, 0.0
     for i in range(1, pos.shape[0]):
         if not active[i]:
             continue
         y = hx * (local_target[i, 1] - pos[0, 1]) - hy * (local_target[i, 0] - pos[0, 0])
         widest = max(widest, abs(y))
-        if abs(y) < 1e-9 or not formed[i]:
+        dx, dy = local_target[i, 0] - pos[i, 0], local_target[i, 1] - pos[i, 1]
+        if abs(y) < 1e-9 or dx * dx + dy * dy > (TURN_KEEPING_REACH * lim.target_accuracy) ** 2:
             continue
         gap = speed[0] - speed[i]  # the slot's speed, straight, less the wingman's
-        room = max(budget, abs(gap))
-        ends_a, ends_b = (gap - room) / y, (gap + room) / y
+        behind = hx * dx + hy * dy
+        faster, slower = slot_speed_room(behind, a, lim.target_accuracy)
+        ends_a = (gap - max(faster, gap)) / y  # ω·y = gap − (slot less wingman speed)
+        ends_b = (gap + max(slower, -gap)) / y
         low = max(low, min(ends_a, ends_b))
         high = min(high, max(ends_a, ends_b))
     rate = min(max(turn_rate, low), high)
+    if abs(rate) < reach_floor:
+        rate = math.copysign(min(reach_floor, abs(turn_rate)), turn_rate)
     if widest > 0.0:
         settle = math.sqrt(2.0 * a / widest * abs(heading_left))
         rate = min(max(rate, -settle), settle)

@@ -58,6 +58,7 @@ from gcs_ppf.planning.ppf.formation import (
     crossing_point,
     formation_targets,
     formation_turn_rate,
+    just_reaching,
     slot_point_speed,
     speed_trend,
 )
@@ -413,19 +414,10 @@ def fleet_step(
     yielding_back(pos, speed, trig, active, mate_start, mates, formed, lim, dt)  # Eq. 12–13
     ux, uy, uz = direction[0, 0], direction[0, 1], direction[0, 2]  # the leader's direction
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
-    leader_lim = leader_limits(
-        lim,
-        reaching_turn_rate(
-            pos[0, 0],
-            pos[0, 1],
-            trig[0, 2],
-            trig[0, 3],
-            speed[0],
-            lim,
-            target[0],
-            target[1],
-        ),
+    reaching = reaching_turn_rate(
+        pos[0, 0], pos[0, 1], trig[0, 2], trig[0, 3], speed[0], lim, target[0], target[1]
     )
+    leader_lim = leader_limits(lim, reaching)
     for i in range(pos.shape[0]):
         if not active[i]:
             continue
@@ -553,10 +545,10 @@ def fleet_step(
                     speed,
                     active,
                     local_target,
-                    formed,
                     ux,
                     uy,
                     lim,
+                    just_reaching(reaching, lim),
                 )
                 / own_lim.max_yaw_rate
             )

@@ -13,7 +13,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from gcs_ppf.planning.ppf.formation import CROSSING_CLEARANCE, CROSSING_REACH
+from gcs_ppf.planning.ppf.formation import (
+    CROSSING_CLEARANCE,
+    CROSSING_REACH,
+    TURN_KEEPING_REACH,
+    just_reaching,
+)
 from gcs_ppf.planning.ppf.kernel import (
     AVOIDANCE_TURN_ANGLE,
     CONFLICT_HORIZON_TURNS,
@@ -192,9 +197,9 @@ def _obstacle_repulsion(
         reach = reach + (rho[0, 0] if airframe_limited(lim) else 0.0)
         far = np.linalg.norm(target - obs_center, axis=-1) > reach
         keep[0] = np.where(far, padded, keep[0])
-        # … and lets it go where its way to the target clears the padded keep-out by a pad,
-        # if holding its course to the edge of the influence would miss the target
-        clear_by = padded + steps + pad
+        # … and lets it go where its way to the target clears the padded keep-out, if
+        # holding its course to the edge of the influence would miss the target
+        clear_by = padded + steps
         edge = np.sqrt((padded + slow) ** 2 - slow**2) + steps
         edge = edge + (rho[0, 0] if airframe_limited(lim) else 0.0)
         released = (
@@ -743,10 +748,11 @@ def _formation_turn_rate(
     a: Attitude,
     f: Formation,
     lim: KernelLimits,
+    reach_floor: float = 0.0,
 ) -> float:
     """The leader's ``turn`` (rad/s) kept to what its wingmen follow (the kernel's
-    ``formation_turn_rate``): no formed wingman's slot speed taken more than the roll-in
-    budget (or its present mismatch) from the wingman's speed, and the turn eased out
+    ``formation_turn_rate``): no station-keeping wingman's slot speed taken further from the
+    wingman's than its ``slot_speed_room`` (or its present mismatch), and the turn eased out
     towards the heading ``field`` (ICS) wants."""
     u = a.u[0, :2] / max(float(np.hypot(a.u[0, 0], a.u[0, 1])), 1e-12)
     rel = f.g[1:, :2] - pos[0, :2]
@@ -755,14 +761,22 @@ def _formation_turn_rate(
     if not wingmen.any():
         return turn
     accel = min(lim.accel, lim.decel)
-    held = wingmen & f.formed[1:] & (np.abs(y) >= 1e-9)
+    to_slot = f.g[1:, :2] - pos[1:, :2]
+    keeping = (to_slot**2).sum(1) <= (TURN_KEEPING_REACH * lim.target_accuracy) ** 2
+    held = wingmen & keeping & (np.abs(y) >= 1e-9)
     gap = speed[0] - speed[1:]
-    room = np.maximum(math.sqrt(accel * lim.target_accuracy), np.abs(gap))
+    behind = to_slot @ u  # the kernel's ``slot_speed_room``
+    half = 0.5 * lim.target_accuracy
+    faster = np.sqrt(2.0 * accel * np.maximum(half - behind, 0.0))
+    slower = np.sqrt(2.0 * accel * np.maximum(half + behind, 0.0))
     with np.errstate(divide="ignore", invalid="ignore"):
-        ends = np.stack([(gap - room) / y, (gap + room) / y])
+        ends = np.stack([(gap - np.maximum(faster, gap)) / y, (gap + np.maximum(slower, -gap)) / y])
     low = float(np.max(ends.min(0)[held], initial=-math.inf))
     high = float(np.min(ends.max(0)[held], initial=math.inf))
-    turn = min(max(turn, low), high)
+    eased = min(max(turn, low), high)
+    if abs(eased) < reach_floor:  # never eased below the turn that reaches the target
+        eased = math.copysign(min(reach_floor, abs(turn)), turn)
+    turn = eased
     widest = float(np.max(np.abs(y[wingmen]), initial=0.0))
     if widest > 0.0:
         left = math.atan2(
@@ -831,7 +845,15 @@ def reference_step(
         )
         if active[0] and not (r.rep[0] != 0).any() and lim.leader_turn_rate < math.inf:
             turn = _formation_turn_rate(
-                float(f_yaw[0] * yaw_rate[0]), field[0], pos, speed, active, a, f, lim
+                float(f_yaw[0] * yaw_rate[0]),
+                field[0],
+                pos,
+                speed,
+                active,
+                a,
+                f,
+                lim,
+                just_reaching(reaching, lim),
             )
             f_yaw[0] = turn / yaw_rate[0]
         return r, along_field, f_pitch, f_yaw, yaw_rate, pitch_rate, state

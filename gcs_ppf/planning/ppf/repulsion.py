@@ -130,7 +130,6 @@ def lets_go(
     u: np.ndarray,
     center: np.ndarray,
     keep_out: float,
-    pad: float,
     slow: float,
     steps: float,
     half_turn: float,
@@ -144,7 +143,10 @@ def lets_go(
     ``steps`` and a ``half_turn`` more) would leave its target inside its formation's turn
     (``turn_missed_ahead``, with the roll-in's way, ``roll_in_lead``), once its way to the
     target (``way_clear``: the turn onto it ``leader_limits`` gives, the line on) clears the
-    padded keep-out by a pad more."""
+    padded keep-out.  Held until it cleared it by one more pad, the V of five flew on 48°
+    off its target for 20 s after its turn away, its target fell inside its formation's
+    turn, and it came round onto it at 1.3–1.5°/s where its wingmen follow 1°/s (planned
+    with the ground: its outer wingmen 16–19 m off their slots)."""
     h = math.sqrt(u[0] * u[0] + u[1] * u[1])
     if h <= 0.0:
         return False
@@ -160,7 +162,7 @@ def lets_go(
     radius = v / leader_limits(lim, onto).max_yaw_rate
     return way_clear(
         p[0], p[1], hx, hy, radius, target[0], target[1], center[0], center[1],
-        keep_out + steps + pad,
+        keep_out + steps,
     )  # fmt: skip
 
 
@@ -204,9 +206,9 @@ def obstacles_repelling(
     paper-scale leader turning at its formation's 2.4°/s flew 210 m into a sphere (sweep
     scene 98867, seed 2).  Where holding its course to the edge of a static obstacle's
     influence would leave its target inside its formation's turn, it lets go of the
-    obstacle as soon as its way to the target clears the padded keep-out by a pad more
-    (``lets_go``).  The last value returned: whether every repelling obstacle lets it turn
-    at its formation's rate (``fleet_step``'s ``whole``).
+    obstacle as soon as its way to the target clears the padded keep-out (``lets_go``).
+    The last value returned: whether every repelling obstacle lets it turn at its
+    formation's rate (``fleet_step``'s ``whole``).
     """
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     vi = speed[i]
@@ -263,7 +265,7 @@ def obstacles_repelling(
             and not (  # the padded leader let go (``lets_go``)
                 padded > 0.0
                 and u_max == 0.0
-                and lets_go(pos[i], direction[i], obs_center[j], keep_out, padded, slow,
+                and lets_go(pos[i], direction[i], obs_center[j], keep_out, slow,
                             steps, half_turn, vi, lim, target)
             )
         ):  # fmt: skip
