@@ -54,11 +54,24 @@ def clear_ahead(mission: Mission, t: VehicleTelemetry) -> tuple[float, float] | 
     obstacle and zone, up to ``launch.STRAIGHT_ON_M``; where that is under four turn radii,
     along the course nearest its own that runs that far (``holding.clear_course``).  None
     (straight on) without a position or a course."""
+    return _clear_ahead_of(mission, _position_m(mission, t), t)
+
+
+def _position_m(mission: Mission, t: VehicleTelemetry) -> FloatArray | None:
+    """Where it is in the mission's ICS (m), or None without a position."""
     if t.lat_deg is None or t.lon_deg is None or t.alt_amsl_m is None:
+        return None
+    return np.array(geodetic_to_enu(t.lat_deg, t.lon_deg, t.alt_amsl_m, mission.origin))
+
+
+def _clear_ahead_of(
+    mission: Mission, here: FloatArray | None, t: VehicleTelemetry
+) -> tuple[float, float] | None:
+    """``clear_ahead`` of a vehicle at ``here`` (ICS, m)."""
+    if here is None:
         return None
     if t.vn_m_s is None or t.ve_m_s is None or math.hypot(t.vn_m_s, t.ve_m_s) == 0.0:
         return None
-    here = np.array(geodetic_to_enu(t.lat_deg, t.lon_deg, t.alt_amsl_m, mission.origin))
     turn_m = turn_radius_m(mission)
     keep = 2.0 * mission.limits.safe_distance_obstacle + CLIMB_OUT_TURN_RADII * turn_m
     yaw, run = holding.clear_course(
@@ -110,10 +123,10 @@ class LaunchWait:
 
     def clear_ahead(self, vehicle_id: int, t: VehicleTelemetry) -> tuple[float, float] | None:
         """``clear_ahead`` for the launch, the point noted."""
-        ahead = clear_ahead(self.run.mission, t)
-        here = self._here(t)
+        here = _position_m(self.run.mission, t)
+        ahead = _clear_ahead_of(self.run.mission, here, t)
         if ahead is not None and here is not None:
-            self.points[vehicle_id] = here + ahead
+            self.points[vehicle_id] = here[:2] + ahead
         return ahead
 
     async def stop(self) -> None:
@@ -155,15 +168,8 @@ class LaunchWait:
                 out[vid] = t
         return out
 
-    def _here(self, t: VehicleTelemetry) -> FloatArray | None:
-        """Where it is, east and north metres in the mission's ICS."""
-        if t.lat_deg is None or t.lon_deg is None or t.alt_amsl_m is None:
-            return None
-        here = geodetic_to_enu(t.lat_deg, t.lon_deg, t.alt_amsl_m, self.run.mission.origin)
-        return np.array(here[:2])
-
     def _nearing(self, vid: int, t: VehicleTelemetry) -> bool:
-        here = self._here(t)
+        here = _position_m(self.run.mission, t)
         if here is None or t.vn_m_s is None or t.ve_m_s is None:
             return False
         circle_m = commanding.HOLD_MIN_RADIUS_M + turn_radius_m(self.run.mission)
