@@ -97,7 +97,7 @@ async def fly_holds(
         ]
         traffic_ids = set(states) - set(ids)
         airframes = {v.system_id: Airframe.from_telemetry(v.telemetry) for v, _ in located}
-        motions = [commanding.motion(states[i], airframes[i], mission) for i in ids]
+        motions = [commanding.hold_motion(states[i], airframes[i], mission) for i in ids]
         settled = [
             holding.on_ring(
                 m.pos_m, m.yaw_rad, m.climb_rate_m_s, circles[i], m.speed_m_s, m.turn_rate_rad_s

@@ -284,6 +284,29 @@ def test_vehicles_circling_one_level_of_the_stack_apart_fly_their_circles_unrepl
     assert close.margin_m < assurance.SLACK_S * 100.0
 
 
+def test_a_vehicle_heard_at_rest_is_told_its_hold_at_the_hold_airspeed() -> None:
+    """A vehicle in a launch's holds heard at 0 m/s (its takeoff just begun) is told the
+    loiter course with the lateral acceleration of the airspeed it holds at: at the speed
+    it reports, 0, the heading command raised and the holds failed."""
+    from gcs_ppf.guidance.holding import Hold
+    from gcs_ppf.service.commanding import command_holds, hold_motion, slowest_airspeed
+
+    mission = Mission.model_validate_json((EXAMPLES / "arduplane_5.json").read_text())
+    none = Obstacles(np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)))
+    keep = assurance.KeepOut(none, None, 25.0, 50.0)
+    circles = {1: Hold(2000.0, 0.0, 100.0, 150.0, math.inf)}
+    state = VehicleState((0.0, 0.0, 0.0), 0.0, 0.0, 0.0)
+    m = hold_motion(state, Airframe(), mission)
+    assert m.speed_m_s == slowest_airspeed(mission, Airframe()) > 0.0
+    fleet = Fleet()
+    verdicts = asyncio.run(command_holds(
+        fleet, circles, [1], [m], Orders(mission, "course", 1.0), keep, 1.0,
+        lambda *a, **k: None, {}, 0.0,
+    ))  # fmt: skip
+    assert list(verdicts) == [1]
+    assert len(headings_sent(fleet, 1)) == 1
+
+
 def test_a_loiter_course_that_would_cut_a_keep_out_is_replaced_by_an_escape() -> None:
     """A vehicle on its way to its circle whose loiter course runs it at a sphere 270 m
     ahead is sent an escape instead, with an ``assurance_override`` event of the holding
