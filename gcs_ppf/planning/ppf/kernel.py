@@ -76,7 +76,6 @@ from gcs_ppf.planning.ppf.primitives import (
     S2_LOCAL_MINIMUM,
     S3_FORMATION,
     SIDEWAYS_EPS,
-    TRIG_COLUMNS,
     YIELD_BACK_TURNS,
     KernelLimits,
     airframe_limited,
@@ -343,58 +342,6 @@ def formation_frame(
     return 1.0, 0.0, hx / h, hy / h
 
 
-@njit(cache=True, inline="always")
-def keep_out_repulsion(
-    pos: np.ndarray,
-    speed: np.ndarray,
-    active: np.ndarray,
-    direction: np.ndarray,
-    obs_center: np.ndarray,
-    obs_radius: np.ndarray,
-    obs_velocity: np.ndarray,
-    near_start: np.ndarray,
-    near_obstacles: np.ndarray,
-    zones: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-    zone_start: np.ndarray,
-    near_zones: np.ndarray,
-    trig: np.ndarray,
-    lim: KernelLimits,
-    dt: float,
-    target: np.ndarray,
-) -> None:
-    """Every vehicle's repulsion from the obstacles (Eq. 10–13, ``obstacle_repulsion``:
-    F_r, whether one moves, the room, the formation's turn) into ``trig[N, 11:17]`` and
-    from the zones (``zone_repulsion``) into ``trig[N, 17:20]``, before any vehicle
-    decides: its teammates read from it whether it is turning away from one
-    (``repulsion.turning_away``)."""
-    for i in range(pos.shape[0]):
-        for c in range(11, TRIG_COLUMNS):
-            trig[i, c] = 0.0
-        if not active[i]:
-            continue
-        ox, oy, oz, moving, room, formation_turn = obstacle_repulsion(
-            i,
-            pos,
-            speed,
-            direction,
-            obs_center,
-            obs_radius,
-            obs_velocity,
-            near_start,
-            near_obstacles,
-            lim,
-            dt,
-            target,
-        )
-        trig[i, 11], trig[i, 12], trig[i, 13] = ox, oy, oz
-        trig[i, 14] = 1.0 if moving else 0.0
-        trig[i, 15] = 1.0 if room else 0.0
-        trig[i, 16] = 1.0 if formation_turn else 0.0
-        trig[i, 17], trig[i, 18], trig[i, 19] = zone_repulsion(
-            i, pos, speed, direction, zones, zone_start, near_zones, lim, dt
-        )
-
-
 @njit_without_refcounts
 def fleet_step(
     pos: np.ndarray,
@@ -434,10 +381,9 @@ def fleet_step(
     Vehicle i considers only the obstacles ``near_obstacles[near_start[i]:near_start[i+1]]``
     (see ``nearby_obstacles``), and only the teammates ``mates[mate_start[i]:mate_start[i+1]]``
     (see ``nearby_teammates``; every active teammate of higher priority for all pairs).
-    ``trig[N,20]`` holds cos θ, sin θ, cos ψ, sin ψ of every vehicle on entry
+    ``trig[N,11]`` holds cos θ, sin θ, cos ψ, sin ψ of every vehicle on entry
     (``attitude_trig``) and of its new attitude on return; its last columns are scratch
-    (the velocities, who gives way back, ``yielding_back``, and the keep-outs' repulsion,
-    ``keep_out_repulsion``).
+    (the velocities, and who gives way back: ``yielding_back``).
     Every vehicle decides from the fleet's state at the start of the step (``rank`` through
     the teammate lists).  Obstacles are moved at the end of the step.  ``zones`` (the
     arrays of ``gcs_ppf.planning.zones``) repel as obstacles do (``zone_repulsion``), each
@@ -464,24 +410,6 @@ def fleet_step(
     )
     wait_speed = formation_targets(
         pos, slot, active, trig, direction, lim, local_target, formed, frame
-    )
-    keep_out_repulsion(
-        pos,
-        speed,
-        active,
-        direction,
-        obs_center,
-        obs_radius,
-        obs_velocity,
-        near_start,
-        near_obstacles,
-        zones,
-        zone_start,
-        near_zones,
-        trig,
-        lim,
-        dt,
-        target,
     )
     yielding_back(pos, speed, trig, active, mate_start, mates, formed, lim, dt)  # Eq. 12–13
     ux, uy, uz = direction[0, 0], direction[0, 1], direction[0, 2]  # the leader's direction
@@ -521,13 +449,26 @@ def fleet_step(
             sy,
             turn_rate,
         )
-        # Repulsion (Eq. 12–13): the obstacles' (``keep_out_repulsion``), then the
-        # teammates' of higher priority, never pushing the vehicle into an obstacle
-        # (``obstacles_first``) unless it has room to give way to the teammates first
-        # (``teammates_first``).
-        ox, oy, oz = trig[i, 11], trig[i, 12], trig[i, 13]
-        moving_obstacle, room, formation_turn = trig[i, 14] > 0, trig[i, 15] > 0, trig[i, 16] > 0
-        zx, zy, zz = trig[i, 17], trig[i, 18], trig[i, 19]
+        # Repulsion (Eq. 12–13): the obstacles', then the teammates' of higher priority,
+        # never pushing the vehicle into an obstacle (``obstacles_first``) unless it has
+        # room to give way to the teammates first (``teammates_first``).
+        ox, oy, oz, moving_obstacle, room, formation_turn = obstacle_repulsion(
+            i,
+            pos,
+            speed,
+            direction,
+            obs_center,
+            obs_radius,
+            obs_velocity,
+            near_start,
+            near_obstacles,
+            lim,
+            dt,
+            target,
+        )
+        zx, zy, zz = zone_repulsion(
+            i, pos, speed, direction, zones, zone_start, near_zones, lim, dt
+        )
         ox, oy, oz = ox + zx, oy + zy, oz + zz
         room = room and zx == 0.0 and zy == 0.0 and zz == 0.0
         px, py, pz, mate, hold_course = teammate_conflicts(

@@ -39,7 +39,6 @@ CONFLICT_HORIZON_TURNS = 1.0  # teammate conflicts are looked for this many quar
 # A conflict this many quarter turns from its closest approach is one the vehicle giving way
 # has not solved alone: the one it gives way to gives way too (``teammate_conflicts``).
 YIELD_BACK_TURNS = 0.25
-TURN_ARC_CHORDS = 16  # a teammate's turn away from an obstacle as this many chords
 HAND_BACK_TURNS = 0.25
 """Quarter turns of flight (0.75 s at the paper's 30°/s: an arc of ρ·π/8) that a vehicle
 giving way to a teammate first keeps in hand for handing the way back to the obstacles
@@ -56,10 +55,9 @@ turning away by yaw alone (38269): with only the three steps in hand they came t
 and 20.9 m of the surface (safe 25 m).  Counted in quarter turns, as the turn away is, the
 margin grows with the turn radius: 1/12 kept those two at 25.0 m and 37.4 m, 1/6 at
 31.3 m and 60.4 m, 1/4 at 38.6 m and 64.2 m."""
-TRIG_COLUMNS = 20
-"""The kernel's ``trig[N,20]``: cos θ, sin θ, cos ψ, sin ψ, the velocity, who gives way
-back (``repulsion.yielding_back``), and the repulsion of the obstacles and the zones
-(``kernel.keep_out_repulsion``)."""
+TRIG_COLUMNS = 11
+"""The kernel's ``trig[N,11]``: cos θ, sin θ, cos ψ, sin ψ, the velocity, and who gives
+way back (``repulsion.yielding_back``)."""
 
 
 class KernelLimits(NamedTuple):

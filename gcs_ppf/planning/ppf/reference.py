@@ -45,7 +45,6 @@ from gcs_ppf.planning.ppf.kernel import (
     turning_speed,
     way_clear,
 )
-from gcs_ppf.planning.ppf.primitives import TURN_ARC_CHORDS
 from gcs_ppf.planning.scene import BoolArray, FloatArray, IntArray
 
 Step = tuple[FloatArray, FloatArray, FloatArray, FloatArray, IntArray]
@@ -305,42 +304,6 @@ def _way_clear(
     )
 
 
-def _turning_miss(
-    d_m: FloatArray,
-    vel: FloatArray,
-    mate_vel: FloatArray,
-    speed: FloatArray,
-    turn: FloatArray,
-    omega: float,
-    horizon: float,
-    miss_vec: FloatArray,
-) -> FloatArray:
-    """``miss_vec`` [i,k,3] with each mate k turning away from an obstacle (``turn[k]``
-    nonzero) flown on its turn, at ω, to the closest approach within ``horizon`` (the arc
-    as ``TURN_ARC_CHORDS`` chords), where the two close on each other along it (the
-    kernel's ``turning_miss``)."""
-    rho = speed / omega
-    u = mate_vel / np.where(speed > 0, speed, 1.0)[:, None]
-    t = np.arange(TURN_ARC_CHORDS + 1) * (horizon / TURN_ARC_CHORDS)
-    forward = rho[:, None] * np.sin(omega * t)[None]  # [k,C+1]
-    sideways = rho[:, None] * (1.0 - np.cos(omega * t))[None]
-    k_path = forward[..., None] * u[:, None] + sideways[..., None] * turn[:, None]  # [k,C+1,3]
-    rel = d_m[:, :, None] + vel[:, None, None] * t[None, None, :, None] - k_path[None]
-    a, b = rel[:, :, :-1], rel[:, :, 1:]
-    e = b - a
-    e2 = (e**2).sum(-1)
-    tau = np.clip(np.divide(-(a * e).sum(-1), e2, out=np.zeros_like(e2), where=e2 > 0), 0, 1)
-    nearest = a + tau[..., None] * e
-    n2 = (nearest**2).sum(-1)
-    c = n2.argmin(-1)
-    best = np.take_along_axis(nearest, c[..., None, None], 2)[:, :, 0]
-    d2 = (d_m**2).sum(-1)
-    closing = np.take_along_axis(n2, c[..., None], 2)[..., 0] < d2
-    tiny = np.linalg.norm(best, axis=-1) <= 1e-6 * np.sqrt(d2)
-    use = (np.abs(turn).sum(-1) > 0)[None] & closing & ~tiny
-    return np.where(use[..., None], best, miss_vec)
-
-
 def _conflicts(
     pos: FloatArray,
     vel: FloatArray,
@@ -352,14 +315,11 @@ def _conflicts(
     lim: KernelLimits,
     dt: float,
     horizon_turns: float = CONFLICT_HORIZON_TURNS,
-    turn: FloatArray | None = None,
 ) -> tuple[BoolArray, BoolArray, FloatArray]:
     """Teammates of higher priority as moving obstacles, by closest point of approach
     within ``horizon_turns`` quarter turns: [i,k] whether mate k is near (a conflict or
     just clear of one) and a conflict for vehicle i flying ``vel[i]`` (mates at
-    ``mate_vel``), and the unit miss vectors [i,k,3], from a mate turning away from an
-    obstacle (``turn[k]``, unit, across its flight; zero for none) along its turn (the
-    kernel's ``turning_miss``)."""
+    ``mate_vel``), and the unit miss vectors [i,k,3]."""
     omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
     d_m = pos[:, None, :] - pos[None]  # [i,k,3]: from mate k to vehicle i
     w = mate_vel[None] - vel[:, None]  # mate k relative to vehicle i
@@ -388,8 +348,6 @@ def _conflicts(
         & (d2 > 0)
     )
     miss_vec = d_m - w * t_cpa[..., None]
-    if turn is not None:
-        miss_vec = _turning_miss(d_m, vel, mate_vel, speed, turn, omega, horizon, miss_vec)
     miss = np.linalg.norm(miss_vec, axis=-1)
     push = np.where((miss > 1e-6 * np.sqrt(d2))[..., None], _unit(miss_vec), _unit(d_m))
     return near, near & (miss2 < threshold**2), push
@@ -416,18 +374,12 @@ def _repulsion(
     the obstacles gives way to its teammates alone (the kernel's ``teammates_first``)."""
     n = pos.shape[0]
     rep, moving, room, formation_turn = obstacles
-    turn = rep - (rep * a.u).sum(1, keepdims=True) * a.u  # (the kernel's ``turning_miss``)
-    across = np.linalg.norm(turn, axis=1)
-    sideways = across > SIDEWAYS_EPS * np.linalg.norm(rep, axis=1)
-    turn = np.where(sideways[:, None], turn / np.where(sideways, across, 1.0)[:, None], 0.0)
-    near, threat, push = _conflicts(
-        pos, a.vel, a.vel, speed, rank, active, formed, lim, dt, turn=turn
-    )
+    near, threat, push = _conflicts(pos, a.vel, a.vel, speed, rank, active, formed, lim, dt)
     _, threat_after, _ = _conflicts(
         pos, speed[:, None] * follow, a.vel, speed, rank, active, formed, lim, dt
     )
     _, late, push_late = _conflicts(
-        pos, a.vel, a.vel, speed, rank, active, formed, lim, dt, YIELD_BACK_TURNS, turn
+        pos, a.vel, a.vel, speed, rank, active, formed, lim, dt, YIELD_BACK_TURNS
     )
     late = late & active[:, None]
     hold: BoolArray = np.any(near & ~threat & threat_after, axis=1)

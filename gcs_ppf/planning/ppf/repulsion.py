@@ -6,7 +6,6 @@
 * ``teammates_first``     a teammate conflict before the obstacles while they leave room
 * ``yielding_back``       a conflict left unsolved near its closest approach: the teammate
   of higher priority gives way too
-* ``turning_miss``        the miss from a teammate turning away from an obstacle, on its turn
 """
 
 from __future__ import annotations
@@ -22,8 +21,6 @@ from gcs_ppf.planning.ppf.primitives import (
     EPSILON_1,
     HAND_BACK_TURNS,
     INFLUENCE_STEPS,
-    SIDEWAYS_EPS,
-    TURN_ARC_CHORDS,
     YIELD_BACK_TURNS,
     KernelLimits,
     airframe_limited,
@@ -286,72 +283,6 @@ def obstacles_repelling(
 
 
 @njit(cache=True, inline="always")
-def turning_miss(
-    dx: float,
-    dy: float,
-    dz: float,
-    vix: float,
-    viy: float,
-    viz: float,
-    trig: np.ndarray,
-    k: int,
-    vk: float,
-    lim: KernelLimits,
-    horizon_turns: float,
-) -> tuple[bool, float, float, float]:
-    """The miss vector of vehicle i (at (dx, dy, dz) from teammate k, flying (vix, viy,
-    viz)) from a teammate k turning away from an obstacle or a zone: k flown on its turn
-    (at full rate ω, towards the part of its repulsion across its flight, ``trig[k,
-    11:14]`` and ``trig[k, 17:20]``: ``kernel.keep_out_repulsion``) rather than on a
-    straight line, to its closest approach within ``horizon_turns`` quarter turns (the arc
-    as ``TURN_ARC_CHORDS`` chords).  Returns (whether there is one: k is turning away, and
-    sideways, and the two close on each other along its arc; the miss vector, not unit).
-
-    Given way to along the straight line's miss, a wingman at 169 m/s turned into a
-    teammate that swept round a sphere across its formation at 226 m/s and 30°/s, 290 m
-    off the line it was predicted on within 2 s: 25.1 m (safe 50 m; the ground below both,
-    a property test's draw, ``tests/data/breaches/feasible_ground_25_1m.json``)."""
-    rx = trig[k, 11] + trig[k, 17]
-    ry = trig[k, 12] + trig[k, 18]
-    rz = trig[k, 13] + trig[k, 19]
-    if vk <= 0.0 or (rx == 0.0 and ry == 0.0 and rz == 0.0):
-        return False, 0.0, 0.0, 0.0
-    ux, uy, uz = trig[k, 4] / vk, trig[k, 5] / vk, trig[k, 6] / vk
-    along = rx * ux + ry * uy + rz * uz
-    nx, ny, nz = rx - along * ux, ry - along * uy, rz - along * uz
-    across = math.sqrt(nx * nx + ny * ny + nz * nz)
-    if across <= SIDEWAYS_EPS * math.sqrt(rx * rx + ry * ry + rz * rz):
-        return False, 0.0, 0.0, 0.0
-    nx, ny, nz = nx / across, ny / across, nz / across
-    omega = min(lim.max_pitch_rate, lim.max_yaw_rate)
-    rho = vk / omega
-    step = horizon_turns * AVOIDANCE_TURN_ANGLE / omega / TURN_ARC_CHORDS
-    ax, ay, az = dx, dy, dz  # i relative to k at the chord's start
-    best = dx * dx + dy * dy + dz * dz
-    mx, my, mz = dx, dy, dz
-    for c in range(1, TURN_ARC_CHORDS + 1):
-        t = c * step
-        forward = rho * math.sin(omega * t)
-        sideways = rho * (1.0 - math.cos(omega * t))
-        bx = dx + vix * t - forward * ux - sideways * nx
-        by = dy + viy * t - forward * uy - sideways * ny
-        bz = dz + viz * t - forward * uz - sideways * nz
-        ex, ey, ez = bx - ax, by - ay, bz - az
-        e2 = ex * ex + ey * ey + ez * ez
-        tau = 0.0
-        if e2 > 0.0:
-            tau = min(max(-(ax * ex + ay * ey + az * ez) / e2, 0.0), 1.0)
-        cx, cy, cz = ax + tau * ex, ay + tau * ey, az + tau * ez
-        c2 = cx * cx + cy * cy + cz * cz
-        if c2 < best:
-            best, mx, my, mz = c2, cx, cy, cz
-        ax, ay, az = bx, by, bz
-    if mx == dx and my == dy and mz == dz:  # (nearest now: not closing along its arc)
-        return False, 0.0, 0.0, 0.0
-    return True, mx, my, mz
-
-
-@njit(cache=True, inline="always")
 def closest_approach(
     dx: float,
     dy: float,
@@ -446,33 +377,6 @@ def teammate_conflict(
 
 
 @njit(cache=True, inline="always")
-def along_turn(
-    mx: float,
-    my: float,
-    mz: float,
-    dx: float,
-    dy: float,
-    dz: float,
-    trig: np.ndarray,
-    i: int,
-    k: int,
-    vk: float,
-    lim: KernelLimits,
-    horizon_turns: float,
-) -> tuple[float, float, float]:
-    """The unit miss vector (mx, my, mz) of a conflict of vehicle i with teammate k
-    (``teammate_conflict``; i at (dx, dy, dz) from k), taken along k's turn where k is
-    turning away from an obstacle or a zone (``turning_miss``)."""
-    turning, cx, cy, cz = turning_miss(
-        dx, dy, dz, trig[i, 4], trig[i, 5], trig[i, 6], trig, k, vk, lim, horizon_turns
-    )
-    miss = math.sqrt(cx * cx + cy * cy + cz * cz)
-    if not turning or miss <= 1e-6 * math.sqrt(dx * dx + dy * dy + dz * dz):
-        return mx, my, mz
-    return cx / miss, cy / miss, cz / miss
-
-
-@njit(cache=True, inline="always")
 def teammate_conflicts(
     i: int,
     rx: float,
@@ -540,9 +444,6 @@ def teammate_conflicts(
             )
             hold_course = closing and miss2 < threshold * threshold
         elif kind == CONFLICT:
-            mx, my, mz = along_turn(
-                mx, my, mz, dx, dy, dz, trig, i, k, speed[k], lim, CONFLICT_HORIZON_TURNS
-            )
             rx, ry, rz = rx + EPSILON_1 * mx, ry + EPSILON_1 * my, rz + EPSILON_1 * mz
             repelled_by_mate = True
     if trig[i, 10] > 0.0:  # it gives way back (``yielding_back``)
@@ -645,9 +546,6 @@ def yielding_back(
                 YIELD_BACK_TURNS,
             )
             if kind == CONFLICT:
-                mx, my, mz = along_turn(
-                    mx, my, mz, dx, dy, dz, trig, i, k, speed[k], lim, YIELD_BACK_TURNS
-                )
                 trig[k, 7], trig[k, 8], trig[k, 9] = (
                     trig[k, 7] - mx,
                     trig[k, 8] - my,
