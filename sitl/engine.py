@@ -97,8 +97,8 @@ class Simulation:
         speeds = np.array([v.speed if v.speed is not None else lim.v_init for v in vehicles])
         start = np.array([v.position for v in vehicles], dtype=np.float64)
         if ground_start is None:
-            on_ground = resolve(airframe, lim) == "arduplane"
-            landed = (start[:, 2] <= 0.0) & on_ground
+            arduplane = resolve(airframe, lim) == "arduplane"
+            landed = (start[:, 2] <= 0.0) & arduplane
         else:
             landed = np.full(n, ground_start)
         self.state: FleetState = initial_state(
