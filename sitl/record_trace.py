@@ -22,6 +22,10 @@ rate, 20 s more; with ``--climb-m`` a MAV_CMD_GUIDED_CHANGE_ALTITUDE that far up
 0) at t = 0: how far ArduPlane's airspeed lags a slowing it is asked for, level and in a
 climb (a formation's wingmen are asked for such ramps in every turn). The airspeed last
 commanded is the column ``cmd_airspeed_m_s``. t = 0 at the first ramp command.
+
+``climbing-escape``: the same takeoff and settling, then a half turn at the full bank and a
+climb of ``--climb-m`` (150 m if not given) commanded at once, as the run-time assurance's
+climbing escape: how far ArduPlane climbs while it turns. t = 0 at the commands.
 """
 
 from __future__ import annotations
@@ -250,10 +254,27 @@ def speed_ramp(rec: Recorder, low_m_s: float, rate_m_s2: float, climb_m: float) 
     return t0
 
 
+def climbing_escape(rec: Recorder, climb_m: float) -> int:
+    """The climbing-escape experiment; the vehicle time of its commands, ms: a half turn at
+    the full bank (MAV_CMD_GUIDED_CHANGE_HEADING to the course + 180°, param3 30 m/s²,
+    more than the bank limit gives) and, at once, MAV_CMD_GUIDED_CHANGE_ALTITUDE
+    ``climb_m`` up (param3 0), as the run-time assurance sends a climbing escape; 40 s."""
+    c0 = settle(rec)
+    t0 = rec.boot_ms
+    rec.at_start = {"state_at_command": dict(rec.state), "level_commands": list(rec.sent)}
+    rec.cmd_course = (c0 + 180.0) % 360.0
+    rec.command_int(43002, 0, (0, round(rec.cmd_course, 2), 30.0))
+    rec.command_int(43001, 3, (0, 0, 0.0), z=round(rec.rel_alt + climb_m, 1))
+    rec.wait_sim(40.0)
+    return t0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m sitl.record_trace", description=__doc__)
     p.add_argument("url", help="pymavlink connection string of the vehicle")
-    p.add_argument("experiment", choices=["heading-ramp", "climb-at-speed", "speed-ramp"])
+    p.add_argument(
+        "experiment", choices=["heading-ramp", "climb-at-speed", "speed-ramp", "climbing-escape"]
+    )
     p.add_argument("out", type=Path)
     p.add_argument("--rate-dps", type=float, default=6.0)
     p.add_argument("--airspeed", type=float, default=28.0)
@@ -265,6 +286,8 @@ def main(argv: list[str] | None = None) -> int:
         t0 = heading_ramp(rec, a.rate_dps)
     elif a.experiment == "speed-ramp":
         t0 = speed_ramp(rec, a.airspeed, a.rate_mss, a.climb_m)
+    elif a.experiment == "climbing-escape":
+        t0 = climbing_escape(rec, a.climb_m or 150.0)
     else:
         t0 = climb_at_speed(rec, a.airspeed)
     rec.write(a.out, t0)

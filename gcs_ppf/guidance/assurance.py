@@ -6,7 +6,8 @@ Pure: arrays in, verdicts out.  The prediction is ArduPlane's response as the bu
 is calibrated to it (``gcs_ppf.guidance.vehicle_motion``).  A command is *recoverable* when,
 from where the vehicle is at the end of ``hold_s`` (the lag of the telemetry, the link and
 the next tick), a turn to either side at the full bank through 180° (the way back is the
-way it came), rolled into from the bank it then has, keeps out of every keep-out: an
+way it came), rolled into from the bank it then has, level or climbing as fast as it can
+(``prediction.flights``), keeps out of every keep-out: an
 obstacle's surface plus ``safe_distance_obstacle``, a zone's (a cylinder's or a polygon's,
 ``gcs_ppf.planning.zones``; outside an exclusion zone, inside an inclusion zone) the same,
 the ground plus the same, a teammate
@@ -163,10 +164,6 @@ def _put(pool: FloatArray, steps: FloatArray, row: int, own: _Own, c: Command) -
     prediction.track_into(own.vector, course, z, own.hold_s, pool, steps, row)
 
 
-Flights = tuple[FloatArray, FloatArray, FloatArray]
-"""A command's hold and its escapes to the left and right (``prediction.flights``)."""
-
-
 @dataclass(frozen=True, slots=True)
 class _Own:
     """A vehicle as commands are scored for it: its motion, packed for the prediction, and
@@ -177,13 +174,13 @@ class _Own:
     motion: Motion
     vector: FloatArray
     hold_s: float
-    tried: dict[tuple[float, float], Flights] = field(default_factory=dict)
+    tried: dict[tuple[float, float], prediction.Flights] = field(default_factory=dict)
 
     @staticmethod
     def of(m: Motion, hold_s: float) -> _Own:
         return _Own(m, motion_vector(m), float(hold_s))
 
-    def flights(self, c: Command) -> Flights:
+    def flights(self, c: Command) -> prediction.Flights:
         key = (float(c.course_rad), float(c.z_m))
         found = self.tried.get(key)
         if found is None:
@@ -198,10 +195,8 @@ class _Own:
         found = self.tried.get(key)
         if found is not None:
             return prediction.judge(*found, around)
-        s, reason, path, left, right = prediction.judge_flown(
-            self.vector, key[0], key[1], self.hold_s, around
-        )
-        self.tried[key] = (path, left, right)
+        s, reason, flown = prediction.judge_flown(self.vector, key[0], key[1], self.hold_s, around)
+        self.tried[key] = flown
         return s, reason
 
 

@@ -1,5 +1,5 @@
 """The run-time assurance's prediction, compiled: where a vehicle flies holding a command,
-its two escape turns from there, and how far a predicted path stays outside the keep-outs.
+its escape turns from there, and how far a predicted path stays outside the keep-outs.
 
 Pure, ``@njit`` (numba) on plain floats and arrays: ``gcs_ppf.guidance.assurance`` packs a
 ``Motion`` into the vector ``m`` below (``motion_vector``) and reads the results back.
@@ -171,11 +171,12 @@ def escape_s(m: FloatArray) -> float:
 
 
 @njit(cache=True)
-def escape_arc(m: FloatArray, end: FloatArray, side: float) -> FloatArray:
+def escape_arc(m: FloatArray, end: FloatArray, side: float, z_demand: float) -> FloatArray:
     """The escape flown from ``end`` at full bank to ``side`` (+1 left, −1 right), rolled
-    into from the bank it has, until the vehicle has turned 180°, levelling off from the
-    vertical speed it has (``climb``): positions [k,3], ``STEP_S`` apart.  Once the bank is
-    within ``ROLLED_IN_RAD`` of full, a circle."""
+    into from the bank it has, until the vehicle has turned 180°, its height loop told
+    ``z_demand`` (``climb``; ``end``'s altitude: levelling off from the vertical speed it
+    has): positions [k,3], ``STEP_S`` apart.  Once the bank is within ``ROLLED_IN_RAD`` of
+    full, a circle."""
     most = bank_for(m, m[TURN])
     steps = math.ceil(escape_s(m) / STEP_S) + 1
     rolled = np.empty((steps + 1, 3))
@@ -183,7 +184,7 @@ def escape_arc(m: FloatArray, end: FloatArray, side: float) -> FloatArray:
     rolled[0] = f[:3]
     n = 0
     while n < steps and abs(side * most - f[BANK]) > ROLLED_IN_RAD:
-        step(m, f, side * most, end[Z], STEP_S)
+        step(m, f, side * most, z_demand, STEP_S)
         n += 1
         rolled[n] = f[:3]
     left = math.pi - side * (f[YAW] - end[YAW])  # still to turn
@@ -198,7 +199,7 @@ def escape_arc(m: FloatArray, end: FloatArray, side: float) -> FloatArray:
     cy = f[Y] + side * r * math.cos(f[YAW])
     for i in range(count):
         a = f[YAW] - side * math.pi / 2.0 + side * min(rate * STEP_S * (i + 1), left)
-        climb(m, f, end[Z], STEP_S)
+        climb(m, f, z_demand, STEP_S)
         out[n + 1 + i, 0] = cx + r * math.cos(a)
         out[n + 1 + i, 1] = cy + r * math.sin(a)
         out[n + 1 + i, 2] = f[Z]
@@ -348,32 +349,59 @@ def escape_steps(m: FloatArray) -> int:
 
 
 @njit(cache=True)
-def flights(
-    m: FloatArray, course: float, z: float, hold_s: float
-) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """A command's predicted flights: its hold (``fly_hold``), and the escapes to the left
-    and to the right from the hold's end (``escape_arc``), as ``judge`` takes them."""
+def climb_out_z(m: FloatArray, end: FloatArray) -> float:
+    """The height a climbing escape asks for from ``end``: as high as the climb limit takes
+    it in an escape's time (TECS's demand then rises at that limit throughout)."""
+    return float(end[Z] + m[CLIMB] * escape_s(m))
+
+
+Flights = tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
+"""A command's hold and its escapes: level to the left and to the right, then climbing as
+fast as it can to the left and to the right (``flights``)."""
+
+
+@njit(cache=True)
+def flights(m: FloatArray, course: float, z: float, hold_s: float) -> Flights:
+    """A command's predicted flights: its hold (``fly_hold``), and from the hold's end the
+    escapes (``escape_arc``) to the left and to the right, level and climbing
+    (``climb_out_z``), as ``judge`` takes them.  Level escapes alone could not keep a
+    formation at the paper's scale: a half turn at 100–300 m/s and 30°/s sweeps 382–1,146 m
+    across, and one towards a neighbour 141–150 m away flying on comes within 32–58 m of it
+    (the safe distance 50 m, the slack another 50), so a wingman with a neighbour on each
+    side had no level escape and was sent an escape instead of its plan, tick after tick."""
     path, end = fly_hold(m, course, z, hold_s)
-    return path, escape_arc(m, end, 1.0), escape_arc(m, end, -1.0)
+    up = climb_out_z(m, end)
+    return (
+        path,
+        escape_arc(m, end, 1.0, end[Z]),
+        escape_arc(m, end, -1.0, end[Z]),
+        escape_arc(m, end, 1.0, up),
+        escape_arc(m, end, -1.0, up),
+    )
 
 
 @njit(cache=True)
 def judge(
-    path: FloatArray, left: FloatArray, right: FloatArray, around: Around
+    path: FloatArray,
+    left: FloatArray,
+    right: FloatArray,
+    up_left: FloatArray,
+    up_right: FloatArray,
+    around: Around,
 ) -> tuple[float, int]:
     """A command's margin from its ``flights``: along its hold (the teammates along theirs:
     rows ``which`` of ``pool`` [P,L,3], their flights, ``vehicle_motion.Track``, the first
     ``hold_steps`` + 1 instants at the same instants; ``steps`` [P] each row's
-    ``longest_step``), then along the better of its two escapes (the teammates flying on
-    meanwhile, from their hold's end, ``STEP_S`` apart, the last held on); with the
-    keep-out it is to.  An escape at least as good as the hold decides nothing (the hold's
-    margin is the command's): the other escape is then not looked at, and an escape only as
-    far as it could fall below the hold's margin (``margin``'s ``cap``)."""
+    ``longest_step``), then along the best of its escapes, in ``flights``' order (the
+    teammates flying on meanwhile, from their hold's end, ``STEP_S`` apart, the last held
+    on); with the keep-out it is to.  An escape at least as good as the hold decides nothing
+    (the hold's margin is the command's): the escapes after it are then not looked at, and
+    an escape only as far as it could fall below the hold's margin (``margin``'s ``cap``)."""
     k = path.shape[0] - 1
     held, reason = margin(path, around, 0, k, math.inf)
     escape, escape_reason = -math.inf, NO_KEEP_OUT
     after = around[4].shape[1] - k - 1  # the pool's instants after the hold
-    for arc in (left, right):
+    for arc in (left, right, up_left, up_right):
         e, r = margin(arc, around, k, after, held)
         if e > escape:
             escape, escape_reason = e, r
@@ -385,14 +413,21 @@ def judge(
 
 
 @njit(cache=True)
-def judge_each(path: FloatArray, left: FloatArray, right: FloatArray, around: Around) -> FloatArray:
+def judge_each(
+    path: FloatArray,
+    left: FloatArray,
+    right: FloatArray,
+    up_left: FloatArray,
+    up_right: FloatArray,
+    around: Around,
+) -> FloatArray:
     """``judge``'s margin with each teammate of ``which`` alone: [n], the flights predicted
     once for all of them."""
     which = around[6]
     out = np.empty(which.shape[0])
     for jj in range(which.shape[0]):
         alone = (*around[:6], which[jj : jj + 1], *around[7:])
-        out[jj], _ = judge(path, left, right, alone)
+        out[jj], _ = judge(path, left, right, up_left, up_right, alone)
     return out
 
 
@@ -411,8 +446,8 @@ def judge_in_turn(
     has ``slack`` or more; NaN after it.  One call for an escape's whole search."""
     out = np.full(courses.shape[0], np.nan)
     for c in range(courses.shape[0]):
-        path, left, right = flights(m, courses[c], altitudes[c], hold_s)
-        out[c], _ = judge(path, left, right, around)
+        path, left, right, up_left, up_right = flights(m, courses[c], altitudes[c], hold_s)
+        out[c], _ = judge(path, left, right, up_left, up_right, around)
         if ends[c] and out[c] >= slack:
             break
     return out
@@ -450,9 +485,9 @@ def track_into(
 @njit(cache=True)
 def judge_flown(
     m: FloatArray, course: float, z: float, hold_s: float, around: Around
-) -> tuple[float, int, FloatArray, FloatArray, FloatArray]:
+) -> tuple[float, int, Flights]:
     """``judge`` of a command's ``flights``, flown here: its margin, the keep-out it is to,
     and the flights (kept by the caller for the next time the command is judged)."""
-    path, left, right = flights(m, course, z, hold_s)
-    s, reason = judge(path, left, right, around)
-    return s, reason, path, left, right
+    flown = flights(m, course, z, hold_s)
+    s, reason = judge(*flown, around)
+    return s, reason, flown

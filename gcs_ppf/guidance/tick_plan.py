@@ -81,14 +81,19 @@ def teammate_margin_m(mission: Mission, planning_margin_m: float) -> float:
     alike, and their separation closed loop is kept by the run-time assurance (their
     predicted response) and the separation guard (its own speed × lag margin); obstacles
     keep the whole margin.  At the paper's speeds the margin stays on both, as the
-    campaigns measured it, but never more than ``formation_tolerance`` (half of what the
-    closest two slots have beyond the safe distance): Table 3's slots are 141 m from the
-    leader and from each other, and with the whole 100 m on its 50 m no wingman could ever
-    be planned into its slot."""
+    campaigns measured it, but never more than a quarter of what the closest two slots have
+    beyond twice the safe distance: two wingmen joining them count each other a conflict
+    within the safe distance and the margin, and as much again for a turn (Eq. 12–13 with
+    the turning allowance).  Table 3's slots are 141 m from the leader and from each other:
+    with the whole 100 m on its 50 m no wingman could ever be planned into its slot, and
+    with half of what they have beyond the safe distance (45.7 m) neither Table 3 nor a grid
+    of slots 150 m apart formed, planned as the closed loop plans them
+    (``gcs_ppf.offline.margin_effect``); with 10.4 m and 12.5 m both do."""
     lim = mission.limits
     if follows_speed_plan(lim.accel, lim.decel):
         return 0.0
-    return min(planning_margin_m, formation_tolerance(mission))
+    beyond_twice = 2.0 * formation_tolerance(mission) - lim.safe_distance_uav
+    return min(planning_margin_m, max(0.0, beyond_twice / 4.0))
 
 
 def plan(

@@ -9,7 +9,10 @@ change what it decides; ``formation_100_bench`` (the service benchmark's 100 veh
 ticks of them with 30 commands replaced) was recorded after the assurance's first speed-ups
 and replayed identical by the code before them.  A change of the planner itself re-plans
 the recorded results from the recorded inputs (crossing_point's guard on a teammate moved 5
-of them by at most 1.1e-13 m, rounding; the verdicts and commands replayed unchanged)."""
+of them by at most 1.1e-13 m, rounding; the verdicts and commands replayed unchanged), and
+a change of what the tick decides re-derives them all so (the assurance's climbing escapes
+and the teammates' margin in a dense formation: of the 100-vehicle benchmark's first tick,
+31 commands replaced before, none after)."""
 
 from __future__ import annotations
 
