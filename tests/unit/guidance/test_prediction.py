@@ -1,17 +1,25 @@
 """The compiled prediction's short cuts change no margin: the teammates' instants skipped by
 their longest steps, the escape not looked at once one is as good as the hold, and a margin
-looked at only as far as its cap (``gcs_ppf.guidance.prediction``)."""
+looked at only as far as its cap (``gcs_ppf.guidance.prediction``); and a climbing escape
+climbs as real ArduPlane does."""
 
 from __future__ import annotations
 
+import csv
+import json
 import math
 
 import numpy as np
 import pytest
 
 from gcs_ppf.guidance import prediction
+from gcs_ppf.guidance.airframe import Airframe
+from gcs_ppf.guidance.online import VehicleState
 from gcs_ppf.guidance.vehicle_motion import Command, Motion, motion_vector, straight_track
+from gcs_ppf.mission import load_mission_file
 from gcs_ppf.planning.scene import FloatArray, IntArray
+from gcs_ppf.service.commanding import motion
+from tests.conftest import EXAMPLES, ROOT
 
 NO_ZONES = (np.zeros(0, np.int64), np.zeros((0, 5)), np.zeros(1, np.int64), np.zeros((0, 2)))
 
@@ -113,15 +121,6 @@ def test_a_climbing_escape_climbs_on_real_arduplane_as_predicted() -> None:
     escape's time its height keeps up with the prediction's within
     ``CLIMB_PREDICTED_WITHIN_M`` (it climbed 37.5 m in 12 s, the prediction 37.6 m), and a
     level escape's prediction would not climb at all."""
-    import csv
-    import json
-
-    from gcs_ppf.guidance.airframe import Airframe
-    from gcs_ppf.guidance.online import VehicleState
-    from gcs_ppf.mission import load_mission_file
-    from gcs_ppf.service.commanding import motion
-    from tests.conftest import EXAMPLES, ROOT
-
     data = ROOT / "tests" / "data"
     params = json.loads((data / "arduplane-traces" / "meta.json").read_text())["parameters_read"]
     rows = csv.DictReader((data / "assurance" / "climbing-escape.csv").open())
